@@ -68,4 +68,5 @@ def make_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Rend
         raise ImitateError(
             f"could not create an OpenGL context with MUJOCO_GL={BACKEND!r} ({err}); "
             + _INSTALL_HINT
+            + " (MuJoCo reads MUJOCO_GL when first imported: import imitate or envs before mujoco)"
         ) from err

@@ -1,0 +1,193 @@
+"""The bottle, the glass and the liquid: shapes, colours, names, and their MjSpec builder.
+
+Each container is a body whose frame sits at the centre of its bottom, ``z`` along its long axis.
+It has one uniformly coloured visual mesh (a surface of revolution made by trimesh), hidden
+collision geoms (a ring of boxes per wall segment, so it is hollow), and hidden ``*_hull``
+geoms, simple convex stand-ins used for signed-distance queries.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+import trimesh
+
+BOTTLE, GLASS = "bottle", "glass"
+PARTICLE_PREFIX = "particle_"
+
+# Visual and hidden groups of mujoco.Renderer's default scene options (groups 0-2 are drawn).
+VISUAL_GROUP, COLLISION_GROUP, HULL_GROUP = 1, 3, 4
+# contype/conaffinity bits: everything physical collides with everything physical.
+PHYSICAL = 1
+
+
+@dataclass(frozen=True)
+class ContainerShape:
+    """A thin-walled vessel, open at the top, as a profile of wall segments.
+
+    Attributes:
+        profile: ``(n, 2)`` points ``(radius, height)`` of the wall's mid-surface, bottom to
+            rim [m].
+        wall: wall thickness [m].
+        segments: boxes per ring of the collision wall.
+        rgba: the one uniform colour.
+    """
+
+    profile: tuple[tuple[float, float], ...]
+    wall: float
+    segments: int
+    rgba: tuple[float, float, float, float]
+
+    @property
+    def height(self) -> float:
+        """Height of the rim above the bottom [m]."""
+        return self.profile[-1][1]
+
+    @property
+    def inner_radius(self) -> float:
+        """Smallest inner radius of the wall [m] (the bottle's neck, the glass's foot)."""
+        return min(r for r, _ in self.profile) - self.wall / 2
+
+
+# Saturated hues far from everything else in the scene: green bottle, blue glass.
+BOTTLE_SHAPE = ContainerShape(
+    profile=((0.034, 0.0), (0.034, 0.15), (0.016, 0.195), (0.016, 0.235)),
+    wall=0.004,
+    segments=16,
+    rgba=(0.10, 0.72, 0.22, 1.0),
+)
+GLASS_SHAPE = ContainerShape(
+    profile=((0.036, 0.0), (0.042, 0.10)),
+    wall=0.004,
+    segments=18,
+    rgba=(0.12, 0.30, 0.92, 1.0),
+)
+PARTICLE_RADIUS = 0.005  # [m]
+PARTICLE_DENSITY = 1000.0  # [kg/m^3], water
+PARTICLE_RGBA = (0.95, 0.85, 0.45, 1.0)  # pale juice: unsaturated, away from green and blue
+
+
+def container_mesh(shape: ContainerShape) -> trimesh.Trimesh:
+    """Closed surface of the vessel (outer wall, rim, inner wall, floor), revolved about z."""
+    half = shape.wall / 2
+    outer = [(r + half, z) for r, z in shape.profile]
+    inner = [(r - half, max(z, shape.wall)) for r, z in reversed(shape.profile)]
+    outline = [(0.0, 0.0), *outer, *inner, (0.0, shape.wall)]
+    return trimesh.creation.revolve(np.asarray(outline), sections=48)
+
+
+def add_container(spec: mujoco.MjSpec, parent: mujoco.MjsBody, name: str, shape: ContainerShape):
+    """Add a free-floating container body ``name`` under ``parent``; returns the body."""
+    body = parent.add_body(name=name)
+    body.add_freejoint(name=name)
+    mesh = container_mesh(shape)
+    spec.add_mesh(
+        name=name,
+        uservert=mesh.vertices.astype(np.float32).ravel(),
+        userface=mesh.faces.astype(np.int32).ravel(),
+    )
+    body.add_geom(
+        name=f"{name}_visual",
+        type=mujoco.mjtGeom.mjGEOM_MESH,
+        meshname=name,
+        rgba=shape.rgba,
+        contype=0,
+        conaffinity=0,
+        group=VISUAL_GROUP,
+        density=0,
+    )
+    wall_geoms = 0
+    for (r0, z0), (r1, z1) in zip(shape.profile[:-1], shape.profile[1:], strict=True):
+        length, tilt = np.hypot(r1 - r0, z1 - z0), np.arctan2(r1 - r0, z1 - z0)
+        radius = (r0 + r1) / 2
+        half_chord = (radius + shape.wall) * np.tan(np.pi / shape.segments) * 1.05
+        for i in range(shape.segments):
+            angle = 2 * np.pi * i / shape.segments
+            quat = np.zeros(4)
+            mujoco.mju_mulQuat(quat, _axis_angle((0, 0, 1), angle), _axis_angle((0, 1, 0), tilt))
+            body.add_geom(
+                name=f"{name}_wall_{wall_geoms}",
+                type=mujoco.mjtGeom.mjGEOM_BOX,
+                size=(shape.wall / 2, half_chord, length / 2 + shape.wall / 2),
+                pos=(radius * np.cos(angle), radius * np.sin(angle), (z0 + z1) / 2),
+                quat=quat,
+                group=COLLISION_GROUP,
+                contype=PHYSICAL,
+                conaffinity=PHYSICAL,
+                rgba=shape.rgba,
+                friction=(1.0, 0.005, 0.0001),
+            )
+            wall_geoms += 1
+    bottom_radius = shape.profile[0][0] + shape.wall / 2
+    body.add_geom(
+        name=f"{name}_floor",
+        type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+        size=(bottom_radius, shape.wall / 2, 0),
+        pos=(0, 0, shape.wall / 2),
+        group=COLLISION_GROUP,
+        contype=PHYSICAL,
+        conaffinity=PHYSICAL,
+        rgba=shape.rgba,
+    )
+    for i, ((r0, z0), (r1, z1)) in enumerate(zip(shape.profile[:-1], shape.profile[1:], strict=True)):
+        if z1 - z0 < 1e-6:
+            continue
+        body.add_geom(
+            name=f"{name}_hull_{i}",
+            type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+            size=(max(r0, r1) + shape.wall / 2, (z1 - z0) / 2, 0),
+            pos=(0, 0, (z0 + z1) / 2),
+            group=HULL_GROUP,
+            contype=0,
+            conaffinity=0,
+            density=0,
+            rgba=(1, 1, 1, 0.2),
+        )
+    return body
+
+
+def add_particles(spec: mujoco.MjSpec, count: int) -> list[mujoco.MjsBody]:
+    """Add ``count`` free, frictionless liquid spheres to the world; placed later by the env."""
+    bodies = []
+    for i in range(count):
+        body = spec.worldbody.add_body(name=f"{PARTICLE_PREFIX}{i}")
+        body.add_freejoint(name=f"{PARTICLE_PREFIX}{i}")
+        body.add_geom(
+            name=f"{PARTICLE_PREFIX}{i}",
+            type=mujoco.mjtGeom.mjGEOM_SPHERE,
+            size=(PARTICLE_RADIUS, 0, 0),
+            density=PARTICLE_DENSITY,
+            rgba=PARTICLE_RGBA,
+            condim=1,
+            contype=PHYSICAL,
+            conaffinity=PHYSICAL,
+            group=VISUAL_GROUP,
+        )
+        bodies.append(body)
+    return bodies
+
+
+def particle_slots(shape: ContainerShape, count: int) -> np.ndarray:
+    """Non-overlapping rest positions for ``count`` particles inside ``shape``, bottom up.
+
+    Returns:
+        ``(count, 3)`` positions in the container frame [m].
+    """
+    pitch = 2.05 * PARTICLE_RADIUS
+    reach = shape.profile[0][0] - shape.wall / 2 - PARTICLE_RADIUS * 1.1 - pitch / 3
+    grid = np.arange(-reach, reach + 1e-9, pitch)
+    layer = np.array([(x, y) for x in grid for y in grid if np.hypot(x, y) <= reach])
+    n_layers = -(-count // len(layer))
+    z = shape.wall + PARTICLE_RADIUS * 1.1 + pitch * np.arange(n_layers)
+    slots = np.array([(x, y, h) for h in z for x, y in layer])[:count]
+    # Alternate layers are offset by half a pitch so the pile settles without stacking columns.
+    slots[:, :2] += (np.floor((slots[:, 2] - z[0]) / pitch + 0.5) % 2)[:, None] * pitch / 4
+    return slots
+
+
+def _axis_angle(axis, angle: float) -> np.ndarray:
+    quat = np.zeros(4)
+    mujoco.mju_axisAngle2Quat(quat, np.asarray(axis, dtype=float), angle)
+    return quat

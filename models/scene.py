@@ -1,0 +1,23 @@
+"""Element names and dimensions of ``scene.xml`` and of what ``envs.scene`` adds to it."""
+
+from __future__ import annotations
+
+FLOOR = "floor"
+TABLE = "table"
+TABLE_TOP = "table_top"
+OVERVIEW = "overview"  # camera looking at robot, table and teacher from the side
+CAMERAS = ("overview", "left_eye", "right_eye")
+
+# Table top in the world frame [m]: x from the robot's side to the teacher's, y across.
+TABLE_X = (0.40, 1.16)
+TABLE_Y = (-0.55, 0.55)
+TABLE_HEIGHT = 0.65
+
+TEACHER_POS = (1.55, 0.0, 0.0)  # the mannequin's feet, facing the robot (-x)
+
+OBSTACLE_PREFIX = "obstacle_"
+
+
+def weld_name(obj: str, hand: str) -> str:
+    """Name of the weld constraint that holds ``obj`` in ``hand`` (a body name)."""
+    return f"{obj}_in_{hand}"
