@@ -205,7 +205,9 @@ def hold(model: mujoco.MjModel, data: mujoco.MjData, holder: str) -> None:
         qadr = model.jnt_qposadr[model.joint(obj).id]
         data.qpos[qadr : qadr + 3] = pos
         data.qpos[qadr + 3 : qadr + 7] = quat
-        data.qvel[model.jnt_dofadr[model.joint(obj).id] : model.jnt_dofadr[model.joint(obj).id] + 6] = 0
+        dadr = model.jnt_dofadr[model.joint(obj).id]
+        data.qvel[dadr : dadr + 6] = 0.0
+    mujoco.mj_kinematics(model, data)
 
 
 def fill_bottle(model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator | None = None):
@@ -230,3 +232,21 @@ def particle_count(model: mujoco.MjModel) -> int:
     """Number of liquid particles in ``model``."""
     prefix = objects.PARTICLE_PREFIX
     return sum(model.body(i).name.startswith(prefix) for i in range(model.nbody))
+
+
+def clearance_geoms(model: mujoco.MjModel) -> list[int]:
+    """Ids of the geoms that must keep clear of each other.
+
+    The robot's collision capsules, the bottle's and glass's hulls, the table top and the
+    obstacles. Pairs among them are filtered by ``imitate.collision.CollisionPairs.between``.
+    """
+    root = model.body(humanoid.ROOT_BODY).id
+    robot = {b for b in range(model.nbody) if model.body_rootid[b] == root}
+    keep = []
+    for g in range(model.ngeom):
+        name = model.geom(g).name
+        if (model.geom_bodyid[g] in robot and model.geom_contype[g]) or (
+            "_hull_" in name or name == scene.TABLE_TOP or name.startswith(scene.OBSTACLE_PREFIX)
+        ):
+            keep.append(g)
+    return keep

@@ -1,0 +1,270 @@
+"""``PouringEnv``: the humanoid pours from the bottle in its right hand into the glass in its left.
+
+## Description
+A fixed-base, ASIMO-like humanoid holds a bottle of liquid (small spheres) in its right hand and
+a glass in its left, at a table across from a teacher mannequin. Actions are joint position
+targets for its 18 position actuators; the physics is MuJoCo's, objects held by weld
+constraints. This is where planned movements are replayed.
+
+## Action space
+``Box(ctrl_low, ctrl_high, (18,), float32)``: target angles [rad] in ``models.humanoid.JOINTS``
+order, clipped to the joint ranges.
+
+## Observation space
+``obs_type="state"``: ``Box((50,), float64)``, see ``observation_structure``: robot joint
+angles (18) [rad] and velocities (18) [rad/s], bottle and glass poses (position [m] and
+quaternion wxyz, 7 each). ``obs_type="stereo"`` adds the two head-camera images:
+``Dict(state, left_eye, right_eye)`` with images ``(height, width, 3) uint8``.
+
+## Rewards
+``reward_pour``: ``pour_weight`` times the increase of the fraction of particles in the glass
+since the last step (the sum over an episode is the final fraction). ``reward_collision``:
+``-collision_weight`` on every step where two geoms that must not touch penetrate
+(``min_distance < 0``). ``info`` also has ``pour_fraction``, ``spilled`` (particles in neither
+container), ``is_success`` (>= 90 % in the glass) and ``min_distance`` [m].
+
+## Arguments
+| argument | default | meaning |
+|---|---|---|
+| render_mode | None | None or ``"rgb_array"`` |
+| obs_type | ``"state"`` | ``"state"`` or ``"stereo"`` |
+| camera | ``"overview"`` | camera for ``render()``: overview, left_eye or right_eye |
+| width, height | 640, 480 | image size of ``render()`` and of the stereo images [px] |
+| particles | 60 | liquid spheres in the bottle, 0..120 |
+| obstacles | () | ``envs.scene.Obstacle``s on the table |
+| teacher | True | include the teacher mannequin |
+| frame_skip | 10 | physics steps (2 ms each) per env step |
+| reset_noise_scale | 0.01 | half-width of the uniform noise on the initial joint angles [rad] |
+| pour_weight, collision_weight | 1.0, 1.0 | reward weights |
+
+## Reset options
+``bottle_grasp`` and ``glass_grasp``: where the hand holds each object, height above its bottom
+[m] (ranges in ``envs.scene.GRASP_RANGE``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+from envs import scene
+from envs.teacher import pose_arm, shoulder_position
+from imitate.collision import CollisionPairs, signed_distances
+from imitate.errors import ImitateError
+from imitate.rendering import make_renderer
+from models import humanoid, objects
+from models import scene as scene_names
+from models import teacher as teacher_names
+
+OBS_TYPES = ("state", "stereo")
+RESET_OPTIONS = ("bottle_grasp", "glass_grasp")
+SUCCESS_FRACTION = 0.9
+
+
+class PouringEnv(gym.Env):
+    """The pouring task in full physics (see the module docstring)."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        obs_type: str = "state",
+        camera: str = scene_names.OVERVIEW,
+        width: int = 640,
+        height: int = 480,
+        particles: int = 60,
+        obstacles: tuple[scene.Obstacle, ...] = (),
+        teacher: bool = True,
+        frame_skip: int = 10,
+        reset_noise_scale: float = 0.01,
+        pour_weight: float = 1.0,
+        collision_weight: float = 1.0,
+    ):
+        _check_choice("render_mode", render_mode, (None, *self.metadata["render_modes"]))
+        _check_choice("obs_type", obs_type, OBS_TYPES)
+        _check_choice("camera", camera, scene_names.CAMERAS)
+        for name, value in (("width", width), ("height", height), ("frame_skip", frame_skip)):
+            if not isinstance(value, int | np.integer) or value <= 0:
+                raise ImitateError(f"{name}={value!r} not accepted: a positive integer")
+        for name, value in (
+            ("reset_noise_scale", reset_noise_scale),
+            ("pour_weight", pour_weight),
+            ("collision_weight", collision_weight),
+        ):
+            if not np.isfinite(value) or value < 0:
+                raise ImitateError(f"{name}={value!r} not accepted: a finite number >= 0")
+        self.render_mode, self.obs_type, self.camera = render_mode, obs_type, camera
+        self.width, self.height = width, height
+        self.frame_skip = frame_skip
+        self._reset_noise_scale = reset_noise_scale
+        self._pour_weight, self._collision_weight = pour_weight, collision_weight
+
+        self.config = scene.SceneConfig(
+            teacher=teacher, particles=particles, obstacles=tuple(obstacles)
+        )
+        self.model = scene.build_model(self.config)
+        self.data = mujoco.MjData(self.model)
+        self.dt = self.model.opt.timestep * frame_skip
+        self._joint_qpos = np.array([self.model.joint(j).qposadr[0] for j in humanoid.JOINTS])
+        self._joint_dof = np.array([self.model.joint(j).dofadr[0] for j in humanoid.JOINTS])
+        self._object_qpos = {
+            obj: self.model.joint(obj).qposadr[0] for obj in (objects.BOTTLE, objects.GLASS)
+        }
+        self._particle_bodies = np.array(
+            [self.model.body(f"{objects.PARTICLE_PREFIX}{i}").id for i in range(particles)],
+            dtype=int,
+        )
+        self._pairs = CollisionPairs.between(self.model, scene.clearance_geoms(self.model))
+        self._renderer: mujoco.Renderer | None = None
+        self._pour_fraction = 0.0
+
+        ctrl = self.model.actuator_ctrlrange.astype(np.float32)
+        self.action_space = gym.spaces.Box(ctrl[:, 0], ctrl[:, 1], dtype=np.float32)
+        n = len(humanoid.JOINTS)
+        self.observation_structure = {"qpos": n, "qvel": n, objects.BOTTLE: 7, objects.GLASS: 7}
+        state = gym.spaces.Box(
+            -np.inf, np.inf, (sum(self.observation_structure.values()),), dtype=np.float64
+        )
+        if obs_type == "state":
+            self.observation_space = state
+        else:
+            image = gym.spaces.Box(0, 255, (height, width, 3), dtype=np.uint8)
+            self.observation_space = gym.spaces.Dict(
+                {"state": state, humanoid.LEFT_EYE: image, humanoid.RIGHT_EYE: image}
+            )
+
+    # ---------------------------------------------------------------- gym API
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Robot at its rest pose (plus seeded noise) holding both objects, bottle full."""
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = sorted(set(options) - set(RESET_OPTIONS))
+        if unknown:
+            raise ImitateError(f"reset options {unknown} unknown; accepted: {list(RESET_OPTIONS)}")
+        for obj in (objects.BOTTLE, objects.GLASS):
+            height = options.get(f"{obj}_grasp", getattr(self.config, f"{obj}_grasp"))
+            scene.set_grasp(self.model, "robot", obj, float(height))
+
+        mujoco.mj_resetData(self.model, self.data)
+        noise = self.np_random.uniform(-1, 1, len(humanoid.JOINTS)) * self._reset_noise_scale
+        low, high = self.model.jnt_range[[self.model.joint(j).id for j in humanoid.JOINTS]].T
+        q0 = np.clip(humanoid.rest_pose() + noise, low, high)
+        self.data.qpos[self._joint_qpos] = q0
+        self.data.ctrl[:] = q0
+        if self.config.teacher:
+            self._pose_teacher_at_rest()
+        scene.hold(self.model, self.data, "robot")
+        scene.fill_bottle(self.model, self.data, self.np_random)
+        mujoco.mj_forward(self.model, self.data)
+        self._pour_fraction = self._particle_fractions()[0]
+        return self._get_obs(), self._get_info(self._min_distance())
+
+    def step(self, action):
+        """Apply joint targets for ``frame_skip`` physics steps."""
+        action = np.asarray(action, dtype=float)
+        if action.shape != self.action_space.shape or not np.all(np.isfinite(action)):
+            raise ImitateError(
+                f"action of shape {action.shape} not accepted: {self.action_space.shape} finite "
+                f"joint targets [rad] in models.humanoid.JOINTS order"
+            )
+        self.data.ctrl[:] = np.clip(action, self.action_space.low, self.action_space.high)
+        mujoco.mj_step(self.model, self.data, nstep=self.frame_skip)
+        fraction = self._particle_fractions()[0]
+        min_distance = self._min_distance()
+        reward_pour = self._pour_weight * (fraction - self._pour_fraction)
+        reward_collision = -self._collision_weight if min_distance < 0.0 else 0.0
+        self._pour_fraction = fraction
+        info = self._get_info(min_distance)
+        info.update(reward_pour=reward_pour, reward_collision=reward_collision)
+        return self._get_obs(), reward_pour + reward_collision, False, False, info
+
+    def render(self):
+        """RGB image ``(height, width, 3) uint8`` from ``camera``, or None without render_mode."""
+        if self.render_mode is None:
+            return None
+        return self._render(self.camera)
+
+    def close(self):
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # ---------------------------------------------------------------- measurements
+    @property
+    def pour_fraction(self) -> float:
+        """Fraction of particles inside the glass, 0..1."""
+        return self._pour_fraction
+
+    def _particle_fractions(self) -> tuple[float, float]:
+        """Fractions of particles inside the glass and inside the bottle."""
+        if len(self._particle_bodies) == 0:
+            return 0.0, 0.0
+        points = self.data.xpos[self._particle_bodies]
+        return (
+            float(np.mean(_inside(self.data, objects.GLASS, objects.GLASS_SHAPE, points))),
+            float(np.mean(_inside(self.data, objects.BOTTLE, objects.BOTTLE_SHAPE, points))),
+        )
+
+    def _min_distance(self) -> float:
+        dist, _ = signed_distances(self.model, self.data, self._pairs)
+        return float(dist.min())
+
+    def _get_obs(self):
+        d = self.data
+        state = np.concatenate(
+            [
+                d.qpos[self._joint_qpos],
+                d.qvel[self._joint_dof],
+                *(d.qpos[adr : adr + 7] for adr in self._object_qpos.values()),
+            ]
+        )
+        if self.obs_type == "state":
+            return state
+        return {
+            "state": state,
+            humanoid.LEFT_EYE: self._render(humanoid.LEFT_EYE),
+            humanoid.RIGHT_EYE: self._render(humanoid.RIGHT_EYE),
+        }
+
+    def _get_info(self, min_distance: float) -> dict[str, Any]:
+        in_glass, in_bottle = self._particle_fractions()
+        n = len(self._particle_bodies)
+        return {
+            "pour_fraction": in_glass,
+            "spilled": int(round(n * (1.0 - in_glass - in_bottle))),
+            "is_success": bool(n > 0 and in_glass >= SUCCESS_FRACTION),
+            "min_distance": min_distance,
+        }
+
+    def _render(self, camera: str) -> np.ndarray:
+        if self._renderer is None:
+            self._renderer = make_renderer(self.model, self.height, self.width)
+        self._renderer.update_scene(self.data, camera)
+        return self._renderer.render()
+
+    def _pose_teacher_at_rest(self) -> None:
+        """Teacher's arms hanging, hands by the hips, facing the robot."""
+        for side in teacher_names.SIDES:
+            hand = shoulder_position(side) + np.array([0.0, 0.0, -0.53])
+            pose_arm(self.model, self.data, side, hand, np.array([0.0, 0.0, 0.0, 1.0]))
+
+
+def _inside(data: mujoco.MjData, body: str, shape: objects.ContainerShape, points: np.ndarray):
+    """Boolean ``(n,)``: which ``points`` (n, 3) [m] lie inside the container ``body``."""
+    frame = data.body(body)
+    local = (points - frame.xpos) @ frame.xmat.reshape(3, 3)
+    radius = np.interp(local[:, 2], [z for _, z in shape.profile], [r for r, _ in shape.profile])
+    return (
+        (local[:, 2] > 0.0)
+        & (local[:, 2] < shape.height)
+        & (np.hypot(local[:, 0], local[:, 1]) < radius)
+    )
+
+
+def _check_choice(name: str, value, accepted) -> None:
+    if value not in accepted:
+        raise ImitateError(f"{name}={value!r} not accepted: one of {list(accepted)}")

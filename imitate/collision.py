@@ -1,0 +1,78 @@
+"""Pairs of geoms that must not touch, and their signed distances from ``mj_geomDistance``.
+
+A pair is kept once, at construction, when MuJoCo would not already ignore it for the robot:
+geoms of the same body, of a parent and its child, of bodies welded together, and pairs the
+model excludes explicitly (a hand and the object it holds) are dropped.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+
+@dataclass(frozen=True)
+class CollisionPairs:
+    """Geom pairs checked for clearance.
+
+    Attributes:
+        geom1: ``(n_pairs,)`` geom ids.
+        geom2: ``(n_pairs,)`` geom ids.
+    """
+
+    geom1: np.ndarray
+    geom2: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.geom1)
+
+    def names(self, model: mujoco.MjModel, index: int) -> tuple[str, str]:
+        """Names of the two geoms of pair ``index``."""
+        return model.geom(int(self.geom1[index])).name, model.geom(int(self.geom2[index])).name
+
+    @classmethod
+    def between(cls, model: mujoco.MjModel, geoms: Sequence[int]) -> CollisionPairs:
+        """All pairs among ``geoms`` (ids) that may come into contact and must not."""
+        excluded = {int(s) for s in model.exclude_signature}
+        geom_body = model.geom_bodyid
+        weld = model.body_weldid
+        parent = model.body_parentid
+        first, second = [], []
+        ids = sorted(set(int(g) for g in geoms))
+        for i, g1 in enumerate(ids):
+            for g2 in ids[i + 1 :]:
+                b1, b2 = int(geom_body[g1]), int(geom_body[g2])
+                w1, w2 = int(weld[b1]), int(weld[b2])
+                if w1 == w2 or parent[w1] == w2 or parent[w2] == w1:
+                    continue
+                # MuJoCo's exclude signature packs the two body ids as (min << 16) + max.
+                if (min(b1, b2) << 16) + max(b1, b2) in excluded:
+                    continue
+                first.append(g1)
+                second.append(g2)
+        return cls(np.array(first, dtype=int), np.array(second, dtype=int))
+
+
+def signed_distances(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    pairs: CollisionPairs,
+    distmax: float = 0.2,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distance of each pair at ``data``'s current kinematics.
+
+    Args:
+        distmax: distances beyond this are reported as ``distmax`` [m] (faster).
+
+    Returns:
+        ``dist (n_pairs,)`` [m], negative when penetrating, and ``fromto (n_pairs, 6)``: the two
+        witness points [m] in the world frame.
+    """
+    dist = np.empty(len(pairs))
+    fromto = np.zeros((len(pairs), 6))
+    for k, (g1, g2) in enumerate(zip(pairs.geom1, pairs.geom2, strict=True)):
+        dist[k] = mujoco.mj_geomDistance(model, data, int(g1), int(g2), distmax, fromto[k])
+    return dist, fromto
