@@ -31,7 +31,7 @@ container), ``is_success`` (>= 90 % in the glass) and ``min_distance`` [m].
 | camera | ``"overview"`` | camera for ``render()``: overview, left_eye or right_eye |
 | width, height | 640, 480 | image size of ``render()`` and of the stereo images [px] |
 | particles | 60 | liquid spheres in the bottle, 0..120 |
-| obstacles | () | ``envs.scene.Obstacle``s on the table |
+| obstacles | () | ``envs.scene.Obstacle``s (or their keyword dicts) on the table |
 | teacher | True | include the teacher mannequin |
 | frame_skip | 10 | physics steps (2 ms each) per env step |
 | reset_noise_scale | 0.01 | half-width of the uniform noise on the initial joint angles [rad] |
@@ -77,7 +77,7 @@ class PouringEnv(gym.Env):
         width: int = 640,
         height: int = 480,
         particles: int = 60,
-        obstacles: tuple[scene.Obstacle, ...] = (),
+        obstacles: tuple[scene.Obstacle | dict, ...] = (),
         teacher: bool = True,
         frame_skip: int = 10,
         reset_noise_scale: float = 0.01,
@@ -103,9 +103,8 @@ class PouringEnv(gym.Env):
         self._reset_noise_scale = reset_noise_scale
         self._pour_weight, self._collision_weight = pour_weight, collision_weight
 
-        self.config = scene.SceneConfig(
-            teacher=teacher, particles=particles, obstacles=tuple(obstacles)
-        )
+        obstacles = tuple(scene.Obstacle(**o) if isinstance(o, dict) else o for o in obstacles)
+        self.config = scene.SceneConfig(teacher=teacher, particles=particles, obstacles=obstacles)
         self.model = scene.build_model(self.config)
         self.data = mujoco.MjData(self.model)
         self.dt = self.model.opt.timestep * frame_skip

@@ -21,6 +21,9 @@ PARTICLE_PREFIX = "particle_"
 VISUAL_GROUP, COLLISION_GROUP, HULL_GROUP = 1, 3, 4
 # contype/conaffinity bits: everything physical collides with everything physical.
 PHYSICAL = 1
+# Stiff contacts (time constant = 2 physics steps) so fast particles cannot sink through a wall.
+STIFF_SOLREF = (0.004, 1.0)
+FLOOR_THICKNESS = 0.012  # [m] of the collision floor, below the visual one: a safety margin
 
 
 @dataclass(frozen=True)
@@ -117,19 +120,20 @@ def add_container(spec: mujoco.MjSpec, parent: mujoco.MjsBody, name: str, shape:
                 contype=PHYSICAL,
                 conaffinity=PHYSICAL,
                 rgba=shape.rgba,
-                friction=(1.0, 0.005, 0.0001),
+                solref=STIFF_SOLREF,
             )
             wall_geoms += 1
     bottom_radius = shape.profile[0][0] + shape.wall / 2
     body.add_geom(
         name=f"{name}_floor",
         type=mujoco.mjtGeom.mjGEOM_CYLINDER,
-        size=(bottom_radius, shape.wall / 2, 0),
-        pos=(0, 0, shape.wall / 2),
+        size=(bottom_radius, FLOOR_THICKNESS / 2, 0),
+        pos=(0, 0, shape.wall - FLOOR_THICKNESS / 2),
         group=COLLISION_GROUP,
         contype=PHYSICAL,
         conaffinity=PHYSICAL,
         rgba=shape.rgba,
+        solref=STIFF_SOLREF,
     )
     for i, ((r0, z0), (r1, z1)) in enumerate(zip(shape.profile[:-1], shape.profile[1:], strict=True)):
         if z1 - z0 < 1e-6:
@@ -161,6 +165,7 @@ def add_particles(spec: mujoco.MjSpec, count: int) -> list[mujoco.MjsBody]:
             density=PARTICLE_DENSITY,
             rgba=PARTICLE_RGBA,
             condim=1,
+            solref=STIFF_SOLREF,
             contype=PHYSICAL,
             conaffinity=PHYSICAL,
             group=VISUAL_GROUP,

@@ -1,0 +1,141 @@
+"""The composed model: naming, dimensions, variants and bad scene options."""
+
+import mujoco
+import numpy as np
+import pytest
+
+from envs import scene
+from imitate.errors import ImitateError
+from models import humanoid, objects
+from models import scene as names
+from models import teacher as teacher_names
+
+
+@pytest.fixture(scope="module")
+def model():
+    return scene.build_model(scene.SceneConfig(particles=5, obstacles=(_box(),)))
+
+
+def _box(pos=(0.6, 0.2, 0.72)):
+    return scene.Obstacle("box", pos, (0.05, 0.05, 0.07))
+
+
+def _data_at_rest(model):
+    data = mujoco.MjData(model)
+    for joint, angle in zip(humanoid.JOINTS, humanoid.rest_pose(), strict=True):
+        data.qpos[model.joint(joint).qposadr[0]] = angle
+    scene.hold(model, data, "robot")
+    mujoco.mj_forward(model, data)
+    return data
+
+
+@pytest.mark.parametrize(
+    "kind, count",
+    [
+        (mujoco.mjtObj.mjOBJ_BODY, "nbody"),
+        (mujoco.mjtObj.mjOBJ_JOINT, "njnt"),
+        (mujoco.mjtObj.mjOBJ_GEOM, "ngeom"),
+        (mujoco.mjtObj.mjOBJ_SITE, "nsite"),
+        (mujoco.mjtObj.mjOBJ_CAMERA, "ncam"),
+        (mujoco.mjtObj.mjOBJ_ACTUATOR, "nu"),
+        (mujoco.mjtObj.mjOBJ_EQUALITY, "neq"),
+    ],
+)
+def test_every_element_is_named(model, kind, count):
+    unnamed = [i for i in range(getattr(model, count)) if not mujoco.mj_id2name(model, kind, i)]
+    assert unnamed == [] or (kind == mujoco.mjtObj.mjOBJ_BODY and unnamed == [0])  # world
+
+
+def test_robot_structure(model):
+    assert model.nu == len(humanoid.JOINTS) == 18
+    assert [model.actuator(i).name for i in range(model.nu)] == list(humanoid.ACTUATORS)
+    for joints in (humanoid.RIGHT_ARM_JOINTS, humanoid.LEFT_ARM_JOINTS):
+        assert len(joints) == 7
+        assert all(model.jnt_limited[model.joint(j).id] for j in joints)
+
+
+def test_dimensions(model):
+    data = _data_at_rest(model)
+    head = data.geom("head")
+    assert 1.25 < head.xpos[2] + model.geom("head").size[0] < 1.35  # robot about 1.3 m
+    hair = data.geom("teacher_hair")
+    assert 1.7 < hair.xpos[2] + model.geom("teacher_hair").size[2] < 1.8  # teacher about 1.75 m
+    baseline = np.linalg.norm(data.cam(humanoid.LEFT_EYE).xpos - data.cam(humanoid.RIGHT_EYE).xpos)
+    assert 0.06 <= baseline <= 0.12
+    assert model.vis.global_.offwidth >= 640 and model.vis.global_.offheight >= 480
+
+
+def test_objects_held_upright_in_the_right_hands(model):
+    data = _data_at_rest(model)
+    for obj, hand in ((objects.BOTTLE, "right_hand"), (objects.GLASS, "left_hand")):
+        axis = data.body(obj).xmat.reshape(3, 3)[:, 2]
+        assert axis[2] > 0.95
+        assert np.linalg.norm(data.body(obj).xpos - data.body(hand).xpos) < 0.15
+    assert data.body(objects.BOTTLE).xpos[1] < 0 < data.body(objects.GLASS).xpos[1]
+
+
+def test_object_colours_distinct_from_scene():
+    """Bottle and glass hues are far from each other and from every other coloured geom."""
+    import colorsys
+
+    def hue_sat(rgba):
+        h, _, s = colorsys.rgb_to_hls(*rgba[:3])
+        return 360 * h, s
+
+    model = scene.build_model(scene.SceneConfig(particles=1))
+    targets = {obj: hue_sat(shape.rgba) for obj, shape in scene.SHAPES.items()}
+    for g in range(model.ngeom):
+        name = model.geom(g).name
+        if name.startswith((objects.BOTTLE, objects.GLASS)) or model.geom_rgba[g][3] == 0:
+            continue
+        hue, sat = hue_sat(model.geom_rgba[g])
+        for obj, (target_hue, _) in targets.items():
+            gap = min(abs(hue - target_hue), 360 - abs(hue - target_hue))
+            assert sat < 0.35 or gap > 40, f"{name} has a hue close to the {obj}"
+
+
+def test_variants():
+    bare = scene.build_model(scene.SceneConfig(teacher=False, particles=0))
+    assert bare.nmocap == 0 and scene.particle_count(bare) == 0
+    full = scene.build_model(scene.SceneConfig(particles=7, obstacles=(_box(), _box((0.9, -0.3, 0.72)))))
+    assert full.nmocap == 3 * len(teacher_names.SIDES) and scene.particle_count(full) == 7
+    assert full.geom(f"{names.OBSTACLE_PREFIX}1").size[0] == pytest.approx(0.05)
+
+
+def test_weld_holds_object_at_grasp():
+    model = scene.build_model(scene.SceneConfig(particles=0, bottle_grasp=0.12))
+    data = _data_at_rest(model)
+    grip = data.site(humanoid.RIGHT_GRIP).xpos
+    bottom = data.body(objects.BOTTLE).xpos
+    axis = data.body(objects.BOTTLE).xmat.reshape(3, 3)[:, 2]
+    np.testing.assert_allclose(grip - bottom, 0.12 * axis, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"particles": -1}, "particles=-1"),
+        ({"particles": 500}, "0..120"),
+        ({"holder": "nobody"}, "holder='nobody'"),
+        ({"teacher": False, "holder": "teacher"}, "needs teacher=True"),
+        ({"bottle_grasp": 0.3}, "bottle grasp height"),
+    ],
+)
+def test_bad_scene_config(kwargs, match):
+    with pytest.raises(ImitateError, match=match):
+        scene.SceneConfig(**kwargs)
+
+
+@pytest.mark.parametrize(
+    "shape, pos, size, match",
+    [
+        ("box", (2.0, 0.0, 0.75), (0.05, 0.05, 0.05), "outside the table"),
+        ("box", (0.6, 0.9, 0.75), (0.05, 0.05, 0.05), "outside the table"),
+        ("cylinder", (0.6, 0.0, 0.5), (0.05, 0.05), "outside the table"),
+        ("sphere", (0.6, 0.0, 0.75), (0.05,), "shape 'sphere' unknown"),
+        ("box", (0.6, 0.0, 0.75), (0.05, -0.05, 0.05), "positive"),
+    ],
+)
+def test_bad_obstacle(shape, pos, size, match):
+    with pytest.raises(ImitateError, match=match):
+        scene.Obstacle(shape, pos, size)
