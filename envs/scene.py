@@ -12,7 +12,6 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-import imitate  # noqa: F401  (selects the headless GL backend before MuJoCo renders)
 from imitate.errors import ImitateError
 from models import humanoid, model_path, objects, scene, teacher
 
@@ -51,7 +50,9 @@ class Obstacle:
 
     def __post_init__(self):
         if self.shape not in OBSTACLE_SHAPES:
-            raise ImitateError(f"obstacle shape {self.shape!r} unknown; accepted: {OBSTACLE_SHAPES}")
+            raise ImitateError(
+                f"obstacle shape {self.shape!r} unknown; accepted: {OBSTACLE_SHAPES}"
+            )
         n_size = 3 if self.shape == "box" else 2
         if len(self.pos) != 3 or len(self.size) != n_size or min(self.size) <= 0:
             raise ImitateError(
@@ -128,7 +129,9 @@ def build_spec(config: SceneConfig = SceneConfig()) -> mujoco.MjSpec:
     objects.add_particles(spec, config.particles)
     for i, obstacle in enumerate(config.obstacles):
         body = spec.worldbody.add_body(name=f"{scene.OBSTACLE_PREFIX}{i}", pos=obstacle.pos)
-        kind = mujoco.mjtGeom.mjGEOM_BOX if obstacle.shape == "box" else mujoco.mjtGeom.mjGEOM_CYLINDER
+        kind = (
+            mujoco.mjtGeom.mjGEOM_BOX if obstacle.shape == "box" else mujoco.mjtGeom.mjGEOM_CYLINDER
+        )
         body.add_geom(
             name=f"{scene.OBSTACLE_PREFIX}{i}",
             type=kind,
@@ -191,7 +194,9 @@ def hold(model: mujoco.MjModel, data: mujoco.MjData, holder: str) -> None:
         raise ImitateError(f"holder={holder!r} not accepted: one of {HOLDERS}")
     for name, grasps in GRASPS.items():
         for obj, (hand, _) in grasps.items():
-            eq_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, scene.weld_name(obj, hand))
+            eq_id = mujoco.mj_name2id(
+                model, mujoco.mjtObj.mjOBJ_EQUALITY, scene.weld_name(obj, hand)
+            )
             if eq_id < 0 and name == holder:
                 raise ImitateError(f"holder={holder!r} is not in this scene (built without it)")
             if eq_id >= 0:

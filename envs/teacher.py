@@ -41,12 +41,18 @@ def hand_pose_for_object(
     inv_pos, inv_quat = np.zeros(3), np.zeros(4)
     mujoco.mju_negPose(inv_pos, inv_quat, eq.data[3:6], eq.data[6:10])
     pos, quat = np.zeros(3), np.zeros(4)
-    mujoco.mju_mulPose(pos, quat, np.asarray(obj_pos, float), np.asarray(obj_quat, float), inv_pos, inv_quat)
+    mujoco.mju_mulPose(
+        pos, quat, np.asarray(obj_pos, float), np.asarray(obj_quat, float), inv_pos, inv_quat
+    )
     return pos, quat
 
 
 def pose_arm(
-    model: mujoco.MjModel, data: mujoco.MjData, side: str, hand_pos: np.ndarray, hand_quat: np.ndarray
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    side: str,
+    hand_pos: np.ndarray,
+    hand_quat: np.ndarray,
 ) -> None:
     """Put the teacher's ``side`` hand at ``(hand_pos [m], hand_quat wxyz)`` and draw its arm.
 

@@ -1,8 +1,10 @@
 """Headless OpenGL backend selection and off-screen rendering.
 
-MuJoCo reads ``MUJOCO_GL`` once, when it is first imported, so this module must be imported
-before ``mujoco``; ``imitate/__init__.py`` does that. The default is Mesa's EGL, which renders
-on a CPU-only machine (and fast on a GPU); OSMesa is the fallback when no EGL library is found.
+The default is Mesa's EGL, which renders on a CPU-only machine (and fast on a GPU); OSMesa is
+the fallback when no EGL library is found. MuJoCo reads ``MUJOCO_GL`` once, when it is first
+imported, so ``imitate/__init__.py`` imports this module first; :func:`make_renderer` also
+hands MuJoCo's renderer the selected backend's context explicitly, so a script that imported
+``mujoco`` before ``imitate`` still renders headless.
 """
 
 from __future__ import annotations
@@ -44,10 +46,27 @@ def select_backend() -> str:
 BACKEND = select_backend()
 
 import mujoco  # noqa: E402  (must follow the backend selection)
+from mujoco.rendering.classic import gl_context  # noqa: E402
 
 
-def make_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Renderer:
+def _context_class() -> type:
+    """MuJoCo's OpenGL context class of the selected backend."""
+    if BACKEND == "egl":
+        from mujoco.egl import GLContext
+    elif BACKEND == "osmesa":
+        from mujoco.osmesa import GLContext
+    else:
+        from mujoco.glfw import GLContext
+    return GLContext
+
+
+def make_renderer(
+    model: mujoco.MjModel, height: int, width: int, shadows: bool = True
+) -> mujoco.Renderer:
     """An off-screen renderer of ``height x width`` pixels, with a clear error when GL fails.
+
+    ``shadows=False`` halves the cost of a frame on a CPU (Mesa llvmpipe); the robot's cameras
+    can do without them, a video for people looks better with them.
 
     The model's off-screen buffer (``model.vis.global_.offheight/offwidth``) must be at least
     as large; ``envs.scene`` sets it.
@@ -63,10 +82,12 @@ def make_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Rend
             f"and height in 1..{max_h} (the model's off-screen buffer)"
         )
     try:
-        return mujoco.Renderer(model, height=height, width=width)
+        gl_context.GLContext = _context_class()
+        renderer = mujoco.Renderer(model, height=height, width=width)
     except Exception as err:  # the GL libraries raise a zoo of types (RuntimeError, OSError, ...)
         raise ImitateError(
             f"could not create an OpenGL context with MUJOCO_GL={BACKEND!r} ({err}); "
             + _INSTALL_HINT
-            + " (MuJoCo reads MUJOCO_GL when first imported: import imitate or envs before mujoco)"
         ) from err
+    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = shadows
+    return renderer

@@ -135,7 +135,9 @@ def add_container(spec: mujoco.MjSpec, parent: mujoco.MjsBody, name: str, shape:
         rgba=shape.rgba,
         solref=STIFF_SOLREF,
     )
-    for i, ((r0, z0), (r1, z1)) in enumerate(zip(shape.profile[:-1], shape.profile[1:], strict=True)):
+    for i, ((r0, z0), (r1, z1)) in enumerate(
+        zip(shape.profile[:-1], shape.profile[1:], strict=True)
+    ):
         if z1 - z0 < 1e-6:
             continue
         body.add_geom(

@@ -107,7 +107,10 @@ def test_obstacle_option():
         ({"frame_skip": 0}, "frame_skip=0"),
         ({"width": -5}, "width=-5"),
         ({"reset_noise_scale": -0.1}, "reset_noise_scale=-0.1"),
-        ({"obstacles": ({"shape": "box", "pos": (0.6, 0, 0.3), "size": (0.1, 0.1, 0.1)},)}, "table"),
+        (
+            {"obstacles": ({"shape": "box", "pos": (0.6, 0, 0.3), "size": (0.1, 0.1, 0.1)},)},
+            "table",
+        ),
         ({"obstacles": ("box",)}, "obstacles must be"),
     ],
 )
@@ -142,6 +145,7 @@ def test_unusable_mujoco_gl():
     code = "import envs"
     result = subprocess.run(
         [sys.executable, "-c", code],
+        check=False,
         env={**os.environ, "MUJOCO_GL": "vulkan"},
         capture_output=True,
         text=True,

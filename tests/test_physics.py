@@ -38,7 +38,9 @@ def test_rest_pose_is_collision_free(env):
 
 def test_hands_hold_pose_under_gravity(env):
     env.reset(seed=1)
-    start = {b: env.data.body(b).xpos.copy() for b in ("right_hand", "left_hand", "bottle", "glass")}
+    start = {
+        b: env.data.body(b).xpos.copy() for b in ("right_hand", "left_hand", "bottle", "glass")
+    }
     _hold_still(env, 2.0)
     for body, pos in start.items():
         drift = np.linalg.norm(env.data.body(body).xpos - pos)

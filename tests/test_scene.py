@@ -97,7 +97,9 @@ def test_object_colours_distinct_from_scene():
 def test_variants():
     bare = scene.build_model(scene.SceneConfig(teacher=False, particles=0))
     assert bare.nmocap == 0 and scene.particle_count(bare) == 0
-    full = scene.build_model(scene.SceneConfig(particles=7, obstacles=(_box(), _box((0.9, -0.3, 0.72)))))
+    full = scene.build_model(
+        scene.SceneConfig(particles=7, obstacles=(_box(), _box((0.9, -0.3, 0.72))))
+    )
     assert full.nmocap == 3 * len(teacher_names.SIDES) and scene.particle_count(full) == 7
     assert full.geom(f"{names.OBSTACLE_PREFIX}1").size[0] == pytest.approx(0.05)
 
