@@ -16,8 +16,9 @@ $(BIN)/.installed: pyproject.toml scripts/install_system_deps.sh
 
 setup: $(BIN)/.installed
 
+# Until the `imitate run` pipeline lands, the main job renders the testbed scene headless.
 run: setup
-	$(BIN)/python scripts/rollout_pouring.py --out runs/latest
+	$(BIN)/python scripts/render_ci_video.py --out runs/latest/video.mp4 --seconds 4
 
 test: setup lint
 	$(BIN)/python -m pytest
