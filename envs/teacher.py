@@ -1,4 +1,14 @@
-"""The teacher mannequin: posing its mocap arms so its hands carry the bottle and glass.
+"""The teacher: scripted bimanual pouring demonstrations, and the mannequin that performs them.
+
+:func:`script_demonstrations` draws ``n_demos`` pouring movements (lift, bring the bottle over the
+glass, tilt and pour, return) as a person would repeat them: spread by a few cm while
+transporting, a few mm and degrees while pouring, each on its own smooth monotone time warp, with
+a little tremor throughout and at least one second of stillness between demonstrations. The
+result, a :class:`TeacherMotion`, gives the ground-truth object poses at any time; :func:`show`
+puts the objects there and draws the mannequin's arms holding them.
+
+The teacher holds the bottle in its left hand, which the robot facing it sees on its own right
+(mirror correspondence), and tilts the bottle's top towards the glass (world ``+y``).
 
 Each arm is three mocap bodies. Given where a hand should be, :func:`pose_arm` places the hand
 there and draws upper arm and forearm by two-link inverse kinematics, elbow down and out, so a
@@ -7,12 +17,16 @@ video reads as a person holding the objects.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import mujoco
 import numpy as np
+from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
+from scipy.spatial.transform import Rotation
 
 from envs.scene import GRASPS
 from imitate.errors import ImitateError
-from models import scene, teacher
+from models import objects, scene, teacher
 
 _YAW = np.pi  # the mannequin faces the robot (-x)
 
@@ -96,3 +110,272 @@ def _set_mocap(model, data, body: str, pos, quat) -> None:
     mocap_id = model.body_mocapid[model.body(body).id]
     data.mocap_pos[mocap_id] = pos
     data.mocap_quat[mocap_id] = quat
+
+
+# --- Scripted demonstrations -------------------------------------------------------------------
+
+TEACHER_OBJECTS = (objects.BOTTLE, objects.GLASS)
+_KEYS = ("glass", "glass_tilt", "mouth", "bottle_tilt")
+# The nominal pour as waypoints in a demonstration's phase u in [0, 1]: the glass bottom [m], the
+# glass tilt towards the bottle [deg], the bottle's mouth relative to the glass rim centre [m] and
+# the bottle tilt towards the glass [deg]; with each waypoint's spread over demonstrations (one
+# standard deviation, [m] and [deg]). The first and last rows are the rest pose, shared with the
+# previous and next demonstration. The mouth is placed relative to the glass, so the bottle's
+# position relative to the glass varies by millimetres while pouring (rows 3-4) and by centimetres
+# while transporting.
+_WAYPOINTS = (
+    # u,  glass bottom,        tilt, mouth - rim,          tilt, spreads (glass, tilt, mouth, tilt)
+    (0.00, (1.21, 0.11, 1.00), 0.0, (0.00, -0.24, 0.165), 0.0, (0.020, 0.0, 0.020, 0.0)),
+    (0.20, (1.19, 0.07, 1.04), 3.0, (-0.01, -0.17, 0.22), 15.0, (0.020, 1.5, 0.030, 5.0)),
+    (0.38, (1.18, 0.05, 1.05), 8.0, (0.00, -0.07, 0.09), 65.0, (0.020, 2.0, 0.020, 5.0)),
+    (0.50, (1.18, 0.05, 1.05), 12.0, (0.00, -0.025, 0.040), 105.0, (0.020, 1.0, 0.003, 2.5)),
+    (0.68, (1.18, 0.05, 1.05), 12.0, (0.00, -0.020, 0.035), 115.0, (0.003, 1.0, 0.003, 2.5)),
+    (0.82, (1.19, 0.07, 1.03), 4.0, (0.00, -0.10, 0.13), 35.0, (0.020, 2.0, 0.030, 8.0)),
+    (1.00, (1.21, 0.11, 1.00), 0.0, (0.00, -0.24, 0.165), 0.0, (0.020, 0.0, 0.020, 0.0)),
+)
+_POUR_ROWS = (3, 4)  # the glass barely moves while the bottle pours into it
+_WARP_GRID = 2001  # samples of a demonstration's time warp
+_TREMOR_BAND = (6.0, 11.0)  # [Hz], physiological tremor
+_TREMOR_WAVES = 6  # sinusoids summed per tremor channel
+
+
+@dataclass(frozen=True)
+class TeacherConfig:
+    """How the teacher demonstrates.
+
+    Attributes:
+        n_demos: number of demonstrations.
+        duration: range ``(low, high)`` [s] each demonstration's duration is drawn from.
+        pause: range ``(low, high)`` [s] of the stillness between demonstrations; also the
+            stillness before the first and after the last demonstration is drawn from it.
+        spread: scale of the spatial variation between demonstrations: 1 gives the spreads of
+            the nominal waypoints (3 cm while transporting, 3 mm and 2.5 deg while pouring).
+        tilt_plane_spread: standard deviation of the azimuth of the plane the bottle tilts in
+            [rad] (0: it tilts straight across the robot's view).
+        speed_variation: amplitude of the time warp: the local speed is
+            ``1 +- speed_variation`` times a demonstration's mean speed, in [0, 0.9].
+        tremor: standard deviation of the hands' tremor, positions [m].
+        tremor_angle: standard deviation of the tremor of the tilt angles [rad].
+        seed: seed of the ``numpy.random.Generator`` everything is drawn from.
+    """
+
+    n_demos: int = 5
+    duration: tuple[float, float] = (4.0, 5.0)
+    pause: tuple[float, float] = (1.2, 1.6)
+    spread: float = 1.0
+    tilt_plane_spread: float = np.radians(4.0)
+    speed_variation: float = 0.25
+    tremor: float = 0.0004
+    tremor_angle: float = np.radians(0.15)
+    seed: int = 0
+
+    def __post_init__(self):
+        if not isinstance(self.n_demos, int | np.integer) or self.n_demos < 1:
+            raise ImitateError(f"n_demos={self.n_demos!r} not accepted: an integer >= 1")
+        for name in ("duration", "pause"):
+            low, high = getattr(self, name)
+            if not 0 < low <= high:
+                raise ImitateError(
+                    f"{name}={getattr(self, name)!r} not accepted: a range (low, high) [s] "
+                    f"with 0 < low <= high"
+                )
+        if not 0 <= self.speed_variation <= 0.9:
+            raise ImitateError(
+                f"speed_variation={self.speed_variation!r} not accepted: a value in [0, 0.9] "
+                f"(the time warp must stay monotone)"
+            )
+        for name in ("spread", "tilt_plane_spread", "tremor", "tremor_angle"):
+            if not getattr(self, name) >= 0:
+                raise ImitateError(f"{name}={getattr(self, name)!r} not accepted: a value >= 0")
+
+
+@dataclass(frozen=True, eq=False)
+class TeacherMotion:
+    """A scripted recording session: continuous object poses over ``[0, duration]``.
+
+    Attributes:
+        config: the configuration it was drawn from.
+        boundaries: ``(n_demos, 2)`` start and end time of each demonstration [s]; outside them
+            the objects are held still (up to tremor).
+        duration: length of the session [s].
+        paths: per demonstration, the waypoint curve of the phase ``u`` in [0, 1]; it gives
+            ``(glass bottom (3), glass tilt, mouth - rim (3), bottle tilt)`` [m, rad].
+        warps: ``(n_demos, _WARP_GRID)`` phase ``u`` at evenly spaced times over each
+            demonstration (monotone, 0 to 1).
+        tilt_planes: ``(n_demos,)`` azimuth of the bottle's tilt plane [rad].
+        tremor: ``(2, 4, _TREMOR_WAVES, 3)`` per object, per channel (x, y, z, tilt), the
+            sinusoids' amplitude, frequency [Hz] and phase [rad].
+    """
+
+    config: TeacherConfig
+    boundaries: np.ndarray
+    duration: float
+    paths: tuple[CubicHermiteSpline, ...]
+    warps: np.ndarray
+    tilt_planes: np.ndarray
+    tremor: np.ndarray
+
+    def phase(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Which demonstration is under way and how far, at ``times``.
+
+        Args:
+            times: ``(n,)`` [s].
+
+        Returns:
+            ``(demo (n,) int, u (n,))``: the index of the demonstration in progress or last
+            finished (the first one before it starts) and its phase in [0, 1].
+        """
+        times = np.asarray(times, dtype=float)
+        starts, ends = self.boundaries[:, 0], self.boundaries[:, 1]
+        demo = np.clip(np.searchsorted(starts, times, side="right") - 1, 0, len(starts) - 1)
+        rel = np.clip((times - starts[demo]) / (ends[demo] - starts[demo]), 0.0, 1.0)
+        grid = np.linspace(0.0, 1.0, self.warps.shape[1])
+        u = np.array([np.interp(r, grid, self.warps[d]) for d, r in zip(demo, rel, strict=True)])
+        return demo, u
+
+    def poses(self, times: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Ground-truth poses of the bottle and glass frames (bottom centre, z along the axis).
+
+        Args:
+            times: ``(n,)`` [s].
+
+        Returns:
+            ``{object: (pos (n, 3) [m], quat (n, 4) wxyz)}`` in the world frame.
+        """
+        times = np.atleast_1d(np.asarray(times, dtype=float))
+        demo, u = self.phase(times)
+        state = np.array([self.paths[d](x) for d, x in zip(demo, u, strict=True)])
+        shake = _tremor(self.tremor, times)  # (2, n, 4)
+        glass_tilt = state[:, 3] + shake[1, :, 3]
+        glass_axis = np.stack(
+            [np.zeros_like(glass_tilt), -np.sin(glass_tilt), np.cos(glass_tilt)], axis=1
+        )
+        rim = state[:, :3] + objects.GLASS_SHAPE.height * glass_axis
+        bottle_tilt = state[:, 7] + shake[0, :, 3]
+        plane = self.tilt_planes[demo]
+        bottle_axis = np.stack(
+            [
+                -np.sin(plane) * np.sin(bottle_tilt),
+                np.cos(plane) * np.sin(bottle_tilt),
+                np.cos(bottle_tilt),
+            ],
+            axis=1,
+        )
+        bottle_pos = rim + state[:, 4:7] - objects.BOTTLE_SHAPE.height * bottle_axis
+        # Rz(plane) Rx(-tilt) maps z onto bottle_axis; Rx(tilt) leans the glass towards -y.
+        bottle_rot = Rotation.from_euler("ZX", np.stack([plane, -bottle_tilt], axis=1))
+        glass_rot = Rotation.from_euler("X", glass_tilt[:, None])
+        return {
+            objects.BOTTLE: (bottle_pos + shake[0, :, :3], bottle_rot.as_quat(scalar_first=True)),
+            objects.GLASS: (state[:, :3] + shake[1, :, :3], glass_rot.as_quat(scalar_first=True)),
+        }
+
+
+def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMotion:
+    """Draw a recording session of ``config.n_demos`` pouring demonstrations.
+
+    The same config (seed included) gives the same motion.
+    """
+    rng = np.random.default_rng(config.seed)
+    rows = _WAYPOINTS
+    u = np.array([row[0] for row in rows])
+    nominal = np.array([[*row[1], np.radians(row[2]), *row[3], np.radians(row[4])] for row in rows])
+    spread = (
+        np.array(
+            [
+                [row[5][0]] * 3
+                + [np.radians(row[5][1])]
+                + [row[5][2]] * 3
+                + [np.radians(row[5][3])]
+                for row in rows
+            ]
+        )
+        * config.spread
+    )
+    rests = nominal[0] + spread[0] * rng.standard_normal((config.n_demos + 1, nominal.shape[1]))
+    paths, warps, boundaries = [], [], []
+    t = rng.uniform(*config.pause)
+    for i in range(config.n_demos):
+        values = nominal + spread * rng.standard_normal(nominal.shape)
+        values[0], values[-1] = rests[i], rests[i + 1]
+        values[_POUR_ROWS[1], :3] = values[_POUR_ROWS[0], :3] + (
+            values[_POUR_ROWS[1], :3] - nominal[_POUR_ROWS[1], :3]
+        )
+        # Shape-preserving (no overshoot between waypoints), starting and ending at rest.
+        slopes = PchipInterpolator(u, values).derivative()(u)
+        slopes[[0, -1]] = 0.0
+        paths.append(CubicHermiteSpline(u, values, slopes))
+        warps.append(_time_warp(rng, config.speed_variation))
+        duration = rng.uniform(*config.duration)
+        boundaries.append((t, t + duration))
+        t += duration + rng.uniform(*config.pause)
+    amplitude = np.array([config.tremor] * 3 + [config.tremor_angle]) * np.sqrt(2 / _TREMOR_WAVES)
+    shape = (len(TEACHER_OBJECTS), 4, _TREMOR_WAVES)
+    tremor = np.stack(
+        [
+            np.broadcast_to(amplitude[None, :, None], shape),
+            rng.uniform(*_TREMOR_BAND, shape),
+            rng.uniform(0, 2 * np.pi, shape),
+        ],
+        axis=-1,
+    )
+    return TeacherMotion(
+        config=config,
+        boundaries=np.array(boundaries),
+        duration=float(t),
+        paths=tuple(paths),
+        warps=np.array(warps),
+        tilt_planes=config.tilt_plane_spread * rng.standard_normal(config.n_demos),
+        tremor=tremor,
+    )
+
+
+def show(model: mujoco.MjModel, data: mujoco.MjData, poses: dict[str, tuple]) -> None:
+    """Put the objects at ``poses`` and draw the teacher's arms holding them; no physics.
+
+    Args:
+        model: a scene built with the teacher.
+        data: its data; object free joints and the teacher's mocap bodies are written, then
+            kinematics are updated for rendering.
+        poses: ``{object: (pos (3,) [m], quat (4,) wxyz)}`` of the object frames.
+    """
+    for obj, (pos, quat) in poses.items():
+        joint = model.joint(obj)
+        data.qpos[joint.qposadr[0] : joint.qposadr[0] + 7] = (*pos, *quat)
+        hand_pos, hand_quat = hand_pose_for_object(model, obj, pos, quat)
+        pose_arm(model, data, holding_side(obj), hand_pos, hand_quat)
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_camlight(model, data)
+
+
+def holding_side(obj: str) -> str:
+    """The teacher's hand (``"left"``/``"right"``) that holds ``obj``."""
+    if obj not in GRASPS["teacher"]:
+        raise ImitateError(f"object {obj!r} not accepted: one of {tuple(GRASPS['teacher'])}")
+    hand = GRASPS["teacher"][obj][0]
+    return next(side for side in teacher.SIDES if teacher.HAND[side] == hand)
+
+
+def _time_warp(rng: np.random.Generator, variation: float) -> np.ndarray:
+    """Phase over evenly spaced times ``(_WARP_GRID,)``: smooth, monotone, 0 to 1.
+
+    The local speed is ``1 + variation * g`` times the mean, ``g`` a random smooth function
+    with ``max |g| = 1`` (three harmonics).
+    """
+    x = np.linspace(0.0, 1.0, _WARP_GRID)
+    k = np.arange(1, 4)[:, None]
+    g = (
+        rng.standard_normal((3, 1))
+        / k
+        * np.sin(2 * np.pi * k * x + rng.uniform(0, 2 * np.pi, (3, 1)))
+    ).sum(0)
+    speed = 1.0 + variation * g / np.abs(g).max()
+    phase = np.concatenate([[0.0], np.cumsum((speed[1:] + speed[:-1]) / 2)])
+    return phase / phase[-1]
+
+
+def _tremor(waves: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Tremor ``(n_objects, n, 4)`` (x, y, z [m], tilt [rad]) at ``times (n,)`` [s]."""
+    amp, freq, phase = waves[..., 0], waves[..., 1], waves[..., 2]
+    angle = 2 * np.pi * freq[..., None] * times + phase[..., None]  # (obj, ch, wave, n)
+    return np.einsum("ocw,ocwn->onc", amp, np.sin(angle))
