@@ -1,0 +1,160 @@
+"""The learning stage (paper section IV and V-A): demonstrations -> GMR mean and variance over time.
+
+Task-space demonstrations are aligned by DTW onto the medoid (:mod:`imitate.dtw`), time is
+prepended as the first dimension, the number of components is chosen by BIC
+(:func:`imitate.gmm.select_components`), a GMM is trained by EM from the K-means start
+(:class:`imitate.gmm.GMM`) and conditioned on time by GMR (:func:`imitate.gmr.gmr`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from imitate.dtw import Alignment, align
+from imitate.errors import ImitateError
+from imitate.gmm import GMM, select_components
+from imitate.gmr import gmr
+
+__all__ = ["LearnedModel", "LearningConfig", "learn", "time_stacked"]
+
+
+@dataclass(frozen=True)
+class LearningConfig:
+    """Parameters of :func:`learn`.
+
+    Attributes:
+        n_components: Fixed number of GMM components; ``None`` chooses it by BIC.
+        k_max: Largest number of components tried by the BIC sweep.
+        bic_method: ``"fast"`` (the paper's K-means heuristic) or ``"full"`` (EM for every K).
+        use_dtw: Align the demonstrations by DTW (``False`` reproduces Fig. 4, left: each
+            demonstration keeps its own time axis).
+        dtw_weights: Per-dimension DTW scale factors, shape ``(n_dims,)``; ``None`` for the
+            inverse pooled standard deviation.
+        covariance: GMR covariance, ``"paper"`` (eq. 18) or ``"total"``.
+        reg_covar: Covariance regularisation of the GMM (squared data units).
+        tol: EM tolerance on the mean log-likelihood per sample [nats].
+        max_iter: EM iteration limit.
+        n_init: Number of k-means++ starts.
+        seed: Seed of the K-means starts.
+    """
+
+    n_components: int | None = None
+    k_max: int = 30
+    bic_method: str = "fast"
+    use_dtw: bool = True
+    dtw_weights: tuple[float, ...] | None = None
+    covariance: str = "paper"
+    reg_covar: float = 1e-6
+    tol: float = 1e-3
+    max_iter: int = 100
+    n_init: int = 3
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class LearnedModel:
+    """Output of :func:`learn`.
+
+    Attributes:
+        data: GMM training data, shape ``(n_samples, 1 + n_dims)``: time [s], then task space.
+        gmm: The fitted GMM over ``(t, x)``.
+        bic_curve: BIC for ``K = 1..k_max``, shape ``(k_max,)``; empty if ``K`` was fixed.
+        times: GMR query times, shape ``(T,)`` [s].
+        mean: GMR mean ``mu_hat_t``, shape ``(T, n_dims)``.
+        covariance: GMR covariance, shape ``(T, n_dims, n_dims)``.
+        alignment: The DTW alignment, or ``None`` without DTW.
+    """
+
+    data: np.ndarray
+    gmm: GMM
+    bic_curve: np.ndarray
+    times: np.ndarray
+    mean: np.ndarray
+    covariance: np.ndarray
+    alignment: Alignment | None
+
+    @property
+    def variance(self) -> np.ndarray:
+        """GMR variances ``sigma_hat_t`` (the covariance diagonals), shape ``(T, n_dims)``."""
+        return np.diagonal(self.covariance, axis1=1, axis2=2).copy()
+
+
+def time_stacked(demos: Sequence[np.ndarray], rate: float) -> np.ndarray:
+    """Stacks demonstrations into GMM samples ``(t, x)`` with ``t = step / rate``.
+
+    Args:
+        demos: Demonstrations, each of shape ``(n_steps_i, n_dims)``.
+        rate: Sampling rate [Hz].
+
+    Returns:
+        Samples, shape ``(sum_i n_steps_i, 1 + n_dims)``.
+    """
+    return np.concatenate(
+        [np.column_stack((np.arange(len(d)) / rate, d)) for d in demos], axis=0
+    )
+
+
+def learn(
+    demos: Sequence[ArrayLike], *, rate: float, config: LearningConfig | None = None
+) -> LearnedModel:
+    """Learns the GMR mean and covariance over time from segmented demonstrations.
+
+    Args:
+        demos: At least 2 task-space demonstrations, each of shape ``(n_steps_i, n_dims)``,
+            finite, each at least as long as the number of components (``n_components`` or
+            ``k_max``).
+        rate: Sampling rate of the demonstrations [Hz].
+        config: Parameters; ``None`` for the defaults.
+
+    Returns:
+        The :class:`LearnedModel`; GMR is evaluated at the reference demonstration's steps (with
+        DTW) or at the steps of the longest demonstration (without).
+
+    Raises:
+        ImitateError: Fewer than 2 demonstrations, non-finite samples, mismatched dimensions,
+            a demonstration shorter than the number of components, or bad parameters.
+    """
+    c = config or LearningConfig()
+    if not rate > 0:
+        raise ImitateError(f"rate must be > 0 [Hz]; got {rate}")
+    if len(demos) < 2:
+        raise ImitateError(f"learning needs at least 2 demonstrations; got {len(demos)}")
+    k_needed = c.n_components if c.n_components is not None else c.k_max
+    for n, d in enumerate(demos):
+        if len(d) < k_needed:
+            raise ImitateError(
+                f"demos[{n}] has {len(d)} samples, fewer than the {k_needed} components "
+                "asked for; lower n_components / k_max or record longer demonstrations"
+            )
+    alignment = None
+    if c.use_dtw:
+        alignment = align(demos, weights=c.dtw_weights)
+        series = list(alignment.aligned)
+    else:
+        series = [np.asarray(d, dtype=float) for d in demos]
+        if any(s.ndim != 2 or s.shape[1] != series[0].shape[1] for s in series):
+            raise ImitateError(
+                "all demonstrations must have shape (n_steps_i, n_dims) with the same n_dims; "
+                f"got {[s.shape for s in series]}"
+            )
+    data = time_stacked(series, rate)
+    if c.n_components is None:
+        k, curve = select_components(
+            data, c.k_max, c.bic_method, c.seed, reg_covar=c.reg_covar, n_init=c.n_init,
+            tol=c.tol, max_iter=c.max_iter,
+        )
+    else:
+        k, curve = c.n_components, np.empty(0)
+    gmm = GMM(
+        k, reg_covar=c.reg_covar, tol=c.tol, max_iter=c.max_iter, n_init=c.n_init, seed=c.seed
+    ).fit(data)
+    times = np.arange(max(len(s) for s in series)) / rate
+    mean, cov = gmr(gmm, times, covariance=c.covariance)
+    return LearnedModel(
+        data=data, gmm=gmm, bic_curve=curve, times=times, mean=mean, covariance=cov,
+        alignment=alignment,
+    )
