@@ -8,7 +8,6 @@ that the frames show both object colours and change over time (exit status 1 if 
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
@@ -18,6 +17,7 @@ import numpy as np
 from tqdm import tqdm
 
 from envs.pouring import PouringEnv
+from imitate.artifacts import write_atomic
 from models import humanoid, objects
 
 WAVING_JOINTS = {"right_wrist_roll": 0.6, "right_wrist_pitch": 0.5, "right_elbow": 0.25}  # [rad]
@@ -41,10 +41,10 @@ def render(out: Path, width: int, height: int, seconds: float, fps: int) -> int:
             env.step(action.astype(np.float32))
         frames.append(env.render())
     env.close()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.stem}.tmp{out.suffix}")
-    iio.imwrite(tmp, np.stack(frames), fps=fps, codec="libx264", macro_block_size=8)
-    os.replace(tmp, out)
+    video = np.stack(frames)
+    write_atomic(
+        out, lambda tmp: iio.imwrite(tmp, video, fps=fps, codec="libx264", macro_block_size=8)
+    )
     return n_frames
 
 

@@ -1,0 +1,54 @@
+"""Artifacts are written atomically and read back with errors that say what to re-run."""
+
+import numpy as np
+import pytest
+
+from imitate.artifacts import load_json, load_npz, save_json, save_npz, write_atomic
+from imitate.errors import ImitateError
+
+
+def test_npz_round_trip(tmp_path):
+    arrays = {"t": np.linspace(0, 1, 5), "x": np.arange(6).reshape(2, 3)}
+    path = save_npz(tmp_path / "demos.npz", arrays)
+    loaded = load_npz(path, required=("t", "x"))
+    for name, value in arrays.items():
+        np.testing.assert_array_equal(loaded[name], value)
+
+
+def test_interrupted_write_leaves_nothing(tmp_path):
+    path = tmp_path / "model.npz"
+
+    def crash(tmp):
+        tmp.write_bytes(b"half of it")
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        write_atomic(path, crash)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_interrupted_rewrite_keeps_the_old_file(tmp_path):
+    path = save_json(tmp_path / "report.json", {"seed": 1})
+    with pytest.raises(RuntimeError):
+        write_atomic(path, lambda tmp: (_ for _ in ()).throw(RuntimeError("disk full")))
+    assert load_json(path) == {"seed": 1}
+
+
+def test_missing_artifact_names_file_and_stage(tmp_path):
+    with pytest.raises(ImitateError, match=r"model.npz is missing; re-run `imitate learn"):
+        load_npz(tmp_path / "model.npz")
+
+
+def test_corrupt_artifact_names_file_and_stage(tmp_path):
+    (tmp_path / "plan.npz").write_bytes(b"not a zip file")
+    with pytest.raises(ImitateError, match=r"plan.npz is corrupt .* `imitate optimize"):
+        load_npz(tmp_path / "plan.npz")
+    (tmp_path / "report.json").write_text("{truncated")
+    with pytest.raises(ImitateError, match=r"report.json is corrupt"):
+        load_json(tmp_path / "report.json")
+
+
+def test_missing_array_is_named(tmp_path):
+    save_npz(tmp_path / "demos.npz", {"t": np.zeros(3)})
+    with pytest.raises(ImitateError, match=r"lacks \['segments'\]; re-run `imitate observe"):
+        load_npz(tmp_path / "demos.npz", required=("t", "segments"))
