@@ -1,0 +1,111 @@
+"""Figures of the learning stage: Fig. 4 (GMM with and without DTW), Fig. 5 (BIC), GMR bands.
+
+Every function draws on a new matplotlib figure (Agg backend, headless) and returns it; saving is
+the caller's choice (``fig.savefig(path)``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402  (the backend must be chosen first)
+import numpy as np  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.patches import Ellipse  # noqa: E402
+
+from imitate.gmm import GMM  # noqa: E402
+from imitate.learning import LearnedModel  # noqa: E402
+from imitate.taskspace import TASK_DIMS, TASK_UNITS  # noqa: E402
+
+__all__ = ["plot_bic_curves", "plot_gmm_with_and_without_dtw", "plot_gmr"]
+
+
+def _ellipse(ax, mean: np.ndarray, cov: np.ndarray, n_std: float = 2.0, **kwargs) -> None:
+    """Draws the ``n_std`` ellipse of a 2-D Gaussian."""
+    values, vectors = np.linalg.eigh(cov)
+    angle = np.degrees(np.arctan2(vectors[1, -1], vectors[0, -1]))
+    width, height = 2 * n_std * np.sqrt(np.maximum(values[::-1], 0.0))
+    ax.add_patch(Ellipse(mean, width, height, angle=angle, **kwargs))
+
+
+def _gmm_panel(ax, data: np.ndarray, gmm: GMM, column: int, title: str) -> None:
+    """Demonstrations (time restarts at 0 for each) and the components' 2-sigma ellipses."""
+    for demo in np.split(data, np.flatnonzero(data[:, 0] == 0.0)[1:]):
+        ax.plot(demo[:, 0], demo[:, column], color="0.55", lw=0.8)
+    idx = np.array([0, column])
+    for mean, cov in zip(gmm.means_[:, idx], gmm.covariances_[:, idx[:, None], idx], strict=True):
+        _ellipse(ax, mean, cov, facecolor="none", edgecolor="tab:green", lw=1.5)
+    ax.set_title(f"{title} (K = {gmm.n_components})")
+    ax.set_xlabel("t [s]")
+
+
+def plot_gmm_with_and_without_dtw(raw: LearnedModel, aligned: LearnedModel, dim: int = 3) -> Figure:
+    """Fig. 4: GMM components (2-sigma ellipses) over one task dimension and time.
+
+    Args:
+        raw: Model learned without DTW (``LearningConfig(use_dtw=False)``).
+        aligned: Model learned with DTW.
+        dim: Task-space dimension to show (index into :data:`imitate.taskspace.TASK_DIMS`).
+
+    Returns:
+        The figure.
+    """
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True, layout="constrained")
+    _gmm_panel(axes[0], raw.data, raw.gmm, dim + 1, "without DTW")
+    _gmm_panel(axes[1], aligned.data, aligned.gmm, dim + 1, "with DTW")
+    axes[0].set_ylabel(f"{TASK_DIMS[dim]} [{TASK_UNITS[dim]}]")
+    return fig
+
+
+def plot_bic_curves(curves: dict[str, np.ndarray]) -> Figure:
+    """Fig. 5: BIC over the number of components for each heuristic, minima marked.
+
+    Args:
+        curves: Heuristic name -> BIC for ``K = 1..k_max``, shape ``(k_max,)``.
+
+    Returns:
+        The figure.
+    """
+    fig, ax = plt.subplots(figsize=(6, 3.8), layout="constrained")
+    for name, curve in curves.items():
+        k = np.arange(1, len(curve) + 1)
+        (line,) = ax.plot(k, curve, marker=".", label=f"{name} (K = {int(np.argmin(curve)) + 1})")
+        ax.plot(np.argmin(curve) + 1, curve.min(), "o", color=line.get_color(), ms=9, mfc="none")
+    ax.set_xlabel("number of components K")
+    ax.set_ylabel("BIC")
+    ax.legend()
+    return fig
+
+
+def plot_gmr(model: LearnedModel, demos: Sequence[np.ndarray] | None = None) -> Figure:
+    """GMR mean +- 2 sigma over time for every task-space dimension.
+
+    Args:
+        model: A learned model.
+        demos: Demonstrations to overlay, each of shape ``(n_steps, 7)`` on the model's time
+            axis; the aligned ones if ``None`` and the model used DTW.
+
+    Returns:
+        The figure.
+    """
+    if demos is None and model.alignment is not None:
+        demos = list(model.alignment.aligned)
+    n_dims = model.mean.shape[1]
+    fig, axes = plt.subplots(n_dims, 1, figsize=(7, 1.6 * n_dims), sharex=True,
+                             layout="constrained")
+    sigma = np.sqrt(model.variance)
+    for d, ax in enumerate(np.atleast_1d(axes)):
+        for demo in demos or ():
+            ax.plot(model.times[: len(demo)], demo[:, d], color="0.6", lw=0.7)
+        ax.fill_between(model.times, model.mean[:, d] - 2 * sigma[:, d],
+                        model.mean[:, d] + 2 * sigma[:, d], color="tab:blue", alpha=0.3)
+        ax.plot(model.times, model.mean[:, d], color="tab:blue", lw=1.5)
+        name = TASK_DIMS[d] if n_dims == len(TASK_DIMS) else f"x{d}"
+        unit = TASK_UNITS[d] if n_dims == len(TASK_DIMS) else ""
+        ax.set_ylabel(f"{name}\n[{unit}]" if unit else name, fontsize=8)
+    np.atleast_1d(axes)[-1].set_xlabel("t [s]")
+    return fig

@@ -1,0 +1,145 @@
+"""Speed of the learning stage at the paper's scale, against reference libraries in the same run.
+
+Data: 5 synthetic pouring demonstrations of about 4.5 s at 100 Hz in the 7-D task space
+(:mod:`imitate.synthetic`), i.e. about 2,300 GMM samples of dimension 8 (time + task space).
+Every step is timed for ``imitate`` and for the reference implementation on the same inputs;
+the table gives the best and median wall time of repeated runs and the ratio reference / ours
+(> 1: ours is faster). BLAS is limited to ``--blas-threads`` threads for every library (small
+matrices on a 2-core machine run fastest, and most reproducibly, on one thread).
+
+Note: dtaidistance's DTW sums *squared* differences along the path and takes the root at the
+end, a different distance from eq. 2; it is timed as the speed goal only.
+
+Usage: ``python scripts/bench_learning.py [--blas-threads 1] [--repeats 7]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable
+
+import dtw as dtw_python
+import gmr as gmr_lib
+import numpy as np
+from dtaidistance import dtw_ndim
+from sklearn.cluster import KMeans
+from sklearn.mixture import GaussianMixture
+from threadpoolctl import threadpool_limits
+
+from imitate.dtw import align, dtw
+from imitate.gmm import GMM, kmeans, select_components
+from imitate.gmr import gmr
+from imitate.learning import LearningConfig, learn, time_stacked
+from imitate.synthetic import pouring_demos
+
+K_MAX = 30
+K_GMR = 9
+
+
+def _time(fn: Callable[[], object], repeats: int) -> tuple[float, float]:
+    """Best and median wall time [s] of ``repeats`` calls (after one warm-up call)."""
+    fn()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return min(times), float(np.median(times))
+
+
+def _ms(seconds: float) -> str:
+    return f"{seconds * 1e3:10.2f}"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--blas-threads", type=int, default=1, help="BLAS threads (all libraries)")
+    parser.add_argument("--repeats", type=int, default=7, help="timed repetitions of fast steps")
+    args = parser.parse_args()
+    reps, slow_reps = args.repeats, max(1, args.repeats // 4)
+
+    sd = pouring_demos()
+    demos = list(sd.demos)
+    a, b = demos[0][:450], demos[1][:450]
+    alignment = align(demos)
+    X = time_stacked(list(alignment.aligned), sd.rate)
+    init9 = GMM(K_GMR).initial_parameters(X)
+    model9 = GMM(K_GMR).fit(X)
+    t_query = np.arange(450) / sd.rate
+    ref9 = gmr_lib.GMM(K_GMR, priors=model9.weights_, means=model9.means_,
+                       covariances=model9.covariances_)
+
+    def dtw_python_pair(x, y):
+        return dtw_python.dtw(x, y, dist_method="euclidean", step_pattern=dtw_python.symmetric1)
+
+    def dtw_python_align():
+        for p in range(len(demos)):
+            for q in range(p + 1, len(demos)):
+                dtw_python_pair(demos[p], demos[q])
+
+    def sklearn_fast_sweep():
+        for k in range(1, K_MAX + 1):
+            KMeans(k, n_init=3, random_state=0).fit(X)
+
+    def sklearn_full_sweep():
+        for k in range(1, K_MAX + 1):
+            GaussianMixture(k, covariance_type="full", random_state=0).fit(X).bic(X)
+
+    def sklearn_em_from_init():
+        w, mu, cov = init9
+        GaussianMixture(K_GMR, covariance_type="full", weights_init=w, means_init=mu,
+                        precisions_init=np.linalg.inv(cov)).fit(X)
+
+    def gmr_per_step():
+        for t in t_query:
+            ref9.condition([0], np.array([t])).to_mvn()
+
+    rows = []
+    with threadpool_limits(args.blas_threads):
+        pair = _time(lambda: dtw(a, b), reps)
+        rows.append(("DTW one pair 450x450x7", pair,
+                     "dtw-python", _time(lambda: dtw_python_pair(a, b), reps)))
+        rows.append(("  (same)", pair, "dtaidistance C (dist+path)",
+                     _time(lambda: dtw_ndim.warping_path(a, b, use_c=True), reps)))
+        rows.append(("  (same)", pair, "dtaidistance C (dist only)",
+                     _time(lambda: dtw_ndim.distance_fast(a, b), reps)))
+        rows.append(("align 5 demos (10 pairs)", _time(lambda: align(demos), reps),
+                     "dtw-python 10 pairs", _time(dtw_python_align, slow_reps)))
+        rows.append((f"K-means K={K_GMR} (3 starts)", _time(lambda: kmeans(X, K_GMR), reps),
+                     "sklearn KMeans",
+                     _time(lambda: KMeans(K_GMR, n_init=3, random_state=0).fit(X), reps)))
+        fast = _time(lambda: select_components(X, K_MAX, "fast"), slow_reps)
+        rows.append((f"fast BIC sweep K=1..{K_MAX}", fast,
+                     "sklearn KMeans sweep", _time(sklearn_fast_sweep, slow_reps)))
+        full = _time(lambda: select_components(X, K_MAX, "full"), 1)
+        rows.append((f"full BIC sweep K=1..{K_MAX}", full,
+                     "sklearn GaussianMixture sweep", _time(sklearn_full_sweep, 1)))
+        rows.append((f"EM K={K_GMR} from same start",
+                     _time(lambda: GMM(K_GMR).fit_from(X, *init9), reps),
+                     "sklearn GaussianMixture", _time(sklearn_em_from_init, reps)))
+        rows.append((f"GMR 450 steps K={K_GMR} (paper)", _time(lambda: gmr(model9, t_query), reps),
+                     "gmr condition per step", _time(gmr_per_step, slow_reps)))
+        rows.append((f"GMR 450 steps K={K_GMR} (total)",
+                     _time(lambda: gmr(model9, t_query, covariance="total"), reps),
+                     "gmr predict (mean only)",
+                     _time(lambda: ref9.predict([0], t_query[:, None]), reps)))
+        stage = _time(lambda: learn(demos, rate=sd.rate, config=LearningConfig()), slow_reps)
+        rows.append(("whole stage: align+fast BIC+EM+GMR", stage, "paper (2009 PC)", (2.0, 2.0)))
+
+    print(f"imitate learning benchmark: {len(demos)} demos, lengths {[len(d) for d in demos]}, "
+          f"X {X.shape}, BLAS threads {args.blas_threads}")
+    print(f"{'step':<36}{'ours best':>10}{'median':>10}  {'reference':<30}{'best':>10}"
+          f"{'median':>10}{'ratio':>8}")
+    print(f"{'':<36}{'[ms]':>10}{'[ms]':>10}  {'':<30}{'[ms]':>10}{'[ms]':>10}{'ref/us':>8}")
+    for name, ours, ref_name, ref in rows:
+        print(f"{name:<36}{_ms(ours[0])}{_ms(ours[1])}  {ref_name:<30}{_ms(ref[0])}{_ms(ref[1])}"
+              f"{ref[0] / ours[0]:8.1f}")
+    print(f"full / fast BIC sweep (ours): {full[0] / fast[0]:.1f}x; "
+          f"sklearn full sweep / our fast sweep: {rows[6][3][0] / fast[0]:.1f}x")
+    print(f"K chosen: fast {select_components(X, K_MAX, 'fast')[0]}, "
+          f"full {select_components(X, K_MAX, 'full')[0]}")
+
+
+if __name__ == "__main__":
+    main()
