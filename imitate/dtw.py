@@ -11,31 +11,30 @@ monotone path from ``(0, 0)`` to ``(n-1, m-1)`` made of the three unit-weight st
 (0, 1), (1, 0). This is dtw-python's ``symmetric1`` step pattern with ``dist_method="euclidean"``;
 ties are broken in its order (diagonal, then ``(i, j-1)``, then ``(i-1, j)``).
 
-Speed without compiled code: all cells of one anti-diagonal ``i + j = k`` depend only on the two
-previous anti-diagonals, so the table is filled as a wavefront, three vectorised numpy calls per
-anti-diagonal, on a skewed (zero-copy) view of the local costs. Many pairs are processed side by
-side (the pair index is the innermost, contiguous axis), which is what :func:`align` does for all
-pairs of demonstrations at once. The local costs use the Gram-matrix formula with an exact
-recomputation of near-zero distances, so a series has distance exactly 0 to itself.
+Speed: the table is filled row by row in a small compiled loop (numba), which computes each row
+of local distances with the same summation order as ``scipy.spatial.distance.cdist`` (used by
+dtw-python), keeps only two rows of accumulated costs and records the chosen step of every cell
+(one byte each); the path is read back from those steps, exactly as dtw-python does. The first
+call of a process compiles the loops (about 2 s) or loads them from numba's on-disk cache
+(about 0.5 s).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numba
 import numpy as np
-from numpy.lib.stride_tricks import as_strided
 from numpy.typing import ArrayLike
 
 from imitate.errors import ImitateError
 
 __all__ = ["Alignment", "align", "default_weights", "dtw", "local_costs", "warp_to_reference"]
 
-# Cells whose squared distance from the Gram-matrix formula is below this fraction of the squared
-# norms are recomputed by direct differences, so that near-zero distances are exact (the formula
-# cancels catastrophically there) while all others keep a relative error of about 1e-12.
-_CANCELLATION_GUARD = 1e-4
+# Step codes recorded per cell; their order is dtw-python's tie-breaking order.
+_START, _DIAGONAL, _LEFT, _UP = -1, 0, 1, 2
 
 
 def _as_series(x: ArrayLike, name: str) -> np.ndarray:
@@ -90,96 +89,97 @@ def local_costs(a: ArrayLike, b: ArrayLike, weights: ArrayLike | None = None) ->
             f"a and b must have the same number of dimensions; got {a.shape[1]} and {b.shape[1]}"
         )
     w = _as_weights(weights, a.shape[1])
-    return _local_costs(a * w, b * w)
+    bt = np.ascontiguousarray((b * w).T)
+    aw = a * w
+    v = np.empty((a.shape[0], b.shape[0]))
+    for i in range(a.shape[0]):
+        _local_cost_row(aw[i], bt, v[i])
+    return v
 
 
-def _local_costs(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Euclidean distances between the rows of already scaled ``a`` (n, d) and ``b`` (m, d)."""
-    centre = 0.5 * (a.mean(axis=0) + b.mean(axis=0))
-    a = a - centre
-    b = b - centre
-    aa = np.einsum("ij,ij->i", a, a)
-    bb = np.einsum("ij,ij->i", b, b)
-    d2 = a @ (-2.0 * b).T
-    d2 += aa[:, None]
-    d2 += bb
-    guard = _CANCELLATION_GUARD * (aa.max() + bb.max())
-    if d2.min() < guard:
-        ii, jj = np.nonzero(d2 < guard)
-        diff = a[ii] - b[jj]
-        d2[ii, jj] = np.einsum("ij,ij->i", diff, diff)
-    return np.sqrt(d2, out=d2)
+@numba.njit(cache=True)
+def _local_cost_row(a_i: np.ndarray, bt: np.ndarray, out: np.ndarray) -> None:
+    """Writes ``out[j] = ||a_i - bt[:, j]||`` for one sample ``a_i`` (d,) and ``bt`` (d, m).
+
+    The squares are summed over dimensions in order from 0, as scipy's ``cdist`` does, so the
+    local costs are bit-identical to dtw-python's, and exact (no cancellation) near zero.
+    """
+    out[:] = 0.0
+    for d in range(bt.shape[0]):
+        a_id = a_i[d]
+        for j in range(bt.shape[1]):
+            diff = a_id - bt[d, j]
+            out[j] += diff * diff
+    for j in range(bt.shape[1]):
+        out[j] = math.sqrt(out[j])
 
 
-def _accumulate(v: np.ndarray) -> np.ndarray:
-    """Accumulated cost of eq. 2, one anti-diagonal at a time, for one or a stack of pairs.
+@numba.njit(cache=True)
+def _accumulate(a: np.ndarray, bt: np.ndarray) -> tuple[float, np.ndarray]:
+    """Eq. 2 for already scaled series ``a`` (n, d) and ``bt`` (d, m, i.e. ``b`` transposed).
 
-    Args:
-        v: Local costs, C-contiguous, shape ``(n, m)`` or ``(n, m, n_pairs)``, finite.
+    Every cell takes the cheapest of its three predecessors; as in dtw-python, the candidates
+    ``acc + v`` are compared and the first in the order diagonal, left, up wins ties.
 
     Returns:
-        The table in skewed layout, shape ``(n + m - 1, n + 1[, n_pairs])``: the eq. 2 value of
-        cell ``(i, j)`` is at ``[i + j, i + 1]``. Column 0 and the entry just past each
-        anti-diagonal hold ``inf`` (eq. 2's border); other entries outside the grid are never
-        read. Cells beyond a pair's true size do not influence the cells before them, so pairs of
-        different sizes can share one zero-padded stack.
+        ``(distance, steps)``: eq. 2's ``dtw(n-1, m-1)`` and the step code chosen at every cell,
+        int8 of shape ``(n, m)`` (``_START`` at ``(0, 0)``).
     """
-    n, m = v.shape[:2]
-    step = v.strides[1]
-    # Skewed view without copying: element [k, i] is v[i, k - i]; offsets stay inside v's buffer.
-    v_diag = as_strided(
-        v, shape=(n + m - 1, n) + v.shape[2:], strides=(step, (m - 1) * step) + v.strides[2:],
-        writeable=False,
-    )
-    acc = np.empty((n + m - 1, n + 1) + v.shape[2:])
-    acc[:, 0] = np.inf
-    k = np.arange(n + m - 1)
-    past = np.minimum(k, n - 1) + 2
-    inside = past <= n
-    acc[k[inside], past[inside]] = np.inf
-    acc[0, 1] = v[0, 0]
-    tmp = np.empty((n,) + v.shape[2:])
-    rows = list(acc)
-    v_rows = list(v_diag)
-    for k in range(1, n + m - 1):
-        lo = k - m + 1 if k >= m else 0
-        hi = k + 1 if k < n else n
-        prev = rows[k - 1]
-        t = tmp[lo:hi]
-        np.minimum(prev[lo:hi], prev[lo + 1 : hi + 1], out=t)  # up (i-1, j), left (i, j-1)
-        if k >= 2:
-            np.minimum(t, rows[k - 2][lo:hi], out=t)  # diagonal (i-1, j-1)
-        np.add(t, v_rows[k][lo:hi], out=rows[k][lo + 1 : hi + 1])
-    return acc
-
-
-def _backtrack(acc: np.ndarray, n: int, m: int) -> np.ndarray:
-    """Optimal path from ``(n-1, m-1)`` back to ``(0, 0)`` through one skewed table (2-D)."""
-    width = acc.shape[1]
-    flat = memoryview(np.ascontiguousarray(acc).ravel())
-    i, j = n - 1, m - 1
-    rows = [i]
-    cols = [j]
-    while i > 0 or j > 0:
+    n, m = a.shape[0], bt.shape[1]
+    prev = np.empty(m)
+    cur = np.empty(m)
+    v = np.empty(m)
+    steps = np.empty((n, m), dtype=np.int8)
+    for i in range(n):
+        _local_cost_row(a[i], bt, v)
         if i == 0:
-            j -= 1
-        elif j == 0:
-            i -= 1
+            cur[0] = v[0]
+            steps[0, 0] = _START
+            for j in range(1, m):
+                cur[j] = cur[j - 1] + v[j]
+                steps[0, j] = _LEFT
         else:
-            prev = (i + j - 1) * width
-            diag = flat[prev - width + i]
-            left = flat[prev + i + 1]
-            up = flat[prev + i]
-            if diag <= left and diag <= up:
-                i -= 1
-                j -= 1
-            elif left <= up:
-                j -= 1
-            else:
-                i -= 1
-        rows.append(i)
-        cols.append(j)
-    return np.column_stack((rows[::-1], cols[::-1])).astype(np.intp)
+            cur[0] = prev[0] + v[0]
+            steps[i, 0] = _UP
+            for j in range(1, m):
+                # Checked in reverse order with <=, so that the earlier step wins a tie.
+                best, step = prev[j] + v[j], _UP
+                candidate = cur[j - 1] + v[j]
+                if candidate <= best:
+                    best, step = candidate, _LEFT
+                candidate = prev[j - 1] + v[j]
+                if candidate <= best:
+                    best, step = candidate, _DIAGONAL
+                cur[j] = best
+                steps[i, j] = step
+        prev, cur = cur, prev
+    return prev[m - 1], steps
+
+
+@numba.njit(cache=True)
+def _backtrack(steps: np.ndarray) -> np.ndarray:
+    """Optimal path, shape ``(L, 2)``, from ``(0, 0)`` to ``(n-1, m-1)`` along recorded steps."""
+    n, m = steps.shape
+    path = np.empty((n + m - 1, 2), dtype=np.intp)
+    i, j = n - 1, m - 1
+    k = path.shape[0]
+    while True:
+        k -= 1
+        path[k, 0] = i
+        path[k, 1] = j
+        step = steps[i, j]
+        if step == _START:
+            break
+        if step != _LEFT:
+            i -= 1
+        if step != _UP:
+            j -= 1
+    return path[k:].copy()
+
+
+def _dtw_scaled(a: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray]:
+    """DTW distance and step codes of two already scaled series, see :func:`_accumulate`."""
+    return _accumulate(np.ascontiguousarray(a), np.ascontiguousarray(b.T))
 
 
 def dtw(a: ArrayLike, b: ArrayLike, weights: ArrayLike | None = None) -> tuple[float, np.ndarray]:
@@ -203,10 +203,15 @@ def dtw(a: ArrayLike, b: ArrayLike, weights: ArrayLike | None = None) -> tuple[f
         >>> float(d), path.tolist()
         (0.0, [[0, 0], [0, 1], [1, 2], [2, 3]])
     """
-    v = local_costs(a, b, weights)
-    n, m = v.shape
-    acc = _accumulate(v)
-    return float(acc[n + m - 2, n]), _backtrack(acc, n, m)
+    a = _as_series(a, "a")
+    b = _as_series(b, "b")
+    if a.shape[1] != b.shape[1]:
+        raise ImitateError(
+            f"a and b must have the same number of dimensions; got {a.shape[1]} and {b.shape[1]}"
+        )
+    w = _as_weights(weights, a.shape[1])
+    distance, steps = _dtw_scaled(a * w, b * w)
+    return float(distance), _backtrack(steps)
 
 
 def default_weights(demos: Sequence[np.ndarray]) -> np.ndarray:
@@ -274,9 +279,9 @@ def align(
 ) -> Alignment:
     """Aligns all demonstrations onto one reference with DTW so that they share its length.
 
-    All pairwise DTW problems are solved together in one vectorised sweep. The reference is the
-    medoid (the demonstration with the smallest summed DTW distance to the others, lowest index on
-    ties) unless given.
+    DTW is solved for every pair (the step codes of each pair, one byte per cell, are kept until
+    the reference is known). The reference is the medoid (the demonstration with the smallest
+    summed DTW distance to the others, lowest index on ties) unless given.
 
     Args:
         demos: At least 2 demonstrations, each of shape ``(n_steps_i, n_dims)``, finite.
@@ -306,30 +311,24 @@ def align(
         raise ImitateError(f"reference must be in [0, {n_demos - 1}]; got {reference}")
     w = default_weights(series) if weights is None else _as_weights(weights, n_dims)
     scaled = [s * w for s in series]
-    lengths = [s.shape[0] for s in series]
-
-    pairs = [(p, q) for p in range(n_demos) for q in range(p + 1, n_demos)]
-    n_max = max(lengths)
-    v = np.zeros((n_max, n_max, len(pairs)))
-    for k, (p, q) in enumerate(pairs):
-        v[: lengths[p], : lengths[q], k] = _local_costs(scaled[p], scaled[q])
-    acc = _accumulate(v)
 
     distances = np.zeros((n_demos, n_demos))
-    for k, (p, q) in enumerate(pairs):
-        distances[p, q] = distances[q, p] = acc[lengths[p] + lengths[q] - 2, lengths[p], k]
+    steps = {}
+    for p in range(n_demos):
+        for q in range(p + 1, n_demos):
+            distances[p, q], steps[p, q] = _dtw_scaled(scaled[p], scaled[q])
+            distances[q, p] = distances[p, q]
     if reference is None:
         reference = int(np.argmin(distances.sum(axis=1)))
 
-    n_ref = lengths[reference]
+    n_ref = len(series[reference])
     paths = []
     aligned = np.empty((n_demos, n_ref, n_dims))
     for d in range(n_demos):
         if d == reference:
             path = np.column_stack((np.arange(n_ref), np.arange(n_ref)))
         else:
-            k = pairs.index((min(d, reference), max(d, reference)))
-            path = _backtrack(acc[:, :, k], lengths[min(d, reference)], lengths[max(d, reference)])
+            path = _backtrack(steps[min(d, reference), max(d, reference)])
             if d > reference:
                 path = path[:, ::-1]
         paths.append(path)

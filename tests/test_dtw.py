@@ -33,6 +33,19 @@ def test_matches_dtw_python_on_random_multidimensional_series(seed):
     np.testing.assert_array_equal(path, ref_path)
 
 
+@pytest.mark.parametrize("seed", range(8))
+def test_ties_are_broken_like_dtw_python(seed):
+    # Few distinct integer values: many cells have equal candidates, so the path depends on the
+    # tie-breaking order (diagonal, then left, then up).
+    rng = np.random.default_rng(100 + seed)
+    a = rng.integers(0, 3, size=(int(rng.integers(5, 60)), 2)).astype(float)
+    b = rng.integers(0, 3, size=(int(rng.integers(5, 60)), 2)).astype(float)
+    distance, path = dtw(a, b)
+    ref_distance, ref_path = _reference(a, b)
+    assert distance == ref_distance
+    np.testing.assert_array_equal(path, ref_path)
+
+
 def test_matches_dtw_python_at_paper_scale():
     rng = np.random.default_rng(7)
     a = np.cumsum(rng.normal(size=(450, 7)), axis=0)
