@@ -1,0 +1,150 @@
+"""Planning set-up for the robot in the pouring scene, the oracle learned model, and replay.
+
+:func:`planning_task` builds the kinematic planning model of a scene (no particles) and its
+task map; :func:`oracle_model` learns the pouring task from the teacher's ground-truth object
+poses (no perception); :func:`replay` drives ``PouringEnv``'s actuators along a plan in full
+physics and measures the pour.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from envs import scene
+from envs.pouring import PouringEnv
+from envs.teacher import TeacherConfig, script_demonstrations
+from imitate.kinematics import Kinematics
+from imitate.learning import LearnedModel, LearningConfig, learn
+from imitate.motion import Plan, TaskMap
+from imitate.motion.control import ControlConfig
+from imitate.taskspace import task_space
+from models import humanoid, objects
+
+GAZE_CAMERA = humanoid.LEFT_EYE
+
+
+def planning_task(
+    config: scene.SceneConfig | None = None, control: ControlConfig | None = None
+) -> TaskMap:
+    """Task map on a particle-free copy of the scene (default: ``PouringEnv``'s), objects held
+    by the robot, the gaze frame fixed at the rest pose's left-eye camera."""
+    config, control = config or scene.SceneConfig(), control or ControlConfig()
+    model = scene.build_model(replace(config, particles=0, holder="robot"))
+    kin = Kinematics(model, humanoid.JOINTS, scene.clearance_geoms(model))
+    kin.update(humanoid.rest_pose())
+    _, R = kin.camera_pose(GAZE_CAMERA)
+    gaze = np.column_stack((R[:, 0], R[:, 1], -R[:, 2]))  # MuJoCo cameras look along -z
+    return TaskMap(kin, objects.BOTTLE, objects.GLASS, gaze, control.fixed_joints)
+
+
+def oracle_model(
+    gaze: np.ndarray,
+    teacher: TeacherConfig | None = None,
+    learning: LearningConfig | None = None,
+    rate: float = 50.0,
+) -> LearnedModel:
+    """Learns the task from the teacher's ground-truth poses, sampled at ``rate`` [Hz]
+    (default learning: BIC over ``K <= 12``)."""
+    motion = script_demonstrations(teacher or TeacherConfig())
+    learning = learning or LearningConfig(k_max=12)
+    demos = []
+    for start, end in motion.boundaries:
+        poses = motion.poses(np.arange(start, end, 1.0 / rate))
+        axes = {
+            obj: Rotation.from_quat(quat, scalar_first=True).as_matrix()[:, :, 2]
+            for obj, (_, quat) in poses.items()
+        }
+        demos.append(
+            task_space(
+                poses[objects.BOTTLE][0], axes[objects.BOTTLE],
+                poses[objects.GLASS][0], axes[objects.GLASS], gaze,
+            )
+        )
+    return learn(demos, rate=rate, config=learning)
+
+
+@dataclass(frozen=True)
+class ReplayResult:
+    """Outcome of :func:`replay`.
+
+    Attributes:
+        pour_fraction: Fraction of particles in the glass at the end.
+        spilled: Particles in neither container at the end.
+        min_distance: Smallest signed distance [m] over all steps between pairs that must not
+            touch.
+        task_error: ``(T + 1, m)`` task state in physics minus the plan's, at the plan's times.
+        is_success: ``pour_fraction >= 0.9``.
+    """
+
+    pour_fraction: float
+    spilled: int
+    min_distance: float
+    task_error: np.ndarray
+    is_success: bool
+
+
+def replay(
+    plan: Plan,
+    env: PouringEnv,
+    *,
+    seed: int = 0,
+    approach: float = 1.0,
+    settle: float = 1.5,
+    options: dict | None = None,
+) -> ReplayResult:
+    """Drives ``env`` along ``plan`` in physics: from the reset pose to the plan's start in
+    ``approach`` [s] (cosine blend), the plan interpolated at the env's control rate, then
+    ``settle`` [s] holding the last posture."""
+    env.reset(seed=seed, options=options)
+    dt = env.dt
+    q_reset = env.data.qpos[env._joint_qpos].copy()
+    targets = []
+    n_approach = int(round(approach / dt))
+    for i in range(1, n_approach + 1):
+        s = 0.5 - 0.5 * np.cos(np.pi * i / n_approach)
+        targets.append((1 - s) * q_reset + s * plan.q_start)
+    t_play = np.arange(0.0, plan.times[-1] - plan.times[0] + 1e-9, dt)
+    play = _resample(plan.times - plan.times[0], plan.q, t_play)
+    targets.extend(play)
+    targets.extend([plan.q[-1]] * int(round(settle / dt)))
+    task = planning_task(env.config)
+    min_distance = np.inf
+    reached = []
+    info = {}
+    for k, target in enumerate(targets):
+        _, _, _, _, info = env.step(target)
+        min_distance = min(min_distance, info["min_distance"])
+        if n_approach <= k < n_approach + len(play):
+            reached.append(_task_state(env, task, plan, (k - n_approach) * dt))
+    x = np.array(reached)
+    ref = _resample(plan.times - plan.times[0], plan.x, t_play)
+    return ReplayResult(
+        pour_fraction=float(info["pour_fraction"]),
+        spilled=int(info["spilled"]),
+        min_distance=float(min_distance),
+        task_error=x - ref[: len(x)],
+        is_success=bool(info["is_success"]),
+    )
+
+
+def _resample(times: np.ndarray, values: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Linear interpolation of ``values`` ``(T, k)`` at ``times`` onto ``at``."""
+    return np.column_stack([np.interp(at, times, values[:, i]) for i in range(values.shape[1])])
+
+
+def _task_state(env: PouringEnv, task: TaskMap, plan: Plan, t: float) -> np.ndarray:
+    """Task state of the objects' physical poses (not the hands'), eq. 1."""
+    d = env.data
+    pb, pg = d.body(objects.BOTTLE).xpos, d.body(objects.GLASS).xpos
+    ab = d.body(objects.BOTTLE).xmat.reshape(3, 3)[:, 2]
+    ag = d.body(objects.GLASS).xmat.reshape(3, 3)[:, 2]
+    x = task_space(pb[None], ab[None], pg[None], ag[None], task.gaze)[0]
+    ref = np.array([np.interp(t, plan.times - plan.times[0], plan.x[:, i]) for i in (3, 5)])
+    x[[3, 5]] += 2 * np.pi * np.round((ref - x[[3, 5]]) / (2 * np.pi))
+    return x
+
+
+__all__ = ["ReplayResult", "oracle_model", "planning_task", "replay"]

@@ -1,0 +1,210 @@
+"""``Kinematics``: the one owner of the planning ``MjModel``/``MjData`` and of every ``mj_*`` call.
+
+The planner sees the robot as its hinge joints (``joints``, in a fixed order, ``n`` of them) and
+the objects it holds as rigid extensions of its hands: every *active* weld equality constraint
+whose second body is a free body (a held object) is read once, and after each
+:meth:`Kinematics.update` the object's body and geom poses are written as the hand's pose
+composed with the weld's relative pose, so no physics runs. Jacobians of points on a held object
+are ``mj_jac`` of its hand body at that point.
+
+Jacobians are restricted to the ``joints`` columns, shape ``(3, n)``, world frame (MuJoCo's
+convention: translational ``dp/dq``; rotational maps joint velocities to angular velocity).
+Signed distances come from ``mj_geomDistance`` between the pairs of
+:class:`imitate.collision.CollisionPairs`; a bounding-sphere test skips far pairs first.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from imitate.collision import CollisionPairs
+from imitate.errors import ImitateError
+from imitate.taskspace import ObjectKinematics
+
+__all__ = ["Distances", "Kinematics"]
+
+
+@dataclass(frozen=True)
+class Distances:
+    """Signed distances of the pairs that are closer than a query's ``distmax``.
+
+    Attributes:
+        pairs: ``(k,)`` indices into :attr:`Kinematics.pairs`.
+        dist: ``(k,)`` signed distances [m], negative when penetrating.
+        fromto: ``(k, 6)`` witness points on the first and on the second geom [m], world frame.
+        jac: ``(k, n)`` gradients ``dd/dq`` [m/rad], or an empty ``(0, n)`` if not asked for.
+    """
+
+    pairs: np.ndarray
+    dist: np.ndarray
+    fromto: np.ndarray
+    jac: np.ndarray
+
+
+class Kinematics:
+    """Forward kinematics, Jacobians and signed distances of the robot and what it holds.
+
+    Args:
+        model: The scene; it is not modified. Its active welds to free bodies define what the
+            robot holds.
+        joints: Names of the hinge joints planned for, ``n`` of them, in the order of ``q``.
+        geoms: Geom ids that must keep clear of each other; pairs are filtered by
+            :meth:`CollisionPairs.between`. ``None`` for no distance queries.
+
+    Raises:
+        ImitateError: On an unknown or non-hinge joint name.
+    """
+
+    def __init__(
+        self, model: mujoco.MjModel, joints: Sequence[str], geoms: Sequence[int] | None = None
+    ):
+        self.model = model
+        self.data = mujoco.MjData(model)
+        names = [model.joint(j).name for j in range(model.njnt)]
+        ids = []
+        for name in joints:
+            if name not in names:
+                raise ImitateError(f"joint {name!r} unknown; accepted: {names}")
+            jid = model.joint(name).id
+            if model.jnt_type[jid] != mujoco.mjtJoint.mjJNT_HINGE:
+                raise ImitateError(f"joint {name!r} is not a hinge joint; only hinges are planned")
+            ids.append(jid)
+        self.joints = tuple(joints)
+        self.qpos_adr = model.jnt_qposadr[ids].copy()
+        self.dof_adr = model.jnt_dofadr[ids].copy()
+        self.lower, self.upper = model.jnt_range[ids].T.copy()
+        self._held = self._held_objects()
+        self._geom_owner = model.geom_bodyid.copy()  # body whose Jacobian moves each geom
+        for obj, (hand, _, _) in self._held.items():
+            self._geom_owner[model.geom_bodyid == obj] = hand
+        self._held_geoms = {}
+        for obj in self._held:
+            own = np.flatnonzero(model.geom_bodyid == obj)
+            rot = np.zeros((len(own), 9))
+            for k, g in enumerate(own):
+                mujoco.mju_quat2Mat(rot[k], model.geom_quat[g])
+            self._held_geoms[obj] = (own, rot.reshape(-1, 3, 3))
+        self.pairs = CollisionPairs.between(model, geoms) if geoms is not None else None
+        self._jacp = np.zeros((3, model.nv))
+        self._jacr = np.zeros((3, model.nv))
+
+    @property
+    def n(self) -> int:
+        """Number of planned joints."""
+        return len(self.joints)
+
+    def _held_objects(self) -> dict[int, tuple[int, np.ndarray, np.ndarray]]:
+        """``{object body: (hand body, relative position (3,), relative rotation (3, 3))}``."""
+        m = self.model
+        held = {}
+        for e in range(m.neq):
+            if m.eq_type[e] != mujoco.mjtEq.mjEQ_WELD or not m.eq_active0[e]:
+                continue
+            hand, obj = int(m.eq_obj1id[e]), int(m.eq_obj2id[e])
+            jnt = m.body_jntadr[obj]
+            if jnt < 0 or m.jnt_type[jnt] != mujoco.mjtJoint.mjJNT_FREE:
+                continue
+            rot = np.zeros(9)
+            mujoco.mju_quat2Mat(rot, m.eq_data[e, 6:10])
+            held[obj] = (hand, m.eq_data[e, 3:6].copy(), rot.reshape(3, 3))
+        return held
+
+    def update(self, q: np.ndarray) -> None:
+        """Sets the joint angles ``q`` ``(n,)`` [rad] and updates all poses (no physics)."""
+        m, d = self.model, self.data
+        d.qpos[self.qpos_adr] = q
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        for obj, (hand, rel_pos, rel_rot) in self._held.items():
+            R_hand = d.xmat[hand].reshape(3, 3)
+            R = R_hand @ rel_rot
+            d.xpos[obj] = d.xpos[hand] + R_hand @ rel_pos
+            d.xmat[obj] = R.ravel()
+            geoms, local = self._held_geoms[obj]
+            d.geom_xpos[geoms] = d.xpos[obj] + m.geom_pos[geoms] @ R.T
+            d.geom_xmat[geoms] = (R @ local).reshape(-1, 9)
+
+    def body_pose(self, body: str) -> tuple[np.ndarray, np.ndarray]:
+        """World pose of ``body`` at the last :meth:`update`: ``(pos (3,) [m], R (3, 3))``."""
+        b = self.model.body(body).id
+        return self.data.xpos[b].copy(), self.data.xmat[b].reshape(3, 3).copy()
+
+    def camera_pose(self, camera: str) -> tuple[np.ndarray, np.ndarray]:
+        """World pose of ``camera``: ``(pos (3,) [m], R (3, 3))``, columns its x, y, z axes."""
+        mujoco.mj_camlight(self.model, self.data)
+        c = self.model.camera(camera).id
+        return self.data.cam_xpos[c].copy(), self.data.cam_xmat[c].reshape(3, 3).copy()
+
+    def point_jacobian(self, body: int, point: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Jacobians of a point fixed to ``body`` (id; a held object's hand is used for it).
+
+        Returns:
+            ``(jac_pos (3, n) [m/rad], jac_rot (3, n) [1])``.
+        """
+        mujoco.mj_jac(self.model, self.data, self._jacp, self._jacr, point, int(body))
+        return self._jacp[:, self.dof_adr].copy(), self._jacr[:, self.dof_adr].copy()
+
+    def object_kinematics(self, body: str) -> ObjectKinematics:
+        """Position (body frame origin), unit long axis (body ``z``) and Jacobians of ``body``."""
+        b = self.model.body(body).id
+        pos = self.data.xpos[b].copy()
+        jac_pos, jac_rot = self.point_jacobian(self.owner(b), pos)
+        return ObjectKinematics(pos, self.data.xmat[b].reshape(3, 3)[:, 2].copy(), jac_pos, jac_rot)
+
+    def owner(self, body: int) -> int:
+        """The body whose motion moves ``body`` (id): its hand for a held object, else itself."""
+        return self._held[body][0] if body in self._held else body
+
+    def distances(self, distmax: float, *, jacobian: bool = False) -> Distances:
+        """Signed distances of the pairs closer than ``distmax`` [m] at the last :meth:`update`.
+
+        Args:
+            distmax: Pairs whose bounding spheres are farther apart than this are skipped, and
+                those found farther are dropped.
+            jacobian: Also compute ``dd/dq`` for each returned pair.
+
+        Raises:
+            ImitateError: If the kinematics were built without ``geoms``.
+        """
+        if self.pairs is None:
+            raise ImitateError("distances need the Kinematics to be built with geoms")
+        m, d = self.model, self.data
+        g1, g2 = self.pairs.geom1, self.pairs.geom2
+        centre = np.linalg.norm(d.geom_xpos[g1] - d.geom_xpos[g2], axis=1)
+        near = np.flatnonzero(centre - m.geom_rbound[g1] - m.geom_rbound[g2] < distmax)
+        dist = np.empty(len(near))
+        fromto = np.zeros((len(near), 6))
+        for k, p in enumerate(near):
+            dist[k] = mujoco.mj_geomDistance(m, d, int(g1[p]), int(g2[p]), distmax, fromto[k])
+        keep = dist < distmax
+        near, dist, fromto = near[keep], dist[keep], fromto[keep]
+        jac = np.zeros((len(near), self.n))
+        if jacobian:
+            for k, p in enumerate(near):
+                jac[k] = self._distance_gradient(int(g1[p]), int(g2[p]), dist[k], fromto[k])
+        return Distances(near, dist, fromto, jac)
+
+    def _distance_gradient(self, g1: int, g2: int, dist: float, fromto: np.ndarray) -> np.ndarray:
+        """``dd/dq`` ``(n,)`` = ``n^T (J(p2) - J(p1))``; ``n`` flips when penetrating."""
+        p1, p2 = fromto[:3], fromto[3:]
+        gap = p2 - p1
+        norm = np.linalg.norm(gap)
+        if norm < 1e-12:
+            return np.zeros(self.n)
+        normal = np.sign(dist) * gap / norm if dist != 0 else gap / norm
+        j1, _ = self.point_jacobian(self._geom_owner[g1], p1)
+        j2, _ = self.point_jacobian(self._geom_owner[g2], p2)
+        return normal @ (j2 - j1)
+
+    def min_distance(self, distmax: float = 0.2) -> tuple[float, tuple[str, str] | None]:
+        """Smallest signed distance [m] over all pairs (``distmax`` if none is closer) and the
+        names of its geoms (``None`` if none is closer)."""
+        result = self.distances(distmax)
+        if len(result.dist) == 0:
+            return distmax, None
+        k = int(np.argmin(result.dist))
+        return float(result.dist[k]), self.pairs.names(self.model, int(result.pairs[k]))

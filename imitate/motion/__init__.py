@@ -1,0 +1,42 @@
+r"""Motion generation (paper section V): attractor-based whole-body movement optimisation.
+
+Notation (the paper's, and ``research/optimizer-math.md``'s):
+
+==============  =================================================================================
+``T``           number of planning steps; trajectories have ``T + 1`` samples, step ``dt`` [s]
+``m``           task dimensions (7, eq. 1); ``n`` planned joints (18, head columns zero)
+``K``           attractors = GMM components; ``a`` ``(K, m)`` attractor points
+``x_t``         target (attractor) trajectory ``x = S_x s_0 + Psi a`` (:mod:`.attractors`)
+``phi(q)``      task map; ``J`` its Jacobian ``(m, n)``; ``J#`` weighted damped pseudo-inverse
+``q_t``         joint angles from resolved motion rate control (:mod:`.control`)
+``mu_t``        GMR mean; ``sigma_t`` GMR variance; ``W_t`` eq. 21 weights (:mod:`.costs`)
+``Phi``         total cost ``sum_i w_i c_i``; its gradient by the adjoint recursion
+==============  =================================================================================
+
+:func:`plan` is the entry point; it returns a frozen :class:`Plan`.
+"""
+
+from imitate.motion.attractors import AttractorDynamics
+from imitate.motion.control import ControlConfig, JointLimitCost, Rollout, TaskMap, reach, rollout
+from imitate.motion.costs import Collision, JointLimits, PathLength, Similarity, similarity_weights
+from imitate.motion.optimizer import OPTIMIZERS, Plan, PlanConfig, Problem, plan
+
+__all__ = [
+    "OPTIMIZERS",
+    "AttractorDynamics",
+    "Collision",
+    "ControlConfig",
+    "JointLimitCost",
+    "JointLimits",
+    "PathLength",
+    "Plan",
+    "PlanConfig",
+    "Problem",
+    "Rollout",
+    "Similarity",
+    "TaskMap",
+    "plan",
+    "reach",
+    "rollout",
+    "similarity_weights",
+]

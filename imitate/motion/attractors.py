@@ -1,0 +1,108 @@
+r"""Task-space attractor dynamics: one attractor point per GMM component, linear in the points.
+
+Each task dimension follows the critically damped system :math:`\ddot x = \omega^2 (r - x) -
+2\omega \dot x` towards a piecewise-constant target :math:`r_t = a_k` while step ``t`` lies in
+component ``k``'s interval (hard switches at the midpoints between the sorted time means of the
+components). The system is discretised exactly (zero-order hold on ``r``):
+:math:`s_{t+1} = A_d s_t + B_d r_t`, :math:`s = (x, \dot x)`. Hence the whole trajectory is
+
+.. math:: x_{0:T} = S_x s_0 + \Psi a, \qquad \partial x_t / \partial a_k = \Psi_{t,k} I_m,
+
+with the ``(T+1, 2)`` free response ``S_x`` and the ``(T+1, K)`` matrix ``Psi`` computed once.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import expm
+
+from imitate.errors import ImitateError
+
+__all__ = ["AttractorDynamics"]
+
+
+class AttractorDynamics:
+    """Precomputed linear map from attractor points to the task trajectory.
+
+    Args:
+        n_steps: Number of steps ``T``; the trajectory has ``T + 1`` samples, ``x_0`` the start.
+        dt: Step [s].
+        centres: Time means of the GMM components [s], shape ``(K,)``, any order.
+        omega: Natural frequency [rad/s] of the critically damped dynamics.
+
+    Attributes:
+        order: ``(K,)`` component index of each attractor (attractors are sorted by time).
+        switch: ``(T,)`` attractor active during each step.
+        free: ``(T + 1, 2)`` response to the initial state ``(x_0, v_0)``.
+        psi: ``(T + 1, K)`` response to the attractors, ``Psi``.
+    """
+
+    def __init__(self, n_steps: int, dt: float, centres: np.ndarray, omega: float):
+        centres = np.asarray(centres, dtype=float).ravel()
+        if n_steps < 1 or not dt > 0 or not omega > 0 or centres.size < 1:
+            raise ImitateError(
+                f"attractor dynamics need n_steps >= 1, dt > 0, omega > 0 and >= 1 centre; got "
+                f"n_steps={n_steps}, dt={dt}, omega={omega}, {centres.size} centres"
+            )
+        self.n_steps, self.dt, self.omega = int(n_steps), float(dt), float(omega)
+        self.order = np.argsort(centres)
+        sorted_centres = centres[self.order]
+        edges = 0.5 * (sorted_centres[1:] + sorted_centres[:-1])
+        self.switch = np.searchsorted(edges, (np.arange(n_steps) + 0.5) * dt)
+        M = np.array([[0.0, 1.0], [-omega**2, -2.0 * omega]])
+        A = expm(M * dt)
+        B = np.linalg.solve(M, (A - np.eye(2)) @ np.array([0.0, omega**2]))
+        self.A, self.B = A, B
+        K = centres.size
+        free = np.empty((n_steps + 1, 2, 2))  # state response to s_0 = e_0, e_1
+        forced = np.zeros((n_steps + 1, 2, K))
+        free[0] = np.eye(2)
+        for t in range(n_steps):
+            free[t + 1] = A @ free[t]
+            forced[t + 1] = A @ forced[t]
+            forced[t + 1, :, self.switch[t]] += B
+        self.free = free[:, 0, :]
+        self.psi = forced[:, 0, :]
+
+    @property
+    def n_attractors(self) -> int:
+        """Number of attractors ``K``."""
+        return self.psi.shape[1]
+
+    def trajectory(self, a: np.ndarray, x0: np.ndarray, v0: np.ndarray | None = None):
+        """Task trajectory ``x_{0:T}``, shape ``(T + 1, m)``.
+
+        Args:
+            a: Attractor points, shape ``(K, m)``, sorted by time.
+            x0: Start ``(m,)``.
+            v0: Start velocity ``(m,)`` [per s]; ``None`` for rest.
+        """
+        x = self.free[:, :1] * x0 + self.psi @ a
+        if v0 is not None:
+            x += self.free[:, 1:] * v0
+        return x
+
+    def gradient(self, dx: np.ndarray) -> np.ndarray:
+        """Gradient w.r.t. the attractors ``(K, m)`` from the gradient w.r.t. ``x_{0:T}``."""
+        return self.psi.T @ dx
+
+    def fit(self, target: np.ndarray, x0: np.ndarray, reg: float = 1e-6) -> np.ndarray:
+        """Attractors whose trajectory from ``x0`` at rest fits ``target`` in least squares.
+
+        Args:
+            target: ``(T + 1, m)``, e.g. the GMR mean.
+            x0: Start ``(m,)``.
+            reg: Tikhonov weight pulling each attractor towards the target's mean over its
+                interval (keeps an attractor that barely acts well defined).
+
+        Returns:
+            ``(K, m)`` attractor points.
+        """
+        K = self.n_attractors
+        prior = np.array(
+            [target[1:][self.switch == k].mean(axis=0) if np.any(self.switch == k) else target[-1]
+             for k in range(K)]
+        )
+        residual = target - self.free[:, :1] * x0
+        lhs = self.psi.T @ self.psi + reg * np.eye(K)
+        return np.linalg.solve(lhs, self.psi.T @ residual + reg * prior)

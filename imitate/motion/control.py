@@ -1,0 +1,299 @@
+r"""Whole-body resolved motion rate control (RMR): task trajectory -> joint trajectory.
+
+Per step ``t`` (``n`` joints, ``m`` task dimensions):
+
+.. math::
+    J^\# = W^{-1} J^T (J W^{-1} J^T + \lambda I)^{-1}, \qquad
+    q_{t+1} = q_t + J^\# (x_{t+1} - \phi(q_t)) - \alpha (I - J^\# J) W^{-1} \nabla H(q_t)
+
+with the joint metric ``W^{-1} = diag(range_i)`` (zero for joints the task must not drive, the
+head) and the joint-limit "border" cost ``H`` (zero in a free zone around each range's centre,
+quadratic outside it). ``q`` is clipped to the joint ranges, and each clip is counted.
+
+The task map ``phi`` is eq. 1 (:mod:`imitate.taskspace`) evaluated on the held objects; it is
+re-implemented here without input validation because it runs in the inner loop, and a test keeps
+it equal to :func:`imitate.taskspace.task_state`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from imitate.errors import ImitateError
+from imitate.kinematics import Distances, Kinematics
+
+__all__ = [
+    "ControlConfig", "JointLimitCost", "Rollout", "TaskMap", "backward", "reach", "rollout",
+]
+
+
+@dataclass(frozen=True)
+class ControlConfig:
+    """Parameters of the RMR rollout.
+
+    Attributes:
+        damping: ``lambda`` added to ``J W^-1 J^T`` [task units^2 rad]; keeps ``J^#`` bounded
+            near singularities.
+        nullspace_gain: ``alpha``, fraction of the joint-limit gradient step taken per step.
+        free_ratio: Fraction of each half range around the centre where ``H`` is zero.
+        fixed_joints: Joints the task does not drive (kept at their start angle).
+    """
+
+    damping: float = 1e-4
+    nullspace_gain: float = 0.05
+    free_ratio: float = 0.7
+    fixed_joints: tuple[str, ...] = ("head_pan", "head_tilt")
+
+    def __post_init__(self):
+        if not self.damping > 0 or not self.nullspace_gain >= 0 or not 0 <= self.free_ratio < 1:
+            raise ImitateError(
+                f"ControlConfig needs damping > 0, nullspace_gain >= 0, 0 <= free_ratio < 1; got "
+                f"{self.damping}, {self.nullspace_gain}, {self.free_ratio}"
+            )
+
+
+class JointLimitCost:
+    r"""Border joint-limit cost ``H(q) = 1/2 sum_i ((q_i - b_i) / p_i)^2`` outside the free zone.
+
+    ``b_i`` is the free zone's border on the side ``q_i`` is on, ``p_i`` the penalty range
+    between the border and the limit. Its Hessian is diagonal.
+    """
+
+    def __init__(self, lower: np.ndarray, upper: np.ndarray, free_ratio: float):
+        centre, half = 0.5 * (lower + upper), 0.5 * (upper - lower)
+        self.low_border, self.high_border = centre - free_ratio * half, centre + free_ratio * half
+        self.scale = 1.0 / ((1.0 - free_ratio) * half) ** 2
+
+    def __call__(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(H (...,), dH/dq (..., n), diag d2H/dq2 (..., n))`` for ``q`` of shape ``(..., n)``."""
+        excess = np.minimum(q - self.low_border, 0.0) + np.maximum(q - self.high_border, 0.0)
+        grad = self.scale * excess
+        return 0.5 * np.sum(grad * excess, axis=-1), grad, self.scale * (excess != 0.0)
+
+
+class TaskMap:
+    """Eq. 1 on the robot: ``x = (p_b - p_g, phi_b, phi_g)`` and ``J = dx/dq`` ``(7, n)``.
+
+    Args:
+        kin: The kinematics (its held objects give the bottle and glass poses).
+        bottle, glass: Body names of the two objects.
+        gaze: ``R_gaze`` ``(3, 3)``, columns camera right, up, forward, fixed in the world.
+        fixed_joints: Joints whose Jacobian columns are zeroed.
+    """
+
+    m = 7
+
+    def __init__(
+        self,
+        kin: Kinematics,
+        bottle: str,
+        glass: str,
+        gaze: np.ndarray,
+        fixed_joints: Sequence[str] = (),
+    ):
+        self.kin = kin
+        self.bottle, self.glass = kin.model.body(bottle).id, kin.model.body(glass).id
+        self.gaze = np.asarray(gaze, dtype=float)
+        unknown = sorted(set(fixed_joints) - set(kin.joints))
+        if unknown:
+            raise ImitateError(f"fixed_joints {unknown} unknown; accepted: {list(kin.joints)}")
+        self.driven = np.array([j not in fixed_joints for j in kin.joints])
+
+    def __call__(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(x (7,), J (7, n))`` at the kinematics' last update; angles on the branch nearest to
+        ``angle_ref`` ``(2,)`` [rad]."""
+        r, u, f = self.gaze.T
+        x = np.empty(7)
+        J = np.empty((7, self.kin.n))
+        pos_b, jp_b, jr_b, ax_b = self._object(self.bottle)
+        pos_g, jp_g, jr_g, ax_g = self._object(self.glass)
+        x[:3] = pos_b - pos_g
+        J[:3] = jp_b - jp_g
+        for n, (a, jr, col) in enumerate(((ax_b, jr_b, 3), (ax_g, jr_g, 5))):
+            pr, pu, pf = (float(v) for v in self.gaze.T @ a)
+            rho2 = pr * pr + pu * pu
+            angle = math.atan2(pu, pr)
+            angle += 2.0 * math.pi * round((float(angle_ref[n]) - angle) / (2.0 * math.pi))
+            g = (pr * u - pu * r) / rho2 if rho2 > 1e-12 else np.zeros(3)
+            x[col], x[col + 1] = angle, pf
+            J[col] = _cross(a, g) @ jr
+            J[col + 1] = _cross(a, f) @ jr
+        J[:, ~self.driven] = 0.0
+        return x, J
+
+    def _object(self, body: int):
+        d = self.kin.data
+        pos = d.xpos[body].copy()
+        jp, jr = self.kin.point_jacobian(self.kin.owner(body), pos)
+        return pos, jp, jr, d.xmat[body].reshape(3, 3)[:, 2].copy()
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a x b`` for 3-vectors (``np.cross`` is slow on single vectors)."""
+    a0, a1, a2 = a
+    b0, b1, b2 = b
+    return np.array((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0))
+
+
+@dataclass(frozen=True)
+class Rollout:
+    """One RMR rollout of a task trajectory.
+
+    Attributes:
+        q: ``(T + 1, n)`` joint angles [rad].
+        x: ``(T + 1, m)`` task state reached, ``phi(q_t)``.
+        jac: ``(T, m, n)`` task Jacobians at ``q_0 .. q_{T-1}``.
+        pinv: ``(T, n, m)`` their weighted damped pseudo-inverses ``J^#``.
+        limit_hessian: ``(T, n)`` diagonal Hessians of ``H`` at ``q_0 .. q_{T-1}``.
+        solved: ``(T, m)`` ``(J W^-1 J^T + lambda I)^-1 (x_{t+1} - phi(q_t))``.
+        distances: ``T + 1`` :class:`Distances` (with gradients) of the pairs closer than the
+            rollout's ``distmax``; empty if it was 0.
+        clipped: Number of joint-angle clips to the joint ranges.
+    """
+
+    q: np.ndarray
+    x: np.ndarray
+    jac: np.ndarray
+    pinv: np.ndarray
+    limit_hessian: np.ndarray
+    solved: np.ndarray
+    distances: tuple[Distances, ...]
+    clipped: int
+
+
+def _metric(kin: Kinematics, task: TaskMap) -> np.ndarray:
+    return (kin.upper - kin.lower) * task.driven
+
+
+def rollout(
+    task: TaskMap,
+    target: np.ndarray,
+    q0: np.ndarray,
+    config: ControlConfig,
+    limits: JointLimitCost,
+    distmax: float = 0.0,
+) -> Rollout:
+    """Tracks ``target`` ``(T + 1, m)`` (``target[0]`` unused) by RMR from ``q0`` ``(n,)``.
+
+    Args:
+        distmax: Compute the signed distances (and their gradients) of pairs closer than this
+            [m] at every step; 0 for none.
+    """
+    kin = task.kin
+    T = len(target) - 1
+    n, m = kin.n, target.shape[1]
+    winv = _metric(kin, task)
+    q = np.empty((T + 1, n))
+    x = np.empty((T + 1, m))
+    jac = np.empty((T, m, n))
+    pinv = np.empty((T, n, m))
+    hess = np.empty((T, n))
+    solved = np.empty((T, m))
+    distances = []
+    q[0] = q0
+    clipped = 0
+    eye = config.damping * np.eye(m)
+    angle_ref = target[:, [3, 5]]
+    for t in range(T + 1):
+        kin.update(q[t])
+        x[t], J = task(angle_ref[t])
+        if distmax > 0:
+            distances.append(kin.distances(distmax, jacobian=True))
+        if t == T:
+            break
+        JW = J * winv
+        sol = np.linalg.solve(JW @ J.T + eye, np.column_stack((JW, target[t + 1] - x[t])))
+        Jp, solved[t] = sol[:, :n].T, sol[:, n]
+        _, grad, hess[t] = limits(q[t])
+        g = winv * grad
+        step = JW.T @ solved[t] - config.nullspace_gain * (g - Jp @ (J @ g))
+        nxt = q[t] + step
+        q[t + 1] = np.clip(nxt, kin.lower, kin.upper)
+        clipped += int(np.any(q[t + 1] != nxt))
+        jac[t], pinv[t] = J, Jp
+    return Rollout(q, x, jac, pinv, hess, solved, tuple(distances), clipped)
+
+
+def backward(
+    result: Rollout,
+    task: TaskMap,
+    target: np.ndarray,
+    config: ControlConfig,
+    gq: np.ndarray,
+    gx: np.ndarray,
+) -> np.ndarray:
+    r"""Total derivative w.r.t. the target trajectory by the adjoint recursion.
+
+    ``lambda_T = gq_T``; ``lambda_t = gq_t + lambda_{t+1} dq_{t+1}/dq_t`` and
+    ``dPhi/dx_{t+1} = gx_{t+1} + lambda_{t+1} J^#_t``, with
+
+    .. math::
+        \lambda \frac{\partial q_{t+1}}{\partial q_t} = \lambda (I - J^\# J)
+        (I - \alpha W^{-1} H'') + u^T D_{\ell - z} J - p^T D_y J
+
+    where ``u = M^-1 e``, ``p = (lambda J^#)^T``, ``l = W^-1 lambda^T``, ``y = J^# e``,
+    ``z = W^-1 J^T p``, ``M = J W^-1 J^T + lambda I``, ``e = x_{t+1} - phi(q_t)``: the last two
+    terms are ``lambda (dJ^#/dq) e``, using the symmetry of second derivatives,
+    ``a^T (dJ/dq_i) b = [a^T D_b J]_i``, with ``D_b J`` the derivative of ``J`` along ``b``, taken
+    by a forward difference. Neglected: the derivative of the null-space projector times the
+    joint-limit step (``alpha`` times a gradient that is zero inside the free zone).
+
+    Args:
+        target: ``(T + 1, m)`` the tracked trajectory (for the angle branches).
+        gq: ``(T + 1, n)`` explicit gradients of the cost w.r.t. ``q_t``.
+        gx: ``(T + 1, m)`` explicit gradients w.r.t. the target ``x_t``.
+
+    Returns:
+        ``(T + 1, m)`` gradient w.r.t. the target trajectory (row 0 is ``gx[0]``).
+    """
+    T = len(result.jac)
+    kin = task.kin
+    winv = _metric(kin, task)
+    alpha = config.nullspace_gain
+    angle_ref = target[:, [3, 5]]
+    dx = gx.copy()
+    lam = gq[T].copy()
+    for t in range(T - 1, -1, -1):
+        Jp, J, u = result.pinv[t], result.jac[t], result.solved[t]
+        p = lam @ Jp
+        dx[t + 1] += p
+        ln = lam - p @ J
+        y = winv * (J.T @ u)
+        curvature = _along(task, result.q[t], J, winv * lam - winv * (J.T @ p), angle_ref[t])
+        curvature = u @ curvature - p @ _along(task, result.q[t], J, y, angle_ref[t])
+        lam = gq[t] + ln - alpha * (ln * winv) * result.limit_hessian[t] + curvature
+    return dx
+
+
+def _along(task: TaskMap, q: np.ndarray, J: np.ndarray, b: np.ndarray, angle_ref) -> np.ndarray:
+    """``D_b J`` ``(m, n)``: derivative of the task Jacobian at ``q`` along ``b`` ``(n,)``."""
+    norm = float(np.linalg.norm(b))
+    if norm == 0.0:
+        return np.zeros_like(J)
+    h = 1e-6 / norm
+    task.kin.update(q + h * b)
+    return (task(angle_ref)[1] - J) / h
+
+
+def reach(
+    task: TaskMap,
+    goal: np.ndarray,
+    q0: np.ndarray,
+    config: ControlConfig,
+    limits: JointLimitCost,
+    steps: int = 200,
+    rate: float = 0.2,
+) -> np.ndarray:
+    """Joint angles ``(n,)`` whose task state approaches ``goal`` ``(m,)``, by ``steps`` RMR
+    steps from ``q0`` that each close ``rate`` of the remaining task error."""
+    kin = task.kin
+    target = np.empty((steps + 1, len(goal)))
+    kin.update(q0)
+    x0, _ = task(goal[[3, 5]])
+    remaining = (1.0 - rate) ** np.arange(steps + 1)
+    target[:] = goal + remaining[:, None] * (x0 - goal)
+    return rollout(task, target, q0, config, limits).q[-1]

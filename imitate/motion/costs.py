@@ -1,0 +1,132 @@
+r"""Cost terms of the movement optimisation, each with its explicit analytic gradient.
+
+Every term maps a rollout (``q_{0:T}``, distances) and the target trajectory ``x_{0:T}`` to a
+value and its explicit gradients ``(gq (T+1, n), gx (T+1, m))``; per-step costs are integrated
+over time (multiplied by ``dt``) so they do not depend on the step. The chain through the
+rollout is :func:`imitate.motion.control.backward`.
+
+- :class:`Similarity`: eqs. 20-22, ``c = sum_t (x_t - mu_t)^T W_t (x_t - mu_t) dt`` with
+  ``W_t`` from the GMR variances by eq. 21's ramp.
+- :class:`Collision`: CHOMP's potential of ``d - margin`` for every pair closer than
+  ``margin + epsilon``: ``(d' - eps)^2 / (2 eps)`` for ``0 <= d' < eps``, ``eps/2 - d'`` below 0.
+- :class:`JointLimits`: the border cost ``H`` of :class:`imitate.motion.control.JointLimitCost`.
+- :class:`PathLength`: the joint-space trajectory length as ``sum_t |q_{t+1} - q_t|^2 / dt``
+  (squared so it is differentiable at rest).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from imitate.errors import ImitateError
+from imitate.motion.control import JointLimitCost, Rollout
+
+__all__ = ["Collision", "JointLimits", "PathLength", "Similarity", "similarity_weights"]
+
+
+def similarity_weights(variance: np.ndarray, w_max: np.ndarray, sigma_max: np.ndarray):
+    """Eq. 21: ``w = w_max (1 - sigma / sigma_max)`` below ``sigma_max``, else 0.
+
+    Args:
+        variance: GMR variances ``sigma_hat`` ``(T, m)``.
+        w_max: ``(m,)`` weights at zero variance.
+        sigma_max: ``(m,)`` variances where the weight reaches zero.
+
+    Returns:
+        ``(T, m)`` diagonals of ``W_t``.
+    """
+    w_max, sigma_max = np.asarray(w_max, float), np.asarray(sigma_max, float)
+    if np.any(w_max < 0) or np.any(~(sigma_max > 0)):
+        raise ImitateError(f"w_max must be >= 0 and sigma_max > 0; got {w_max}, {sigma_max}")
+    return w_max * np.clip(1.0 - variance / sigma_max, 0.0, None)
+
+
+class Similarity:
+    """Eqs. 20-22 on the target trajectory.
+
+    Args:
+        mean: GMR mean ``(T + 1, m)``.
+        weights: Diagonals of ``W_t`` ``(T + 1, m)`` (:func:`similarity_weights`).
+        dt: Step [s].
+    """
+
+    name = "similarity"
+
+    def __init__(self, mean: np.ndarray, weights: np.ndarray, dt: float):
+        self.mean, self.weights, self.dt = mean, weights, dt
+
+    def __call__(self, result: Rollout, x: np.ndarray):
+        err = x - self.mean
+        werr = self.weights * err
+        gq = np.zeros_like(result.q)
+        return self.dt * float(np.sum(werr * err)), gq, 2.0 * self.dt * werr
+
+
+def potential(d: np.ndarray, epsilon: float) -> tuple[np.ndarray, np.ndarray]:
+    """CHOMP's potential and its derivative for signed distances ``d`` [m]."""
+    inside = (d >= 0) & (d < epsilon)
+    quadratic = np.where(inside, (d - epsilon) ** 2 / (2 * epsilon), 0.0)
+    value = np.where(d < 0, 0.5 * epsilon - d, quadratic)
+    slope = np.where(d < 0, -1.0, np.where(inside, (d - epsilon) / epsilon, 0.0))
+    return value, slope
+
+
+class Collision:
+    """Collision and proximity cost from the rollout's signed distances.
+
+    Args:
+        margin: Clearance [m] below which a pair counts as colliding.
+        epsilon: Width [m] of the proximity zone above ``margin``.
+        dt: Step [s].
+    """
+
+    name = "collision"
+
+    def __init__(self, margin: float, epsilon: float, dt: float):
+        if not margin >= 0 or not epsilon > 0:
+            raise ImitateError(f"margin must be >= 0 and epsilon > 0 [m]; got {margin}, {epsilon}")
+        self.margin, self.epsilon, self.dt = margin, epsilon, dt
+
+    @property
+    def distmax(self) -> float:
+        """Distance [m] beyond which pairs cost nothing."""
+        return self.margin + self.epsilon
+
+    def __call__(self, result: Rollout, x: np.ndarray):
+        gq = np.zeros_like(result.q)
+        total = 0.0
+        for t, dist in enumerate(result.distances):
+            if len(dist.dist):
+                value, slope = potential(dist.dist - self.margin, self.epsilon)
+                total += float(value.sum())
+                gq[t] = slope @ dist.jac
+        return self.dt * total, self.dt * gq, np.zeros_like(x)
+
+
+class JointLimits:
+    """Joint-limit proximity: ``sum_t H(q_t) dt``."""
+
+    name = "joint_limits"
+
+    def __init__(self, limits: JointLimitCost, dt: float):
+        self.limits, self.dt = limits, dt
+
+    def __call__(self, result: Rollout, x: np.ndarray):
+        value, grad, _ = self.limits(result.q)
+        return self.dt * float(value.sum()), self.dt * grad, np.zeros_like(x)
+
+
+class PathLength:
+    """Joint-space trajectory length ``sum_t |q_{t+1} - q_t|^2 / dt`` [rad^2/s]."""
+
+    name = "path_length"
+
+    def __init__(self, dt: float):
+        self.dt = dt
+
+    def __call__(self, result: Rollout, x: np.ndarray):
+        step = np.diff(result.q, axis=0)
+        gq = np.zeros_like(result.q)
+        gq[1:] += 2.0 * step / self.dt
+        gq[:-1] -= 2.0 * step / self.dt
+        return float(np.sum(step * step)) / self.dt, gq, np.zeros_like(x)

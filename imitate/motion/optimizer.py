@@ -1,0 +1,363 @@
+"""Attractor optimisation: find the attractor points whose rollout minimises the total cost.
+
+:func:`plan` resamples the GMR mean and variance to the planning step, moves the robot's start
+posture onto the learned start (by RMR), fits the attractors to the GMR mean in least squares and
+then minimises ``Phi(a) = sum_i w_i c_i`` by iRprop- (default; sign-based, so it tolerates the
+gradient's neglected ``dJ#/dq`` terms) or L-BFGS (scipy). It returns a frozen :class:`Plan` with
+the best attractors found, whether or not the optimiser converged.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import minimize
+
+from imitate.errors import ImitateError
+from imitate.kinematics import Kinematics
+from imitate.motion.attractors import AttractorDynamics
+from imitate.motion.control import (
+    ControlConfig,
+    JointLimitCost,
+    Rollout,
+    TaskMap,
+    backward,
+    reach,
+    rollout,
+)
+from imitate.motion.costs import Collision, JointLimits, PathLength, Similarity, similarity_weights
+
+__all__ = ["OPTIMIZERS", "Plan", "PlanConfig", "Problem", "plan"]
+
+OPTIMIZERS = ("rprop", "lbfgs")
+# Default similarity tolerances per task dimension (eq. 1 order): the error that, held for 1 s
+# at zero variance, costs 1: 1 cm for positions, 2 deg for angles, 0.05 for gaze components.
+_TOLERANCE = (0.01, 0.01, 0.01, np.radians(2.0), 0.05, np.radians(2.0), 0.05)
+
+
+@dataclass(frozen=True)
+class PlanConfig:
+    """Parameters of :func:`plan`.
+
+    Attributes:
+        dt: Planning step [s].
+        omega_per_interval: Attractor stiffness: ``omega = omega_per_interval / L`` [rad/s]
+            with ``L`` the mean interval between attractor switches.
+        w_max: Eq. 21 weights at zero variance per task dimension ``(m,)``; ``None`` for
+            ``1 / tolerance^2`` with 1 cm, 1 cm, 1 cm, 2 deg, 0.05, 2 deg, 0.05.
+        sigma_max: Eq. 21 variance where the weight reaches 0 per dimension ``(m,)``; ``None``
+            for each dimension's largest GMR variance.
+        similarity_weight, collision_weight, joint_limit_weight, path_length_weight: ``w_i``.
+        margin: Clearance [m] the collision cost treats as contact.
+        epsilon: Width [m] of the proximity zone above ``margin``.
+        optimizer: ``"rprop"`` or ``"lbfgs"``.
+        max_iter: Iteration limit.
+        tol: Converged when the best cost improved by less than ``tol`` (relative) over the
+            last ``patience`` iterations.
+        patience: See ``tol``.
+        rprop_step: Initial iRprop- step as a fraction of each dimension's tolerance.
+        control: RMR parameters.
+    """
+
+    dt: float = 0.04
+    omega_per_interval: float = 2.0
+    w_max: tuple[float, ...] | None = None
+    sigma_max: tuple[float, ...] | None = None
+    similarity_weight: float = 1.0
+    collision_weight: float = 300.0
+    joint_limit_weight: float = 1.0
+    path_length_weight: float = 0.01
+    margin: float = 0.015
+    epsilon: float = 0.04
+    optimizer: str = "rprop"
+    max_iter: int = 100
+    tol: float = 1e-3
+    patience: int = 5
+    rprop_step: float = 0.3
+    control: ControlConfig = field(default_factory=ControlConfig)
+
+    def __post_init__(self):
+        if self.optimizer not in OPTIMIZERS:
+            raise ImitateError(f"optimizer {self.optimizer!r} unknown; accepted: {OPTIMIZERS}")
+        weights = (
+            self.similarity_weight,
+            self.collision_weight,
+            self.joint_limit_weight,
+            self.path_length_weight,
+        )
+        if not self.dt > 0 or not self.omega_per_interval > 0 or min(weights) < 0:
+            raise ImitateError(
+                f"PlanConfig needs dt > 0, omega_per_interval > 0 and weights >= 0; got dt="
+                f"{self.dt}, omega_per_interval={self.omega_per_interval}, weights={weights}"
+            )
+        if self.max_iter < 0 or self.patience < 1 or not self.tol >= 0:
+            raise ImitateError(
+                f"max_iter >= 0, patience >= 1 and tol >= 0 needed; got {self.max_iter}, "
+                f"{self.patience}, {self.tol}"
+            )
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Result of :func:`plan`.
+
+    Attributes:
+        times: ``(T + 1,)`` [s].
+        attractors: ``(K, m)`` optimised attractor points, sorted by time.
+        target: ``(T + 1, m)`` attractor trajectory ``x_t`` (what RMR tracks).
+        x: ``(T + 1, m)`` task state reached, ``phi(q_t)``.
+        q: ``(T + 1, n)`` joint angles [rad] in ``Kinematics.joints`` order.
+        q_start: ``(n,)`` start posture (``q[0]``), reached from the given posture by RMR.
+        mean, variance, weights: GMR mean, variance and eq. 21 weights at ``times``, ``(T+1, m)``.
+        costs: ``{term: (n_iter + 1,)}`` weighted cost per iteration of the accepted iterate,
+            and ``"total"``.
+        min_distance: Smallest signed distance [m] over the trajectory and all pairs.
+        closest: Geom names of that pair (``None`` if none is within 0.2 m).
+        converged: Whether the stopping rule was met within ``max_iter``.
+        clipped: Joint-angle clips in the best rollout.
+        message: What happened, in words (convergence, collisions, unreachable targets).
+        n_iter: Iterations run.
+        n_evaluations: Rollouts evaluated.
+    """
+
+    times: np.ndarray
+    attractors: np.ndarray
+    target: np.ndarray
+    x: np.ndarray
+    q: np.ndarray
+    q_start: np.ndarray
+    mean: np.ndarray
+    variance: np.ndarray
+    weights: np.ndarray
+    costs: dict[str, np.ndarray]
+    min_distance: float
+    closest: tuple[str, str] | None
+    converged: bool
+    clipped: int
+    message: str
+    n_iter: int
+    n_evaluations: int
+
+    def task_error(self) -> np.ndarray:
+        """``(T + 1, m)`` reached minus learned, ``phi(q_t) - mu_t``."""
+        return self.x - self.mean
+
+
+class Problem:
+    """The total cost ``Phi(a)`` and its gradient for one start posture and learned model.
+
+    Args:
+        task: Task map (with the kinematics).
+        dynamics: Attractor dynamics.
+        q_start: ``(n,)`` start posture.
+        mean, weights: ``(T + 1, m)`` GMR mean and eq. 21 weights at the planning steps.
+        config: The weights and parameters.
+    """
+
+    def __init__(
+        self,
+        task: TaskMap,
+        dynamics: AttractorDynamics,
+        q_start: np.ndarray,
+        mean: np.ndarray,
+        weights: np.ndarray,
+        config: PlanConfig,
+    ):
+        kin = task.kin
+        self.task, self.dynamics, self.q_start, self.config = task, dynamics, q_start, config
+        kin.update(q_start)
+        self.x_start, _ = task(mean[0, [3, 5]])
+        dt = config.dt
+        self.limits = JointLimitCost(kin.lower, kin.upper, config.control.free_ratio)
+        self.terms = {
+            "similarity": (config.similarity_weight, Similarity(mean, weights, dt)),
+            "collision": (config.collision_weight, Collision(config.margin, config.epsilon, dt)),
+            "joint_limits": (config.joint_limit_weight, JointLimits(self.limits, dt)),
+            "path_length": (config.path_length_weight, PathLength(dt)),
+        }
+        self.n_evaluations = 0
+
+    def rollout(self, a: np.ndarray) -> tuple[np.ndarray, Rollout]:
+        """Target trajectory ``(T + 1, m)`` and RMR rollout of attractors ``a`` ``(K, m)``."""
+        target = self.dynamics.trajectory(a, self.x_start)
+        with_distances = self.config.collision_weight > 0
+        distmax = self.terms["collision"][1].distmax if with_distances else 0.0
+        self.n_evaluations += 1
+        result = rollout(
+            self.task, target, self.q_start, self.config.control, self.limits, distmax
+        )
+        return target, result
+
+    def evaluate(
+        self, a: np.ndarray, terms: tuple[str, ...] | None = None, gradient: bool = True
+    ) -> tuple[float, dict[str, float], np.ndarray | None]:
+        """``(Phi, {term: weighted value}, dPhi/da (K, m) or None)`` over ``terms`` (all)."""
+        target, result = self.rollout(a)
+        names = tuple(self.terms) if terms is None else terms
+        values = {}
+        gq = np.zeros_like(result.q)
+        gx = np.zeros_like(target)
+        for name in names:
+            weight, term = self.terms[name]
+            if weight == 0:
+                values[name] = 0.0
+                continue
+            value, tq, tx = term(result, target)
+            values[name] = weight * value
+            gq += weight * tq
+            gx += weight * tx
+        total = float(sum(values.values()))
+        if not gradient:
+            return total, values, None
+        dx = backward(result, self.task, target, self.config.control, gq, gx)
+        return total, values, self.dynamics.gradient(dx)
+
+
+def plan(
+    task: TaskMap,
+    times: np.ndarray,
+    mean: np.ndarray,
+    variance: np.ndarray,
+    centres: np.ndarray,
+    q0: np.ndarray,
+    config: PlanConfig = PlanConfig(),
+) -> Plan:
+    """Optimises a whole-body movement that reproduces the learned task (paper section V).
+
+    Args:
+        task: Task map of the robot (kinematics, objects, gaze).
+        times: ``(T_g,)`` GMR query times [s], increasing, from 0.
+        mean: ``(T_g, m)`` GMR mean ``mu_hat_t``.
+        variance: ``(T_g, m)`` GMR variances ``sigma_hat_t``.
+        centres: ``(K,)`` time means of the GMM components [s]: one attractor each.
+        q0: ``(n,)`` current posture [rad]; the plan starts where RMR brings it onto ``mean[0]``.
+        config: Parameters.
+
+    Returns:
+        The :class:`Plan`; never raises for a colliding, unreachable or unconverged result, it
+        says so in ``message``.
+
+    Raises:
+        ImitateError: On inconsistent shapes or non-finite inputs.
+    """
+    times, mean, variance = (np.asarray(v, dtype=float) for v in (times, mean, variance))
+    q0 = np.asarray(q0, dtype=float)
+    kin = task.kin
+    if (
+        times.ndim != 1
+        or len(times) < 2
+        or mean.shape != (len(times), task.m)
+        or variance.shape != mean.shape
+        or q0.shape != (kin.n,)
+    ):
+        raise ImitateError(
+            f"plan needs times (T,), mean and variance (T, {task.m}) with T >= 2 and q0 "
+            f"({kin.n},); got {times.shape}, {mean.shape}, {variance.shape}, {q0.shape}"
+        )
+    if not all(np.all(np.isfinite(v)) for v in (times, mean, variance, q0)):
+        raise ImitateError("plan inputs must be finite (no NaN or inf)")
+    c = config
+    n_steps = max(1, int(round((times[-1] - times[0]) / c.dt)))
+    grid = times[0] + np.arange(n_steps + 1) * c.dt
+    mu = np.column_stack([np.interp(grid, times, mean[:, i]) for i in range(task.m)])
+    var = np.column_stack([np.interp(grid, times, variance[:, i]) for i in range(task.m)])
+    w_max = np.asarray(c.w_max if c.w_max is not None else 1.0 / np.square(_TOLERANCE))
+    sigma_max = np.asarray(c.sigma_max if c.sigma_max is not None else var.max(axis=0))
+    weights = similarity_weights(var, w_max, np.maximum(sigma_max, 1e-12))
+
+    centres = np.asarray(centres, dtype=float).ravel()
+    interval = (grid[-1] - grid[0]) / max(len(centres), 1)
+    dynamics = AttractorDynamics(n_steps, c.dt, centres - times[0], c.omega_per_interval / interval)
+    limits = JointLimitCost(kin.lower, kin.upper, c.control.free_ratio)
+    q_start = reach(task, mu[0], q0, c.control, limits)
+    problem = Problem(task, dynamics, q_start, mu, weights, c)
+    a0 = dynamics.fit(mu, problem.x_start)
+
+    history: list[tuple[float, dict[str, float]]] = []
+    best = {"a": a0, "cost": np.inf}
+
+    def record(a, total, values):
+        if np.isfinite(total) and total < best["cost"]:
+            best.update(a=a.copy(), cost=total)
+        history.append((total, values))
+
+    converged = False
+    if c.optimizer == "rprop":
+        converged = _rprop(problem, a0, c, record, history)
+    else:
+        shape = a0.shape
+
+        def fun(flat):
+            total, values, grad = problem.evaluate(flat.reshape(shape))
+            record(flat.reshape(shape), total, values)
+            return total, grad.ravel()
+
+        result = minimize(
+            fun, a0.ravel(), jac=True, method="L-BFGS-B",
+            options={"maxiter": c.max_iter, "ftol": c.tol * 1e-2},
+        )
+        converged = bool(result.success)
+
+    a = best["a"]
+    target, final = problem.rollout(a)
+    for t in range(len(final.q)):
+        kin.update(final.q[t])
+    min_d, closest = _min_distance(kin, final.q)
+    names = tuple(problem.terms) + ("total",)
+    costs = {
+        name: np.array([h[0] if name == "total" else h[1][name] for h in history]) for name in names
+    }
+    task_err = np.abs(final.x - mu)
+    notes = ["converged" if converged else f"not converged in {c.max_iter} iterations (best plan)"]
+    if min_d < 0:
+        notes.append(f"collision: {closest} at {min_d * 1000:.1f} mm")
+    worst = float(np.max(task_err[:, :3]))
+    if worst > 0.05:
+        notes.append(f"target not reached: task position error up to {worst:.3f} m")
+    if final.clipped:
+        notes.append(f"joint angles clipped at {final.clipped} steps")
+    return Plan(
+        times=grid, attractors=a, target=target, x=final.x, q=final.q, q_start=q_start,
+        mean=mu, variance=var, weights=weights, costs=costs, min_distance=min_d,
+        closest=closest, converged=converged, clipped=final.clipped, message="; ".join(notes),
+        n_iter=max(len(history) - 1, 0), n_evaluations=problem.n_evaluations,
+    )
+
+
+def _min_distance(kin: Kinematics, q: np.ndarray) -> tuple[float, tuple[str, str] | None]:
+    best, pair = np.inf, None
+    for qt in q:
+        kin.update(qt)
+        d, names = kin.min_distance()
+        if d < best:
+            best, pair = d, names
+    return float(best), pair
+
+
+def _rprop(problem: Problem, a0: np.ndarray, c: PlanConfig, record, history) -> bool:
+    """iRprop-: per-coordinate steps grow by 1.2 while the gradient keeps its sign, halve on a
+    sign change (and skip that coordinate once). Returns whether it converged."""
+    a = a0.copy()
+    step = c.rprop_step * np.broadcast_to(np.asarray(_TOLERANCE[: a.shape[1]]), a.shape).copy()
+    step_max = 50.0 * step
+    prev = np.zeros_like(a)
+    total, values, grad = problem.evaluate(a)
+    record(a, total, values)
+    for _ in range(c.max_iter):
+        if not np.all(np.isfinite(grad)):
+            return False
+        sign = prev * grad
+        step = np.where(sign > 0, np.minimum(step * 1.2, step_max), step)
+        step = np.where(sign < 0, step * 0.5, step)
+        grad = np.where(sign < 0, 0.0, grad)
+        a = a - np.sign(grad) * step
+        prev = grad
+        total, values, grad = problem.evaluate(a)
+        record(a, total, values)
+        best = [h[0] for h in history]
+        if len(best) > c.patience:
+            old, new = min(best[: -c.patience]), min(best)
+            if old - new <= c.tol * abs(old):
+                return True
+    return False
