@@ -29,15 +29,27 @@ class AttractorDynamics:
         dt: Step [s].
         centres: Time means of the GMM components [s], shape ``(K,)``, any order.
         omega: Natural frequency [rad/s] of the critically damped dynamics.
+        widths: Time standard deviations of the components [s], ``(K,)``: soft switching,
+            ``r_t = sum_k h_k(t) a_k`` with the GMR responsibilities ``h_k(t)`` (eq. 19);
+            ``None`` for hard switches at the midpoints between sorted centres.
+        priors: Component priors ``pi_k`` ``(K,)`` for the soft switch; ``None`` for equal.
 
     Attributes:
         order: ``(K,)`` component index of each attractor (attractors are sorted by time).
-        switch: ``(T,)`` attractor active during each step.
+        blend: ``(T, K)`` share of each attractor in the target during each step.
         free: ``(T + 1, 2)`` response to the initial state ``(x_0, v_0)``.
         psi: ``(T + 1, K)`` response to the attractors, ``Psi``.
     """
 
-    def __init__(self, n_steps: int, dt: float, centres: np.ndarray, omega: float):
+    def __init__(
+        self,
+        n_steps: int,
+        dt: float,
+        centres: np.ndarray,
+        omega: float,
+        widths: np.ndarray | None = None,
+        priors: np.ndarray | None = None,
+    ):
         centres = np.asarray(centres, dtype=float).ravel()
         if n_steps < 1 or not dt > 0 or not omega > 0 or centres.size < 1:
             raise ImitateError(
@@ -47,20 +59,28 @@ class AttractorDynamics:
         self.n_steps, self.dt, self.omega = int(n_steps), float(dt), float(omega)
         self.order = np.argsort(centres)
         sorted_centres = centres[self.order]
-        edges = 0.5 * (sorted_centres[1:] + sorted_centres[:-1])
-        self.switch = np.searchsorted(edges, (np.arange(n_steps) + 0.5) * dt)
+        mid = (np.arange(n_steps) + 0.5) * dt
+        K = centres.size
+        if widths is None:
+            edges = 0.5 * (sorted_centres[1:] + sorted_centres[:-1])
+            self.blend = np.eye(K)[np.searchsorted(edges, mid)]
+        else:
+            sd = np.asarray(widths, dtype=float).ravel()[self.order]
+            prior = np.ones(K) if priors is None else np.asarray(priors, float).ravel()[self.order]
+            log = np.log(prior) - np.log(sd) - 0.5 * ((mid[:, None] - sorted_centres) / sd) ** 2
+            h = np.exp(log - log.max(axis=1, keepdims=True))
+            self.blend = h / h.sum(axis=1, keepdims=True)
         M = np.array([[0.0, 1.0], [-omega**2, -2.0 * omega]])
         A = expm(M * dt)
         B = np.linalg.solve(M, (A - np.eye(2)) @ np.array([0.0, omega**2]))
         self.A, self.B = A, B
-        K = centres.size
         free = np.empty((n_steps + 1, 2, 2))  # state response to s_0 = e_0, e_1
         forced = np.zeros((n_steps + 1, 2, K))
         free[0] = np.eye(2)
         for t in range(n_steps):
             free[t + 1] = A @ free[t]
             forced[t + 1] = A @ forced[t]
-            forced[t + 1, :, self.switch[t]] += B
+            forced[t + 1] += np.outer(B, self.blend[t])
         self.free = free[:, 0, :]
         self.psi = forced[:, 0, :]
 
@@ -92,17 +112,15 @@ class AttractorDynamics:
         Args:
             target: ``(T + 1, m)``, e.g. the GMR mean.
             x0: Start ``(m,)``.
-            reg: Tikhonov weight pulling each attractor towards the target's mean over its
-                interval (keeps an attractor that barely acts well defined).
+            reg: Tikhonov weight pulling each attractor towards the target's mean over the steps
+                it acts in (keeps an attractor that barely acts well defined).
 
         Returns:
             ``(K, m)`` attractor points.
         """
         K = self.n_attractors
-        prior = np.array(
-            [target[1:][self.switch == k].mean(axis=0) if np.any(self.switch == k) else target[-1]
-             for k in range(K)]
-        )
+        share = self.blend / np.maximum(self.blend.sum(axis=0), 1e-12)
+        prior = share.T @ target[1:]
         residual = target - self.free[:, :1] * x0
         lhs = self.psi.T @ self.psi + reg * np.eye(K)
         return np.linalg.solve(lhs, self.psi.T @ residual + reg * prior)

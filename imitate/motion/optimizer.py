@@ -68,8 +68,8 @@ class PlanConfig:
     collision_weight: float = 300.0
     joint_limit_weight: float = 1.0
     path_length_weight: float = 0.01
-    margin: float = 0.015
-    epsilon: float = 0.04
+    margin: float = 0.011
+    epsilon: float = 0.004
     optimizer: str = "rprop"
     max_iter: int = 100
     tol: float = 1e-3
@@ -222,6 +222,8 @@ def plan(
     centres: np.ndarray,
     q0: np.ndarray,
     config: PlanConfig = PlanConfig(),
+    widths: np.ndarray | None = None,
+    priors: np.ndarray | None = None,
 ) -> Plan:
     """Optimises a whole-body movement that reproduces the learned task (paper section V).
 
@@ -233,6 +235,8 @@ def plan(
         centres: ``(K,)`` time means of the GMM components [s]: one attractor each.
         q0: ``(n,)`` current posture [rad]; the plan starts where RMR brings it onto ``mean[0]``.
         config: Parameters.
+        widths, priors: ``(K,)`` time standard deviations [s] and priors of the components
+            for soft attractor switching (see :class:`AttractorDynamics`); ``None``: hard.
 
     Returns:
         The :class:`Plan`; never raises for a colliding, unreachable or unconverged result, it
@@ -268,7 +272,9 @@ def plan(
 
     centres = np.asarray(centres, dtype=float).ravel()
     interval = (grid[-1] - grid[0]) / max(len(centres), 1)
-    dynamics = AttractorDynamics(n_steps, c.dt, centres - times[0], c.omega_per_interval / interval)
+    dynamics = AttractorDynamics(
+        n_steps, c.dt, centres - times[0], c.omega_per_interval / interval, widths, priors
+    )
     limits = JointLimitCost(kin.lower, kin.upper, c.control.free_ratio)
     q_start = reach(task, mu[0], q0, c.control, limits)
     problem = Problem(task, dynamics, q_start, mu, weights, c)
