@@ -1,0 +1,153 @@
+"""Paper Fig. 8-9 on the oracle learned model: a sweep of collision weights, the pour-phase task
+error, where the deviation from the GMR mean falls, and (``--physics``) the replay in physics,
+also over seeded variations of grasp heights and an obstacle.
+
+Usage: ``python scripts/motion_experiment.py [--weights 0 30 300] [--physics] [--variations 10]
+[--out runs/motion]``; writes ``fig9.png`` and ``costs.png`` under ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from envs.pouring import PouringEnv
+from envs.replay import oracle_model, planning_task, replay
+from envs.scene import GRASP_RANGE, Obstacle, SceneConfig
+from imitate.motion import PlanConfig, plan
+from models import humanoid, objects
+
+
+def pour_phase(mean: np.ndarray) -> np.ndarray:
+    """Steps where the bottle is tilted beyond 80 % of its largest tilt from the start."""
+    tilt = np.abs(mean[:, 3] - mean[0, 3])
+    return tilt >= 0.8 * tilt.max()
+
+
+def run_plan(task, learned, weight: float, max_iter: int):
+    config = PlanConfig(collision_weight=weight, max_iter=max_iter)
+    start = time.perf_counter()
+    result = plan(
+        task, learned.times, learned.mean, learned.variance, learned.gmm.means_[:, 0],
+        humanoid.rest_pose(), config,
+    )
+    return result, time.perf_counter() - start
+
+
+def _save(fig, path: Path) -> None:
+    with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".png", delete=False) as tmp:
+        fig.savefig(tmp.name, dpi=120)
+    os.replace(tmp.name, path)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--weights", type=float, nargs="+", default=[0.0, 30.0, 300.0, 3000.0])
+    parser.add_argument("--max-iter", type=int, default=60)
+    parser.add_argument("--physics", action="store_true")
+    parser.add_argument("--variations", type=int, default=0)
+    parser.add_argument("--out", type=Path, default=Path("runs/motion"))
+    args = parser.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+
+    task = planning_task()
+    learned = oracle_model(task.gaze)
+    print(f"learned model: K={learned.gmm.n_components}, {len(learned.times)} GMR steps")
+    plans = {}
+    for weight in args.weights:
+        p, seconds = run_plan(task, learned, weight, args.max_iter)
+        plans[weight] = p
+        pour = pour_phase(p.mean)
+        err = p.task_error()[pour]
+        pos = np.linalg.norm(err[:, :3], axis=1).max()
+        ang = np.degrees(np.abs(err[:, [3, 5]]).max())
+        print(
+            f"w_coll={weight:7.1f}: min distance {p.min_distance * 1000:6.1f} mm {p.closest}, "
+            f"pour-phase error {pos * 1000:5.1f} mm / {ang:4.2f} deg, {p.n_iter} iterations "
+            f"in {seconds:.2f} s; {p.message}"
+        )
+    base = plans[args.weights[0]]
+    var = base.variance[:, :3].sum(axis=1)
+    high = var > np.median(var)
+    for weight in args.weights[1:]:
+        dev = np.sum((plans[weight].x[:, :3] - base.mean[:, :3]) ** 2, axis=1)
+        extra = np.sum((plans[weight].x[:, :3] - base.x[:, :3]) ** 2, axis=1)
+        print(
+            f"w_coll={weight:7.1f}: squared deviation from the GMR mean {dev.sum():.4f} m^2 "
+            f"({dev[high].sum() / dev.sum():.0%} above the median variance); change from "
+            f"w_coll={args.weights[0]}: {extra.sum():.4f} m^2 "
+            f"({extra[high].sum() / max(extra.sum(), 1e-12):.0%} above the median variance)"
+        )
+    _figures(plans, args.out)
+
+    if args.physics:
+        weight = args.weights[-1] if len(args.weights) > 1 else args.weights[0]
+        env = PouringEnv()
+        r = replay(plans[weight], env)
+        print(
+            f"physics (w_coll={weight}): pour fraction {r.pour_fraction:.2f}, spilled "
+            f"{r.spilled}, min distance {r.min_distance * 1000:.1f} mm, task position error "
+            f"max {np.linalg.norm(r.task_error[:, :3], axis=1).max() * 1000:.1f} mm"
+        )
+    if args.variations:
+        rng = np.random.default_rng(0)
+        successes = 0
+        for k in range(args.variations):
+            grasp = {obj: float(rng.uniform(*GRASP_RANGE[obj])) for obj in GRASP_RANGE}
+            obstacle = Obstacle("box", (float(rng.uniform(0.45, 0.6)), float(rng.uniform(
+                -0.1, 0.1)), 0.70), (0.03, 0.03, 0.05))
+            config = SceneConfig(
+                obstacles=(obstacle,), bottle_grasp=grasp[objects.BOTTLE],
+                glass_grasp=grasp[objects.GLASS],
+            )
+            vtask = planning_task(config)
+            p, seconds = run_plan(vtask, learned, args.weights[-1], args.max_iter)
+            env = PouringEnv(obstacles=(obstacle,))
+            r = replay(p, env, seed=k, options={f"{o}_grasp": h for o, h in grasp.items()})
+            ok = r.is_success and r.min_distance >= 0
+            successes += ok
+            print(
+                f"variation {k}: grasps {grasp}, obstacle at {obstacle.pos}: plan min "
+                f"{p.min_distance * 1000:.1f} mm, physics min {r.min_distance * 1000:.1f} mm, "
+                f"pour {r.pour_fraction:.2f}, {'success' if ok else 'failure'} ({seconds:.1f} s)"
+            )
+        print(f"success rate {successes}/{args.variations}")
+
+
+def _figures(plans, out: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    base = next(iter(plans.values()))
+    dim = 2  # dz, the paper's Fig. 9 dimension (relative position along z)
+    fig, ax = plt.subplots(figsize=(7, 4))
+    sd = np.sqrt(base.variance[:, dim])
+    ax.fill_between(base.times, base.mean[:, dim] - sd, base.mean[:, dim] + sd, color="0.85",
+                    label="GMR mean +- sigma")
+    ax.plot(base.times, base.mean[:, dim], "k--", lw=1)
+    for weight, p in plans.items():
+        ax.plot(p.times, p.x[:, dim], label=f"collision weight {weight:g}")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("bottle - glass, z [m]")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    _save(fig, out / "fig9.png")
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for weight, p in plans.items():
+        ax.semilogy(p.costs["total"], label=f"total, collision weight {weight:g}")
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("cost")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    _save(fig, out / "costs.png")
+
+
+if __name__ == "__main__":
+    main()
