@@ -32,9 +32,10 @@ def pour_phase(mean: np.ndarray) -> np.ndarray:
 def run_plan(task, learned, weight: float, max_iter: int):
     config = PlanConfig(collision_weight=weight, max_iter=max_iter)
     start = time.perf_counter()
+    g = learned.gmm
     result = plan(
-        task, learned.times, learned.mean, learned.variance, learned.gmm.means_[:, 0],
-        humanoid.rest_pose(), config,
+        task, learned.times, learned.mean, learned.variance, g.means_[:, 0],
+        humanoid.rest_pose(), config, np.sqrt(g.covariances_[:, 0, 0]), g.weights_,
     )
     return result, time.perf_counter() - start
 

@@ -74,7 +74,7 @@ class PlanConfig:
     max_iter: int = 100
     tol: float = 1e-3
     patience: int = 5
-    rprop_step: float = 0.3
+    rprop_step: float = 0.03
     control: ControlConfig = field(default_factory=ControlConfig)
 
     def __post_init__(self):

@@ -1,0 +1,83 @@
+"""Benchmark of the movement optimisation: total time and per-iteration breakdown.
+
+Usage: ``python scripts/bench_motion.py [--repeats 3] [--max-iter 60]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from envs.replay import oracle_model, planning_task
+from imitate.motion import PlanConfig, plan
+from imitate.motion.control import backward
+from models import humanoid
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--max-iter", type=int, default=60)
+    parser.add_argument("--collision-weight", type=float, default=300.0)
+    args = parser.parse_args()
+    task = planning_task()
+    learned = oracle_model(task.gaze)
+    g = learned.gmm
+    config = PlanConfig(collision_weight=args.collision_weight, max_iter=args.max_iter)
+    widths, priors = np.sqrt(g.covariances_[:, 0, 0]), g.weights_
+    print(
+        f"movement {learned.times[-1]:.2f} s, dt {config.dt} s, K={g.n_components}, "
+        f"collision weight {config.collision_weight}"
+    )
+    print("| run | total [s] | iterations | rollouts | per iteration [ms] | min distance [mm] |")
+    print("|---|---|---|---|---|---|")
+    for k in range(args.repeats):
+        start = time.perf_counter()
+        p = plan(task, learned.times, learned.mean, learned.variance, g.means_[:, 0],
+                 humanoid.rest_pose(), config, widths, priors)
+        total = time.perf_counter() - start
+        print(f"| {k} | {total:.2f} | {p.n_iter} | {p.n_evaluations} | "
+              f"{1000 * total / max(p.n_evaluations, 1):.1f} | {p.min_distance * 1000:.1f} |")
+
+    # Breakdown of one iteration: forward rollout (with distances), cost terms, backward pass.
+    from imitate.motion.optimizer import Problem  # noqa: PLC0415
+
+    problem = Problem(task, _dynamics(p, learned, config), p.q_start, p.mean, p.weights, config)
+    timings = {"rollout": [], "costs": [], "backward": []}
+    for _ in range(args.repeats):
+        t0 = time.perf_counter()
+        target, result = problem.rollout(p.attractors)
+        t1 = time.perf_counter()
+        gq, gx = np.zeros_like(result.q), np.zeros_like(target)
+        for weight, term in problem.terms.values():
+            _, tq, tx = term(result, target)
+            gq += weight * tq
+            gx += weight * tx
+        t2 = time.perf_counter()
+        backward(result, task, target, config.control, gq, gx)
+        t3 = time.perf_counter()
+        for name, dt in zip(timings, (t1 - t0, t2 - t1, t3 - t2), strict=True):
+            timings[name].append(dt)
+    print(f"\nper iteration, {len(p.times) - 1} steps (median of {args.repeats}):")
+    print("| part | ms | us per step |")
+    print("|---|---|---|")
+    for name, values in timings.items():
+        ms = 1000 * float(np.median(values))
+        print(f"| {name} | {ms:.1f} | {1000 * ms / (len(p.times) - 1):.0f} |")
+
+
+def _dynamics(p, learned, config):
+    from imitate.motion import AttractorDynamics  # noqa: PLC0415
+
+    g = learned.gmm
+    interval = (p.times[-1] - p.times[0]) / g.n_components
+    return AttractorDynamics(
+        len(p.times) - 1, config.dt, g.means_[:, 0], config.omega_per_interval / interval,
+        np.sqrt(g.covariances_[:, 0, 0]), g.weights_,
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,181 @@
+"""Motion generation: Kinematics and task-map Jacobians, attractor dynamics, gradients of every
+cost term and of the total through the RMR rollout (central finite differences), failure modes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from envs.replay import oracle_model, planning_task
+from imitate.errors import ImitateError
+from imitate.motion import (
+    AttractorDynamics,
+    ControlConfig,
+    JointLimitCost,
+    PlanConfig,
+    Problem,
+    plan,
+    reach,
+    rollout,
+    similarity_weights,
+)
+from imitate.motion.optimizer import _TOLERANCE
+from imitate.taskspace import task_state
+from models import humanoid
+
+DT = 0.1  # coarse steps keep the finite-difference sweeps fast
+
+
+@pytest.fixture(scope="module")
+def task():
+    return planning_task()
+
+
+@pytest.fixture(scope="module")
+def learned(task):
+    return oracle_model(task.gaze)
+
+
+@pytest.fixture(scope="module")
+def problem(task, learned):
+    c = PlanConfig(dt=DT, collision_weight=300.0, margin=0.02, epsilon=0.03)
+    T = int(round(learned.times[-1] / DT))
+    grid = np.arange(T + 1) * DT
+    mu = np.column_stack([np.interp(grid, learned.times, learned.mean[:, i]) for i in range(7)])
+    var = np.column_stack(
+        [np.interp(grid, learned.times, learned.variance[:, i]) for i in range(7)]
+    )
+    weights = similarity_weights(var, 1 / np.square(_TOLERANCE), var.max(axis=0))
+    g = learned.gmm
+    dyn = AttractorDynamics(
+        T, DT, g.means_[:, 0], 2.0 / (grid[-1] / g.n_components),
+        np.sqrt(g.covariances_[:, 0, 0]), g.weights_,
+    )
+    limits = JointLimitCost(task.kin.lower, task.kin.upper, c.control.free_ratio)
+    q0 = reach(task, mu[0], humanoid.rest_pose(), c.control, limits)
+    p = Problem(task, dyn, q0, mu, weights, c)
+    a = dyn.fit(mu, p.x_start)
+    a = a + np.random.default_rng(0).normal(size=a.shape) * np.array(_TOLERANCE)
+    return p, a
+
+
+def test_task_map_matches_taskspace_and_finite_differences(task):
+    kin = task.kin
+    q = humanoid.rest_pose() + np.random.default_rng(1).uniform(-0.2, 0.2, kin.n)
+    kin.update(q)
+    x, J = task(np.array([1.5, 1.5]))
+    ref_x, ref_J = task_state(
+        kin.object_kinematics("bottle"), kin.object_kinematics("glass"), task.gaze,
+        angle_ref=[1.5, 1.5],
+    )
+    np.testing.assert_allclose(x, ref_x, atol=1e-12)
+    np.testing.assert_allclose(J[:, task.driven], ref_J[:, task.driven], atol=1e-12)
+    fd = np.zeros_like(J)
+    for i in np.flatnonzero(task.driven):
+        e = np.zeros(kin.n)
+        e[i] = 1e-6
+        kin.update(q + e)
+        xp, _ = task(x[[3, 5]])
+        kin.update(q - e)
+        xm, _ = task(x[[3, 5]])
+        fd[:, i] = (xp - xm) / 2e-6
+    np.testing.assert_allclose(J, fd, atol=1e-6)
+
+
+def test_distance_gradient_matches_finite_differences(task):
+    kin = task.kin
+    rng = np.random.default_rng(2)
+    checked = 0
+    for _ in range(5):
+        q = humanoid.rest_pose() + rng.uniform(-0.3, 0.3, kin.n)
+        kin.update(q)
+        near = kin.distances(0.05, jacobian=True)
+        for k, pair in enumerate(near.pairs):
+            fd = np.zeros(kin.n)
+            for i in range(kin.n):
+                e = np.zeros(kin.n)
+                e[i] = 1e-6
+                vals = []
+                for sign in (1, -1):
+                    kin.update(q + sign * e)
+                    full = kin.distances(0.2)
+                    vals.append(full.dist[full.pairs == pair][0])
+                fd[i] = (vals[0] - vals[1]) / 2e-6
+            np.testing.assert_allclose(near.jac[k], fd, atol=1e-4)
+            checked += 1
+    assert checked > 0
+
+
+def test_attractor_trajectory_is_exact_and_linear():
+    dyn = AttractorDynamics(200, 0.01, np.array([0.5, 1.5]), 10.0)
+    a = np.array([[1.0], [3.0]])
+    x = dyn.trajectory(a, np.zeros(1))
+    t = np.arange(101) * 0.01  # the first attractor acts alone until 1.0 s
+    np.testing.assert_allclose(x[:101, 0], 1 - (1 + 10 * t) * np.exp(-10 * t), atol=1e-12)
+    np.testing.assert_allclose(dyn.gradient(np.ones((201, 1))), dyn.psi.sum(axis=0)[:, None])
+    fit = dyn.fit(x, np.zeros(1), reg=0.0)
+    np.testing.assert_allclose(fit, a, atol=1e-8)
+
+
+def _check_gradient(problem, terms):
+    p, a = problem
+    _, _, grad = p.evaluate(a, terms)
+    h = np.array(_TOLERANCE) * 1e-3
+    fd = np.zeros_like(a)
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            e = np.zeros_like(a)
+            e[i, j] = h[j]
+            up = p.evaluate(a + e, terms, gradient=False)[0]
+            down = p.evaluate(a - e, terms, gradient=False)[0]
+            fd[i, j] = (up - down) / (2 * h[j])
+    cosine = np.sum(grad * fd) / (np.linalg.norm(grad) * np.linalg.norm(fd))
+    relative = np.linalg.norm(grad - fd) / np.linalg.norm(fd)
+    assert cosine >= 0.99 and relative <= 0.05, (cosine, relative)
+
+
+@pytest.mark.parametrize("term", ["similarity", "collision", "joint_limits", "path_length"])
+def test_term_gradient_through_rollout(problem, term):
+    _check_gradient(problem, (term,))
+
+
+def test_total_gradient_through_rollout(problem):
+    _check_gradient(problem, None)
+
+
+def test_collision_term_is_active_in_the_gradient_check(problem):
+    p, a = problem
+    _, values, _ = p.evaluate(a, ("collision",), gradient=False)
+    assert values["collision"] > 0
+
+
+def test_unconverged_and_unreachable_plans_report_instead_of_failing(task, learned):
+    far = learned.mean.copy()
+    far[:, 0] += 2.0  # 2 m between bottle and glass: out of reach
+    result = plan(
+        task, learned.times, far, learned.variance, learned.gmm.means_[:, 0],
+        humanoid.rest_pose(), PlanConfig(dt=DT, max_iter=2, collision_weight=0.0),
+    )
+    assert np.all(np.isfinite(result.q)) and np.all(np.isfinite(result.costs["total"]))
+    assert not result.converged and "not converged" in result.message
+    assert "not reached" in result.message
+
+
+def test_singular_jacobian_is_damped(task):
+    kin = task.kin
+    q = humanoid.rest_pose().copy()
+    arm = [humanoid.JOINTS.index(j) for j in humanoid.RIGHT_ARM_JOINTS]
+    q[arm] = 0.0  # arm stretched: a singular configuration
+    kin.update(q)
+    x, _ = task(np.array([1.5, 1.5]))
+    target = np.tile(x + np.array([0.5, 0, 0, 0, 0, 0, 0]), (20, 1))
+    limits = JointLimitCost(kin.lower, kin.upper, 0.7)
+    result = rollout(task, target, q, ControlConfig(), limits)
+    assert np.all(np.isfinite(result.q))
+
+
+def test_bad_input_raises(task, learned):
+    with pytest.raises(ImitateError, match="optimizer"):
+        PlanConfig(optimizer="sgd")
+    with pytest.raises(ImitateError, match="plan needs"):
+        plan(task, learned.times, learned.mean[:, :3], learned.variance, [1.0], np.zeros(18))
