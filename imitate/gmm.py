@@ -14,13 +14,22 @@ Model selection (eqs. 5-7). The paper's eq. 6 divides the log-likelihood by ``N`
 eq. 5's penalty ``P ln N`` that makes the penalty dominate and always selects ``K = 1``. We use
 the total log-likelihood, the standard BIC (``BIC = -2 sum_i log p(x_i) + P ln N``, as
 scikit-learn's ``GaussianMixture.bic``), with ``P`` from eq. 7.
+
+Speed. K-means runs as compiled loops (numba): Lloyd's algorithm with Hamerly's distance bounds
+(exactly Lloyd's iterates, but most samples are not measured again once centres move little),
+and the clusterings for ``K = 1, 2, ...`` grow incrementally, each from the previous optimum plus
+one k-means++ centre, in ``n_init`` independent chains. The fast BIC sweep computes the cluster
+moments in one pass and the log-likelihood from one matrix product per ``K``, without
+responsibilities. The first call of a process compiles the loops (about 10 s) or loads them from
+numba's on-disk cache (about 0.5 s).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -41,6 +50,8 @@ _EPS_COUNTS = 10.0 * np.finfo(float).eps
 # exp() of anything below this is flushed to 0: subnormal numbers (below ~1e-308, reached by
 # exp(-708)) make the following matrix products about 100x slower and carry no information.
 _LOG_FLUSH = -460.0  # exp(-460) ~ 1e-200
+# exp(-38) ~ 3e-17 < 2^-53 / 2: negligible next to a term exp(0) = 1 (see _sum_log_mixture).
+_LOG_NEGLIGIBLE = -38.0
 # K-means defaults (scikit-learn's) used for the initialisation of EM and for the BIC sweep.
 _KMEANS_MAX_ITER = 100
 _KMEANS_TOL = 1e-4
@@ -95,7 +106,6 @@ class _Data:
     centre: np.ndarray  # (D,)
     outer: np.ndarray  # (N, D * D)
     x_sq: np.ndarray  # (N,), squared norms of the centred samples
-    x_lifted: np.ndarray  # (N, D + 1), the centred samples with a column of ones
 
     @classmethod
     def of(cls, X: np.ndarray) -> _Data:
@@ -103,8 +113,7 @@ class _Data:
         x = X - centre
         outer = (x[:, :, None] * x[:, None, :]).reshape(x.shape[0], -1)
         x_sq = np.einsum("ij,ij->i", x, x)
-        x_lifted = np.hstack((x, np.ones((x.shape[0], 1))))
-        return cls(x=x, centre=centre, outer=outer, x_sq=x_sq, x_lifted=x_lifted)
+        return cls(x=x, centre=centre, outer=outer, x_sq=x_sq)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -127,96 +136,207 @@ class KMeansResult:
 
 
 def _start_generator(seed: int, start: int) -> np.random.Generator:
-    """Generator of one K-means start; independent of the number of clusters, so the first K
-    centres of a longer k-means++ sequence are exactly the seeding of a K-cluster run."""
+    """Generator of one K-means start (one chain of K = 1, 2, ... clusterings)."""
     return np.random.default_rng([seed, start])
 
 
-def _kmeans_plusplus(data: _Data, n_clusters: int, rng: np.random.Generator) -> np.ndarray:
-    """k-means++ seeding: each new centre is drawn with probability ~ squared distance.
+@numba.njit(cache=True)
+def _distance(x_i: np.ndarray, center: np.ndarray) -> float:
+    """Euclidean distance between one sample and one centre, both of shape ``(D,)``."""
+    total = 0.0
+    for e in range(x_i.shape[0]):
+        diff = x_i[e] - center[e]
+        total += diff * diff
+    return math.sqrt(total)
 
-    Returns:
-        Indices of the chosen samples, shape ``(n_clusters,)``, in the order drawn.
+
+@numba.njit(cache=True)
+def _assign_all(
+    x: np.ndarray, centers: np.ndarray, labels: np.ndarray, upper: np.ndarray, lower: np.ndarray
+) -> None:
+    """Nearest centre of every sample, with the exact nearest and second-nearest distances."""
+    for i in range(x.shape[0]):
+        best, second, arg = np.inf, np.inf, 0
+        for c in range(centers.shape[0]):
+            dist = _distance(x[i], centers[c])
+            if dist < best:
+                best, second, arg = dist, best, c
+            elif dist < second:
+                second = dist
+        labels[i], upper[i], lower[i] = arg, best, second
+
+
+@numba.njit(cache=True)
+def _add_center(
+    x: np.ndarray, centers: np.ndarray, labels: np.ndarray, upper: np.ndarray, lower: np.ndarray
+) -> None:
+    """Extends a clustering by its last centre: the samples nearer to it join it.
+
+    ``upper`` must hold the exact distances to the current centres (as :func:`_lloyd` leaves
+    them); the bounds stay valid.
     """
-    x, x_sq = data.x, data.x_sq
-    n_samples = x.shape[0]
-    chosen = np.empty(n_clusters, dtype=np.intp)
-    chosen[0] = rng.integers(n_samples)
-    closest = np.maximum(x_sq - 2.0 * (x @ x[chosen[0]]) + x_sq[chosen[0]], 0.0)
-    for c in range(1, n_clusters):
-        cumulative = np.cumsum(closest)
-        if cumulative[-1] > 0.0:
-            idx = min(int(np.searchsorted(cumulative, rng.uniform(0.0, cumulative[-1]))),
-                      n_samples - 1)
-        else:  # fewer distinct points than clusters: any point will do
-            idx = int(rng.integers(n_samples))
-        chosen[c] = idx
-        np.minimum(closest, np.maximum(x_sq - 2.0 * (x @ x[idx]) + x_sq[idx], 0.0), out=closest)
-    return chosen
-
-
-def _sq_distances_shifted(data: _Data, centers: np.ndarray) -> np.ndarray:
-    """``|x_i - c_k|^2 - |x_i|^2`` for all samples and centres with one matrix product."""
-    lifted = np.vstack((-2.0 * centers.T, np.einsum("kd,kd->k", centers, centers)))
-    return data.x_lifted @ lifted
-
-
-def _lloyd(
-    data: _Data, centers: np.ndarray, max_iter: int, tol: float
-) -> tuple[np.ndarray, np.ndarray, float]:
-    """Lloyd iterations until the labels stop changing or the centres move less than ``tol``.
-
-    Cluster sums are updated incrementally from the samples that changed cluster. Empty clusters
-    are moved to the samples farthest from their centres.
-
-    Returns:
-        ``(centers, labels, inertia)``.
-    """
-    x = data.x
-    n_samples, n_clusters = x.shape[0], centers.shape[0]
-    labels = np.full(n_samples, -1)
-    sums = np.zeros_like(centers)
-    counts = np.zeros(n_clusters, dtype=np.intp)
-    for _ in range(max_iter):
-        d2 = _sq_distances_shifted(data, centers)
-        new_labels = np.argmin(d2, axis=1)
-        new_counts = np.bincount(new_labels, minlength=n_clusters)
-        if not new_counts.all():
-            empty = np.flatnonzero(new_counts == 0)
-            far = np.argsort(np.take_along_axis(d2, new_labels[:, None], 1)[:, 0] + data.x_sq)
-            new_labels[far[::-1][: empty.size]] = empty
-            new_counts = np.bincount(new_labels, minlength=n_clusters)
-        moved = np.flatnonzero(new_labels != labels)
-        if moved.size == 0:
-            break
-        if labels[0] < 0:
-            sums = _one_hot(new_labels, n_clusters).T @ x
+    new = centers.shape[0] - 1
+    for i in range(x.shape[0]):
+        dist = _distance(x[i], centers[new])
+        if dist < upper[i]:
+            labels[i], upper[i], lower[i] = new, dist, min(lower[i], upper[i])
         else:
-            np.add.at(sums, new_labels[moved], x[moved])
-            np.subtract.at(sums, labels[moved], x[moved])
-        labels, counts = new_labels, new_counts
-        new_centers = sums / counts[:, None]
-        shift = float(np.sum((new_centers - centers) ** 2))
-        centers = new_centers
+            lower[i] = min(lower[i], dist)
+
+
+@numba.njit(cache=True)
+def _move_sample(sums: np.ndarray, x_i: np.ndarray, source: int, target: int) -> None:
+    """Moves one sample between the cluster sums ``sums`` (K, D); ``source = -1``: only adds."""
+    for e in range(x_i.shape[0]):
+        if source >= 0:
+            sums[source, e] -= x_i[e]
+        sums[target, e] += x_i[e]
+
+
+@numba.njit(cache=True)
+def _lloyd(
+    x: np.ndarray, centers: np.ndarray, labels: np.ndarray, upper: np.ndarray,
+    lower: np.ndarray, max_iter: int, tol: float,
+) -> tuple[float, int]:
+    """Lloyd iterations in place, with Hamerly's distance bounds (exactly Lloyd's result).
+
+    Each sample keeps an upper bound on the distance to its centre and a lower bound on the
+    distance to every other centre; when centres move the bounds are loosened by the moves, and
+    only samples whose bounds overlap are measured again. An empty cluster takes the sample
+    farthest from its centre.
+
+    Args:
+        x: Samples, shape ``(N, D)``.
+        centers: Centres, shape ``(K, D)``, updated in place.
+        labels, upper, lower: Cluster of each sample and valid bounds, shape ``(N,)``, updated.
+        max_iter: Maximum number of centre updates.
+        tol: Stop when the summed squared centre shift of an update is at most this.
+
+    Returns:
+        ``(inertia, n_iter)``. On return the centres are the means of their clusters and
+        ``upper`` holds the exact distance of every sample to its centre.
+    """
+    n, d = x.shape
+    k = centers.shape[0]
+    sums = np.zeros((k, d))
+    counts = np.zeros(k, dtype=np.intp)
+    for i in range(n):
+        counts[labels[i]] += 1
+        _move_sample(sums, x[i], -1, labels[i])
+    moved = np.empty(k)
+    half_gap = np.empty(k)
+    n_iter = 0
+    while n_iter < max_iter:
+        n_iter += 1
+        shift = 0.0
+        for c in range(k):
+            if counts[c] == 0:  # re-seed at the farthest sample of a cluster of >= 2 samples
+                far = -1
+                for i in range(n):
+                    if counts[labels[i]] > 1 and (far < 0 or upper[i] > upper[far]):
+                        far = i
+                if far < 0:  # fewer distinct samples than clusters: leave it empty
+                    moved[c] = 0.0
+                    continue
+                counts[labels[far]] -= 1
+                counts[c] = 1
+                _move_sample(sums, x[far], labels[far], c)
+                labels[far], upper[far], lower[far] = c, 0.0, 0.0
+            squared = 0.0
+            for e in range(d):
+                new = sums[c, e] / counts[c]
+                squared += (new - centers[c, e]) ** 2
+                centers[c, e] = new
+            moved[c] = math.sqrt(squared)
+            shift += squared
         if shift <= tol:
             break
-    centers = (_one_hot(labels, n_clusters).T @ x) / counts[:, None]  # exact, no drift
-    diff = x - centers[labels]
-    return centers, labels, float(np.einsum("ij,ij->", diff, diff))
+        for c in range(k):
+            gap = np.inf
+            for other in range(k):
+                if other != c:
+                    gap = min(gap, _distance(centers[c], centers[other]))
+            half_gap[c] = 0.5 * gap
+        max_moved = moved.max()
+        changed = 0
+        for i in range(n):
+            own = labels[i]
+            upper[i] += moved[own]
+            lower[i] -= max_moved
+            bound = max(half_gap[own], lower[i])
+            if upper[i] <= bound:
+                continue
+            upper[i] = _distance(x[i], centers[own])
+            if upper[i] <= bound:
+                continue
+            best, second, arg = np.inf, np.inf, 0
+            for c in range(k):
+                dist = _distance(x[i], centers[c])
+                if dist < best:
+                    best, second, arg = dist, best, c
+                elif dist < second:
+                    second = dist
+            labels[i], upper[i], lower[i] = arg, best, second
+            if arg != own:
+                changed += 1
+                counts[own] -= 1
+                counts[arg] += 1
+                _move_sample(sums, x[i], own, arg)
+        if changed == 0:
+            break
+    # Exact centres (no drift from the incremental sums), distances and inertia.
+    sums[:] = 0.0
+    for i in range(n):
+        _move_sample(sums, x[i], -1, labels[i])
+    for c in range(k):
+        if counts[c] > 0:
+            for e in range(d):
+                centers[c, e] = sums[c, e] / counts[c]
+    inertia = 0.0
+    for i in range(n):
+        upper[i] = _distance(x[i], centers[labels[i]])
+        inertia += upper[i] ** 2
+    return inertia, n_iter
 
 
-def _kmeans_starts(
-    data: _Data, n_clusters: Sequence[int], n_init: int, max_iter: int, tol: float, seed: int
+def _kmeans_sweep(
+    data: _Data, k_max: int, n_init: int, max_iter: int, tol: float, seed: int
 ) -> list[tuple[np.ndarray, np.ndarray, float]]:
-    """Best of ``n_init`` K-means runs for every K in ``n_clusters`` (one seeding per start)."""
-    tol_abs = tol * float(np.mean(data.x_sq)) / data.x.shape[1]  # tol relative to mean variance
-    best: list[tuple[np.ndarray, np.ndarray, float] | None] = [None] * len(n_clusters)
+    """Best of ``n_init`` K-means chains for every ``K = 1..k_max``.
+
+    Each start is a chain: its ``K``-cluster run begins from its converged ``(K-1)``-cluster
+    centres plus one new centre drawn by the k-means++ rule (probability proportional to the
+    squared distance to the current centres), as in incremental / global K-means (Likas et al.,
+    2003). Starting from a nearby optimum, Lloyd needs few iterations, and the distance bounds
+    carry over. The chains are independent, so a poor optimum in one does not reach the others;
+    for every ``K`` the lowest inertia over the chains wins.
+
+    Returns:
+        ``(centers, labels, inertia)`` for ``K = 1..k_max`` (centres in centred coordinates).
+    """
+    x = data.x
+    n_samples = x.shape[0]
+    tol_abs = tol * float(np.mean(data.x_sq)) / x.shape[1]  # tol relative to mean variance
+    best: list[tuple[np.ndarray, np.ndarray, float] | None] = [None] * k_max
     for start in range(n_init):
-        seeds = _kmeans_plusplus(data, max(n_clusters), _start_generator(seed, start))
-        for n, k in enumerate(n_clusters):
-            run = _lloyd(data, data.x[seeds[:k]], max_iter, tol_abs)
-            if best[n] is None or run[2] < best[n][2]:
-                best[n] = run
+        rng = _start_generator(seed, start)
+        centers = x[[rng.integers(n_samples)]]
+        labels = np.zeros(n_samples, dtype=np.intp)
+        upper = np.sqrt(np.sum((x - centers[0]) ** 2, axis=1))
+        lower = np.full(n_samples, np.inf)
+        for k in range(1, k_max + 1):
+            if k > 1:
+                cumulative = np.cumsum(upper**2)
+                if cumulative[-1] > 0.0:
+                    drawn = np.searchsorted(cumulative, rng.uniform(0.0, cumulative[-1]))
+                    idx = min(int(drawn), n_samples - 1)
+                else:  # fewer distinct points than clusters: any point will do
+                    idx = int(rng.integers(n_samples))
+                centers = np.vstack((centers, x[idx]))
+                _add_center(x, centers, labels, upper, lower)
+            inertia, _ = _lloyd(x, centers, labels, upper, lower, max_iter, tol_abs)
+            if best[k - 1] is None or inertia < best[k - 1][2]:
+                best[k - 1] = (centers.copy(), labels.copy(), inertia)
     return best
 
 
@@ -229,16 +349,19 @@ def kmeans(
     tol: float = _KMEANS_TOL,
     seed: int = 0,
 ) -> KMeansResult:
-    """K-means clustering with k-means++ seeding and several seeded starts.
+    """K-means clustering with incremental k-means++ seeding and several seeded starts.
 
-    A single K-means run can stall in a poor local optimum, which makes a BIC curve built from
-    K-means alone jagged; the best of ``n_init`` starts (lowest inertia) guards against that.
+    Every start grows a chain of clusterings ``1, 2, ..., n_clusters``, each seeded by the
+    previous optimum plus one k-means++ centre (see :func:`_kmeans_sweep`), so that ``kmeans(X,
+    K)`` is exactly the ``K``-th clustering of the BIC sweep :func:`select_components`. A single
+    K-means run can stall in a poor local optimum, which makes a BIC curve built from K-means alone
+    jagged; the best of ``n_init`` independent chains (lowest inertia) guards against that.
 
     Args:
         X: Samples, shape ``(n_samples, n_dims)``, finite.
         n_clusters: Number of clusters, ``1 <= n_clusters <= n_samples``.
-        n_init: Number of k-means++ starts, ``>= 1``.
-        max_iter: Maximum number of Lloyd iterations per start, ``>= 1``.
+        n_init: Number of independent chains (starts), ``>= 1``.
+        max_iter: Maximum number of Lloyd iterations per clustering, ``>= 1``.
         tol: Stop when the summed squared centre shift falls below ``tol`` times the mean
             per-dimension variance of ``X`` (scikit-learn's convention).
         seed: Seed of the starts; start ``i`` draws from ``default_rng([seed, i])``.
@@ -254,7 +377,7 @@ def kmeans(
     if n_init < 1 or max_iter < 1:
         raise ImitateError(f"n_init and max_iter must be >= 1; got {n_init} and {max_iter}")
     data = _Data.of(X)
-    centers, labels, inertia = _kmeans_starts(data, [n_clusters], n_init, max_iter, tol, seed)[0]
+    centers, labels, inertia = _kmeans_sweep(data, n_clusters, n_init, max_iter, tol, seed)[-1]
     return KMeansResult(centers=centers + data.centre, labels=labels, inertia=inertia)
 
 
@@ -274,12 +397,41 @@ def kmeans_parameters(
         cluster fractions, centroids and (biased) cluster covariances plus ``reg_covar * I``.
     """
     data = _Data.of(_check_data(X))
-    weights, means, cov = _m_step(data, _one_hot(np.asarray(labels), n_components), reg_covar)
+    labels = np.asarray(labels, dtype=np.intp)
+    weights, means, cov = _cluster_parameters(data, labels, n_components, reg_covar)
     return weights, means + data.centre, cov
 
 
-def _one_hot(labels: np.ndarray, n_components: int) -> np.ndarray:
-    return (labels[:, None] == np.arange(n_components)).astype(float)
+def _cluster_parameters(
+    data: _Data, labels: np.ndarray, n_components: int, reg_covar: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The M-step (eqs. 9-12) for hard responsibilities, in one pass over the samples."""
+    counts, sums, second = _cluster_moments(data.x, labels, n_components)
+    counts += _EPS_COUNTS
+    means = sums / counts[:, None]
+    covariances = second / counts[:, None, None] - means[:, :, None] * means[:, None, :]
+    n_dims = data.x.shape[1]
+    covariances[:, np.arange(n_dims), np.arange(n_dims)] += reg_covar
+    return counts / counts.sum(), means, covariances
+
+
+@numba.njit(cache=True)
+def _cluster_moments(
+    x: np.ndarray, labels: np.ndarray, n_components: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-cluster sample counts (K,), sums (K, D) and sums of outer products (K, D, D)."""
+    n, d = x.shape
+    counts = np.zeros(n_components)
+    sums = np.zeros((n_components, d))
+    second = np.zeros((n_components, d, d))
+    for i in range(n):
+        c = labels[i]
+        counts[c] += 1.0
+        for e in range(d):
+            sums[c, e] += x[i, e]
+            for f in range(d):
+                second[c, e, f] += x[i, e] * x[i, f]
+    return counts, sums, second
 
 
 # ---------------------------------------------------------------------------------------------
@@ -370,7 +522,7 @@ class GMM:
             ``>= 0``; keeps components of duplicated or collinear points non-singular.
         tol: EM stops when the mean log-likelihood per sample changes by less than this [nats].
         max_iter: Maximum number of EM iterations, ``>= 1``.
-        n_init: Number of k-means++ starts for the initialisation (lowest inertia wins).
+        n_init: Number of K-means starts for the initialisation (see :func:`kmeans`).
         seed: Seed of the K-means starts (see :func:`kmeans`).
 
     Attributes:
@@ -490,10 +642,10 @@ class GMM:
         X = _check_data(X)
         _check_n_components(self.n_components, X.shape[0])
         data = _Data.of(X)
-        _, labels, _ = _kmeans_starts(
-            data, [self.n_components], self.n_init, _KMEANS_MAX_ITER, _KMEANS_TOL, self.seed
-        )[0]
-        self._em(data, *_m_step(data, _one_hot(labels, self.n_components), self.reg_covar))
+        _, labels, _ = _kmeans_sweep(
+            data, self.n_components, self.n_init, _KMEANS_MAX_ITER, _KMEANS_TOL, self.seed
+        )[-1]
+        self._em(data, *_cluster_parameters(data, labels, self.n_components, self.reg_covar))
         return self
 
     def _em(self, data: _Data, weights: np.ndarray, means: np.ndarray, cov: np.ndarray) -> None:
@@ -582,6 +734,54 @@ def _bic(log_likelihood: float, n_components: int, n_dims: int, n_samples: int) 
     return -2.0 * log_likelihood + n_parameters(n_components, n_dims) * np.log(n_samples)
 
 
+def _total_log_likelihood(
+    lifted: np.ndarray, weights: np.ndarray, means: np.ndarray, precisions: np.ndarray,
+    half_log_det: np.ndarray,
+) -> float:
+    """``sum_i log p(x_i)`` (eq. 3) without responsibilities, for the fast BIC sweep.
+
+    Args:
+        lifted: Centred samples as rows ``(x x^T flattened, x, 1)``, shape ``(N, D*D + D + 1)``.
+        weights, means, precisions, half_log_det: The mixture (centred means), see
+            :func:`_precisions`.
+
+    Returns:
+        The total log-likelihood [nats]. All Mahalanobis distances come from one matrix product.
+    """
+    n_components, n_dims = means.shape
+    p_mu = np.einsum("kde,ke->kd", precisions, means)
+    coefficients = np.vstack((
+        precisions.reshape(n_components, n_dims * n_dims).T,
+        -2.0 * p_mu.T,
+        np.einsum("kd,kd->k", means, p_mu)[None, :],
+    ))
+    log_coefficients = np.log(weights) + half_log_det - 0.5 * n_dims * _LOG_2PI
+    return _sum_log_mixture(lifted @ coefficients, log_coefficients)
+
+
+@numba.njit(cache=True)
+def _sum_log_mixture(maha: np.ndarray, log_coefficients: np.ndarray) -> float:
+    """``sum_i log sum_k exp(c_k - maha_ik / 2)`` by the log-sum-exp trick, row by row.
+
+    Terms below ``exp(_LOG_NEGLIGIBLE)`` times the largest one are skipped: added to a sum of at
+    least 1 they are below half a unit in the last place, so they would not change it.
+    """
+    n, k = maha.shape
+    terms = np.empty(k)
+    total = 0.0
+    for i in range(n):
+        top = -np.inf
+        for c in range(k):
+            terms[c] = log_coefficients[c] - 0.5 * max(maha[i, c], 0.0)
+            top = max(top, terms[c])
+        acc = 0.0
+        for c in range(k):
+            if terms[c] - top > _LOG_NEGLIGIBLE:
+                acc += math.exp(terms[c] - top)
+        total += top + math.log(acc)
+    return total
+
+
 _BIC_METHODS = ("fast", "full")
 
 
@@ -601,7 +801,8 @@ def select_components(
     ``"fast"`` is the paper's heuristic (section IV-B.1): K-means only, priors, means and
     covariances taken from the clusters, no EM. ``"full"`` trains a GMM by EM for every ``K``
     from that same K-means start (so ``"full"`` is never below ``"fast"`` in likelihood). The
-    fast heuristic tends to choose more components than the full one (Fig. 5).
+    paper observes that the fast heuristic chooses more components than the full one (Fig. 5);
+    that is not guaranteed (see the tests).
 
     Args:
         X: Samples, shape ``(n_samples, n_dims)``, finite.
@@ -609,7 +810,7 @@ def select_components(
         method: ``"fast"`` or ``"full"``.
         seed: Seed of the K-means starts (see :func:`kmeans`).
         reg_covar: Covariance regularisation, see :class:`GMM`.
-        n_init: Number of k-means++ starts per ``K``.
+        n_init: Number of independent K-means chains (see :func:`kmeans`).
         tol: EM tolerance for ``"full"``, see :class:`GMM`.
         max_iter: EM iteration limit for ``"full"``.
 
@@ -625,17 +826,16 @@ def select_components(
     _check_n_components(k_max, X.shape[0])
     data = _Data.of(X)
     n_samples, n_dims = X.shape
-    ks = list(range(1, k_max + 1))
+    lifted = np.hstack((data.outer, data.x, np.ones((n_samples, 1)))) if method == "fast" else None
     curve = np.empty(k_max)
-    starts = _kmeans_starts(data, ks, n_init, _KMEANS_MAX_ITER, _KMEANS_TOL, seed)
-    for n, (_, labels, _) in enumerate(starts):
-        weights, means, cov = _m_step(data, _one_hot(labels, ks[n]), reg_covar)
+    runs = _kmeans_sweep(data, k_max, n_init, _KMEANS_MAX_ITER, _KMEANS_TOL, seed)
+    for k, (_, labels, _) in enumerate(runs, start=1):
+        weights, means, cov = _cluster_parameters(data, labels, k, reg_covar)
         if method == "fast":
-            log_norm, _ = _e_step(data, weights, means, *_precisions(cov))
-            log_likelihood = float(log_norm.sum())
+            log_likelihood = _total_log_likelihood(lifted, weights, means, *_precisions(cov))
         else:
-            model = GMM(ks[n], reg_covar=reg_covar, tol=tol, max_iter=max_iter)
+            model = GMM(k, reg_covar=reg_covar, tol=tol, max_iter=max_iter)
             model._em(data, weights, means, cov)
             log_likelihood = float(model.score_samples(X).sum())
-        curve[n] = _bic(log_likelihood, ks[n], n_dims, n_samples)
+        curve[k - 1] = _bic(log_likelihood, k, n_dims, n_samples)
     return int(np.argmin(curve)) + 1, curve
