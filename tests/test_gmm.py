@@ -11,7 +11,16 @@ from sklearn.mixture import GaussianMixture
 
 from imitate.dtw import align
 from imitate.errors import ImitateError
-from imitate.gmm import GMM, kmeans, kmeans_parameters, n_parameters, select_components
+from imitate.gmm import (
+    GMM,
+    _assign_all,
+    _Data,
+    _lloyd,
+    kmeans,
+    kmeans_parameters,
+    n_parameters,
+    select_components,
+)
 from imitate.learning import time_stacked
 from imitate.synthetic import pouring_demos
 
@@ -81,6 +90,23 @@ def test_kmeans_matches_sklearn_on_blobs():
     ref = KMeans(5, n_init=3, random_state=0).fit(X)
     np.testing.assert_allclose(ours.inertia, ref.inertia_, rtol=1e-9)
     assert len(set(zip(ours.labels.tolist(), ref.labels_.tolist(), strict=True))) == 5
+
+
+@pytest.mark.parametrize("k", [2, 7, 20])
+def test_lloyd_with_bounds_converges_like_plain_lloyd(demo_data, k):
+    # Hamerly's bounds only skip distance computations: from the same centres the converged
+    # clustering is scikit-learn's plain Lloyd result.
+    data = _Data.of(demo_data)
+    init = data.x[np.random.default_rng(k).choice(len(data.x), k, replace=False)]
+    centers = init.copy()
+    labels, upper, lower = (np.empty(len(data.x), dtype=np.intp), np.empty(len(data.x)),
+                            np.empty(len(data.x)))
+    _assign_all(data.x, centers, labels, upper, lower)
+    inertia, _ = _lloyd(data.x, centers, labels, upper, lower, 1000, 0.0)
+    ref = KMeans(k, init=init, n_init=1, max_iter=1000, tol=0.0, algorithm="lloyd").fit(data.x)
+    np.testing.assert_array_equal(labels, ref.labels_)
+    np.testing.assert_allclose(inertia, ref.inertia_, rtol=1e-9)
+    np.testing.assert_allclose(centers, ref.cluster_centers_, rtol=1e-9, atol=1e-12)
 
 
 def test_fast_bic_is_the_bic_of_the_kmeans_start_and_never_below_full(demo_data):
