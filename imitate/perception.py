@@ -1,0 +1,663 @@
+r"""Stereo colour tracking of the bottle and glass from the robot's head cameras (paper II).
+
+Per object and per image of a stereo pair:
+
+1. **Segmentation**: HSV thresholds (:class:`ColourRange`) inside a window around the object's
+   last detection (a coarse search of the whole image to acquire or re-acquire it), a
+   morphological opening, and the connected components that are not specks.
+2. **Moments**: centroid and principal axis; the axis's sign (bottom to top) is carried from
+   frame to frame, starting from "top up in the image".
+3. **Occlusion-aware axis line**: the teacher's hands cover part of an object, often a whole
+   side of the glass, which drags the centroid and the principal axis. The silhouette is cut
+   into slices across its axis; each slice's edge that borders the background (not an occluder
+   colour, not near the ends) lies one apparent radius from the axis, the radius being known
+   from the object's profile (:class:`ObjectModel`) and its depth. A least-squares line through
+   these gives the image of the object's axis.
+4. **Extremes** of the silhouette along that line: the images of the bottom and top rims.
+
+Then per object, from the two views (cameras from MuJoCo's parameters, :func:`mujoco_camera`):
+
+5. **Ends**: the extremes are triangulated, then corrected: a rim's extreme point is not its
+   centre (for a bottle lying across the view the extremes are the rims' nearest points, 2-4 cm
+   in front of the axis). With the current 3D estimate the model predicts, per view, how far the
+   extreme lies beyond the projected rim centre; shifting the observed extremes back by that and
+   re-triangulating converges in a few iterations.
+6. **Tracked point**: the middle of the two rim centres, i.e. the centre of the object's axis at
+   half its height (bottle 0.1175 m, glass 0.05 m above the bottom), which is what the ground
+   truth uses. **Axis**: the unit vector bottom to top. **Angle** around the gaze vector:
+   ``atan2(a . g_1, a . g_0)`` in the gaze frame ``g`` (:func:`gaze_frame`).
+
+Why not simply triangulate the blob centroids: the silhouette's centroid sits below half height
+(the bottle's wide body weighs more than its neck: -12 mm along the axis), and a hand in front
+of an object shifts the centroid differently in the two views, which shows up as depth error
+(-6 mm for the bottle, -18 mm for the glass over a recorded session); steps 3-5 remove both.
+
+Frames in which an object is not found are gaps; :func:`fill_gaps` interpolates short ones and
+reports long ones.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import cv2
+import numpy as np
+
+from imitate.errors import ImitateError
+
+
+@dataclass(frozen=True)
+class PinholeCamera:
+    """A calibrated camera in OpenCV's convention (x right, y down, z forward).
+
+    Attributes:
+        intrinsics: ``K`` ``(3, 3)`` [px]; pixel ``(col, row)`` of a pixel's centre is its index.
+        rotation: ``(3, 3)`` world-to-camera rotation (rows: the camera axes in world coordinates).
+        position: ``(3,)`` optical centre in the world frame [m].
+        width: image width [px].
+        height: image height [px].
+    """
+
+    intrinsics: np.ndarray
+    rotation: np.ndarray
+    position: np.ndarray
+    width: int
+    height: int
+
+    @property
+    def projection(self) -> np.ndarray:
+        """``P = K [R | -R c]``, ``(3, 4)``."""
+        return self.intrinsics @ np.hstack(
+            [self.rotation, -(self.rotation @ self.position)[:, None]]
+        )
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """Pixel coordinates ``(..., 2)`` of world points ``(..., 3)`` [m]."""
+        cam = (np.asarray(points, dtype=float) - self.position) @ self.rotation.T
+        pix = cam @ self.intrinsics.T
+        return pix[..., :2] / pix[..., 2:]
+
+    def directions(self, pixels: np.ndarray) -> np.ndarray:
+        """Viewing directions ``(..., 3)`` (unit depth, not unit length) through ``pixels``.
+
+        Args:
+            pixels: ``(..., 2)`` ``(col, row)`` [px].
+
+        Returns:
+            World-frame vectors whose component along the optical axis is 1.
+        """
+        k = self.intrinsics
+        pixels = np.asarray(pixels, dtype=float)
+        x = (pixels[..., 0] - k[0, 2]) / k[0, 0]
+        y = (pixels[..., 1] - k[1, 2]) / k[1, 1]
+        r = self.rotation
+        return x[..., None] * r[0] + y[..., None] * r[1] + r[2]
+
+
+def mujoco_camera(model, data, camera: str, width: int, height: int) -> PinholeCamera:
+    """The pinhole model of MuJoCo camera ``camera`` rendering ``width x height`` images.
+
+    Uses the camera's pose in ``data`` (after kinematics) and its vertical field of view
+    ``cam_fovy``; MuJoCo's pixels are square and its optical axis passes through the image
+    centre, between the two middle pixels.
+
+    Raises:
+        ImitateError: no camera of that name; the message lists the model's cameras.
+    """
+    import mujoco  # local: keeps the rest of this module usable without a model
+
+    cam_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, camera)
+    if cam_id < 0:
+        names = [model.camera(i).name for i in range(model.ncam)]
+        raise ImitateError(f"camera {camera!r} not in the model; its cameras: {names}")
+    focal = 0.5 * height / np.tan(np.radians(model.cam_fovy[cam_id]) / 2)
+    intrinsics = np.array(
+        [[focal, 0.0, (width - 1) / 2], [0.0, focal, (height - 1) / 2], [0.0, 0.0, 1.0]]
+    )
+    # MuJoCo's camera frame: x right, y up, looking along -z; OpenCV's: y down, z forward.
+    rotation = (data.cam_xmat[cam_id].reshape(3, 3) * np.array([1.0, -1.0, -1.0])).T
+    return PinholeCamera(intrinsics, rotation, data.cam_xpos[cam_id].copy(), width, height)
+
+
+def triangulate(left: PinholeCamera, right: PinholeCamera, pl: np.ndarray, pr: np.ndarray):
+    """Triangulation of corresponding pixels: the midpoint of the rays' closest approach.
+
+    Args:
+        left: first camera.
+        right: second camera.
+        pl: ``(..., 2)`` pixels in the first camera's image.
+        pr: ``(..., 2)`` the corresponding pixels in the second camera's image.
+
+    Returns:
+        ``(..., 3)`` world points [m]; exact for exactly corresponding pixels.
+    """
+    d1, d2 = left.directions(pl), right.directions(pr)
+    w0 = left.position - right.position
+    a, b, c = (d1 * d1).sum(-1), (d1 * d2).sum(-1), (d2 * d2).sum(-1)
+    d, e = d1 @ w0, d2 @ w0
+    denom = a * c - b * b  # > 0 unless the rays are parallel (a point at infinity)
+    t1, t2 = (b * e - c * d) / denom, (a * e - b * d) / denom
+    return 0.5 * (left.position + t1[..., None] * d1 + right.position + t2[..., None] * d2)
+
+
+@dataclass(frozen=True)
+class ColourRange:
+    """An HSV box in OpenCV's 8-bit units: hue 0..179 (half degrees), saturation and value 0..255.
+
+    A hue range with ``lower[0] > upper[0]`` wraps around red (e.g. 170..10).
+
+    Attributes:
+        lower: ``(h, s, v)`` inclusive lower bounds.
+        upper: ``(h, s, v)`` inclusive upper bounds.
+    """
+
+    lower: tuple[int, int, int]
+    upper: tuple[int, int, int]
+
+    def __post_init__(self):
+        limits = (179, 255, 255)
+        for name in ("lower", "upper"):
+            value = getattr(self, name)
+            if len(value) != 3 or not all(
+                isinstance(v, int | np.integer) and 0 <= v <= top
+                for v, top in zip(value, limits, strict=True)
+            ):
+                raise ImitateError(
+                    f"colour range {name}={value!r} not accepted: three integers (h, s, v) with "
+                    f"h in 0..179, s and v in 0..255 (OpenCV's 8-bit HSV)"
+                )
+        if self.lower[1] > self.upper[1] or self.lower[2] > self.upper[2]:
+            raise ImitateError(
+                f"colour range {self.lower}..{self.upper} not accepted: saturation and value need "
+                f"lower <= upper (only hue may wrap around)"
+            )
+
+    def mask(self, hsv: np.ndarray) -> np.ndarray:
+        """``uint8`` mask (255 inside) of an HSV image ``(h, w, 3)``."""
+        lo, hi = np.array(self.lower, np.uint8), np.array(self.upper, np.uint8)
+        if lo[0] <= hi[0]:
+            return cv2.inRange(hsv, lo, hi)
+        top, bottom = hi.copy(), lo.copy()
+        top[0], bottom[0] = 179, 0
+        return cv2.inRange(hsv, lo, top) | cv2.inRange(hsv, bottom, hi)
+
+
+# Skin, the colour of the teacher's hands: what may cover an object's side.
+SKIN = ColourRange((0, 40, 60), (25, 170, 255))
+
+
+@dataclass(frozen=True)
+class ObjectModel:
+    """What the robot knows about an object: its colour and its shape.
+
+    Attributes:
+        name: the object's name.
+        colour: its colour range.
+        profile: ``(n, 2)`` points ``(radius, height)`` of its outer surface of revolution,
+            bottom (height 0) to top, heights increasing [m].
+    """
+
+    name: str
+    colour: ColourRange
+    profile: tuple[tuple[float, float], ...]
+
+    def __post_init__(self):
+        prof = np.asarray(self.profile, dtype=float)
+        if (
+            prof.ndim != 2
+            or prof.shape[0] < 2
+            or prof.shape[1] != 2
+            or prof[0, 1] != 0
+            or np.any(np.diff(prof[:, 1]) <= 0)
+            or np.any(prof[:, 0] <= 0)
+        ):
+            raise ImitateError(
+                f"profile of {self.name!r} not accepted: at least two (radius, height) points "
+                f"[m], radius > 0, heights increasing from 0; got {self.profile!r}"
+            )
+
+    @property
+    def height(self) -> float:
+        """Height of the object along its axis [m]."""
+        return float(self.profile[-1][1])
+
+    def radius(self, height: np.ndarray) -> np.ndarray:
+        """Outer radius [m] at ``height`` [m] above the bottom (clamped to the profile)."""
+        prof = np.asarray(self.profile, dtype=float)
+        return np.interp(height, prof[:, 1], prof[:, 0])
+
+
+@dataclass(frozen=True)
+class PerceptionConfig:
+    """Settings of the stereo tracker; sizes in pixels are for the image size tracked.
+
+    Attributes:
+        objects: the tracked objects.
+        occluder: colour of what may cover an object's side (the teacher's skin); ``None``
+            treats every edge as the object's own.
+        min_area: smallest silhouette accepted [px].
+        open_size: side of the opening's elliptic kernel [px]; 0 or 1 disables it.
+        keep_fraction: connected components smaller than this fraction of the largest are
+            dropped as specks; larger ones stay, so an object cut in two by a hand stays whole.
+        window_margin: the search window is the last bounding box grown by this fraction of
+            its size on every side (and at least ``min_margin``).
+        min_margin: least growth of the search window [px].
+        coarse_step: subsampling of the whole-image search that (re)acquires an object.
+        end_zone: fraction of the silhouette's length at either end whose edges are not used
+            for the axis line (rims and bottoms are not sides).
+        min_edges: fewest free side edges for the occlusion-aware axis line; with fewer the
+            moments' axis is kept.
+        refine_iterations: iterations of the rim-extreme correction of the ends.
+        max_gap: longest gap in a track that is interpolated [s]; longer ones are reported.
+    """
+
+    objects: tuple[ObjectModel, ...]
+    occluder: ColourRange | None = SKIN
+    min_area: int = 20
+    open_size: int = 3
+    keep_fraction: float = 0.1
+    window_margin: float = 0.5
+    min_margin: int = 12
+    coarse_step: int = 4
+    end_zone: float = 0.12
+    min_edges: int = 6
+    refine_iterations: int = 2
+    max_gap: float = 0.25
+
+    def __post_init__(self):
+        names = [obj.name for obj in self.objects]
+        if not names or len(set(names)) != len(names):
+            raise ImitateError(f"objects {names} not accepted: one or more, with distinct names")
+        for name in ("min_area", "coarse_step", "min_edges"):
+            if not getattr(self, name) >= 1:
+                raise ImitateError(f"{name}={getattr(self, name)!r} not accepted: an integer >= 1")
+        if not 0 <= self.keep_fraction <= 1 or not 0 <= self.end_zone < 0.5:
+            raise ImitateError(
+                f"keep_fraction={self.keep_fraction!r}, end_zone={self.end_zone!r} not accepted: "
+                f"keep_fraction in [0, 1], end_zone in [0, 0.5)"
+            )
+        if not self.max_gap >= 0 or not self.window_margin >= 0:
+            raise ImitateError(
+                f"max_gap={self.max_gap!r} s, window_margin={self.window_margin!r} not accepted: "
+                f">= 0"
+            )
+
+
+def gaze_frame(camera: PinholeCamera) -> np.ndarray:
+    """The gaze frame ``(3, 3)`` of ``camera``: columns right, ``forward x right``, forward.
+
+    The middle column points down the image (OpenCV's y). The frame is right-handed, as
+    ``imitate.taskspace`` requires, and its columns are the camera's axes in world coordinates.
+    """
+    return camera.rotation.T.copy()
+
+
+def axis_angle(axis: np.ndarray, gaze: np.ndarray) -> np.ndarray:
+    """Angle [rad] of ``axis (..., 3)`` around the gaze vector: ``atan2(a . g_1, a . g_0)``.
+
+    An upright object seen by a level camera has angle ``-pi/2``; tilting its top towards the
+    image's right brings the angle towards 0.
+    """
+    comp = np.asarray(axis, dtype=float) @ np.asarray(gaze, dtype=float)
+    return np.arctan2(comp[..., 1], comp[..., 0])
+
+
+@dataclass(frozen=True)
+class ViewMeasurement:
+    """One object in one image.
+
+    Attributes:
+        area: silhouette pixels.
+        centroid: ``(2,)`` silhouette centroid ``(col, row)`` [px].
+        origin: ``(2,)`` a point of the axis line [px].
+        direction: ``(2,)`` unit direction of the axis line, bottom to top.
+        extent: ``(2,)`` the silhouette's extremes along the line from ``origin`` [px].
+        box: ``(col0, row0, col1, row1)`` bounding box, end exclusive [px].
+        free_edges: side edges the axis line was fitted to (0: the moments' axis was kept).
+    """
+
+    area: int
+    centroid: np.ndarray
+    origin: np.ndarray
+    direction: np.ndarray
+    extent: np.ndarray
+    box: tuple[int, int, int, int]
+    free_edges: int
+
+    @property
+    def ends(self) -> np.ndarray:
+        """``(2, 2)`` pixels of the extremes (bottom, top)."""
+        return self.origin + np.outer(self.extent, self.direction)
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One object in one stereo pair.
+
+    Attributes:
+        position: ``(3,)`` tracked point, the axis centre at half height, world frame [m].
+        axis: ``(3,)`` unit long axis, bottom to top, world frame.
+        ends: ``(2, 3)`` bottom and top centre, world frame [m].
+        views: the left and right image measurements.
+    """
+
+    position: np.ndarray
+    axis: np.ndarray
+    ends: np.ndarray
+    views: tuple[ViewMeasurement, ViewMeasurement]
+
+
+def check_frame(frame: np.ndarray, camera: PinholeCamera, which: str) -> np.ndarray:
+    """Raise ``ImitateError`` unless ``frame`` is a ``(height, width, 3)`` uint8 RGB image."""
+    shape = (camera.height, camera.width, 3)
+    if not isinstance(frame, np.ndarray) or frame.shape != shape or frame.dtype != np.uint8:
+        got = (
+            f"shape {frame.shape} dtype {frame.dtype}"
+            if isinstance(frame, np.ndarray)
+            else type(frame).__name__
+        )
+        raise ImitateError(
+            f"{which} frame not accepted: an RGB image of shape {shape} and dtype uint8 (the "
+            f"camera's size), got {got}"
+        )
+    return frame
+
+
+class _Silhouette(NamedTuple):
+    """An object's cleaned-up silhouette in a search window of one image."""
+
+    hsv: np.ndarray  # (h, w, 3) the window in HSV
+    offset: tuple[int, int]  # (col0, row0) of the window in the image
+    mask: np.ndarray  # (h, w) uint8, 255 on the silhouette
+    area: int  # [px]
+    box: tuple[int, int, int, int]  # (col0, row0, col1, row1) in the image, end exclusive
+
+
+class StereoTracker:
+    """Tracks :attr:`PerceptionConfig.objects` through a sequence of stereo pairs.
+
+    Args:
+        left: the left camera (its frame is the gaze frame).
+        right: the right camera; same image size as ``left``.
+        config: tracker settings.
+    """
+
+    def __init__(self, left: PinholeCamera, right: PinholeCamera, config: PerceptionConfig):
+        if (left.width, left.height) != (right.width, right.height):
+            raise ImitateError(
+                f"stereo cameras must render the same size; got {left.width}x{left.height} and "
+                f"{right.width}x{right.height}"
+            )
+        self.cameras = (left, right)
+        self.config = config
+        self._boxes: dict[tuple[str, int], tuple[int, int, int, int]] = {}
+        self._directions: dict[tuple[str, int], np.ndarray] = {}
+
+    def update(self, left: np.ndarray, right: np.ndarray) -> dict[str, Measurement | None]:
+        """Measure every object in one stereo pair of RGB ``(height, width, 3)`` uint8 images.
+
+        Returns:
+            ``{object name: Measurement}``, ``None`` for an object not found in both images.
+
+        Raises:
+            ImitateError: a frame of the wrong shape or dtype.
+        """
+        frames = (
+            check_frame(left, self.cameras[0], "left"),
+            check_frame(right, self.cameras[1], "right"),
+        )
+        result = {}
+        for obj in self.config.objects:
+            found = [self._find(obj, view, frame) for view, frame in enumerate(frames)]
+            result[obj.name] = None if None in found else self._measure(obj, found)
+        return result
+
+    # -- one view ---------------------------------------------------------------------------
+
+    def _find(self, obj: ObjectModel, view: int, frame: np.ndarray) -> _Silhouette | None:
+        """``obj``'s silhouette in one image, or ``None`` when it is not there.
+
+        Searches the window kept from the last frame; where the silhouette reaches the window's
+        border the window grows, where nothing is found the whole image is searched again.
+        """
+        cfg, key = self.config, (obj.name, view)
+        height, width = frame.shape[:2]
+        tracking = key in self._boxes
+        window = self._boxes.pop(key) if tracking else self._acquire(obj, frame)
+        while window is not None:
+            c0, r0, c1, r1 = window
+            hsv = cv2.cvtColor(np.ascontiguousarray(frame[r0:r1, c0:c1]), cv2.COLOR_RGB2HSV)
+            found = self._silhouette(obj.colour.mask(hsv), hsv, (c0, r0))
+            if found is None:
+                window, tracking = (self._acquire(obj, frame) if tracking else None), False
+                continue
+            box = found.box
+            grown = _grow(box, cfg.window_margin, cfg.min_margin, width, height)
+            cut = (box[0] == c0 > 0, box[1] == r0 > 0, box[2] == c1 < width, box[3] == r1 < height)
+            if any(cut):  # the silhouette may go on beyond the window: search a larger one
+                window = _union(window, grown)
+                continue
+            self._boxes[key] = grown
+            return found
+        return None
+
+    def _acquire(self, obj: ObjectModel, frame: np.ndarray):
+        """Window around the largest ``obj``-coloured region of the whole image, or ``None``."""
+        cfg, step = self.config, self.config.coarse_step
+        small = np.ascontiguousarray(frame[::step, ::step])
+        mask = obj.colour.mask(cv2.cvtColor(small, cv2.COLOR_RGB2HSV))
+        count, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        if count < 2:
+            return None
+        best = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+        x, y, w, h = stats[best, :4]
+        box = (x * step, y * step, (x + w) * step, (y + h) * step)
+        return _grow(box, cfg.window_margin, cfg.min_margin + step, frame.shape[1], frame.shape[0])
+
+    def _silhouette(self, mask: np.ndarray, hsv: np.ndarray, offset) -> _Silhouette | None:
+        """Clean up a window's colour ``mask``; ``None`` if too little is left."""
+        cfg = self.config
+        if cfg.open_size > 1:
+            kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (cfg.open_size,) * 2)
+            mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel)
+        count, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        if count < 2:
+            return None
+        areas = stats[1:, cv2.CC_STAT_AREA]
+        keep = 1 + np.flatnonzero(areas >= keep_threshold(areas, cfg))
+        area = int(stats[keep, cv2.CC_STAT_AREA].sum())
+        if area < cfg.min_area:
+            return None
+        if len(keep) < count - 1:
+            mask = np.where(np.isin(labels, keep), np.uint8(255), np.uint8(0))
+        x0 = stats[keep, cv2.CC_STAT_LEFT]
+        y0 = stats[keep, cv2.CC_STAT_TOP]
+        x1 = x0 + stats[keep, cv2.CC_STAT_WIDTH]
+        y1 = y0 + stats[keep, cv2.CC_STAT_HEIGHT]
+        c0, r0 = offset
+        box = (c0 + int(x0.min()), r0 + int(y0.min()), c0 + int(x1.max()), r0 + int(y1.max()))
+        return _Silhouette(hsv, offset, mask, area, box)
+
+    # -- one object, both views -------------------------------------------------------------
+
+    def _measure(self, obj: ObjectModel, found) -> Measurement | None:
+        """Occlusion-aware axis lines in both views, then the corrected ends (module steps 3-6)."""
+        left, right = self.cameras
+        moments = [_moments(silhouette) for silhouette in found]
+        rough = triangulate(left, right, moments[0][0], moments[1][0])
+        depths = [float(cam.rotation[2] @ (rough - cam.position)) for cam in self.cameras]
+        if min(depths) <= 0:
+            return None
+        views = tuple(
+            self._view(obj, view, found[view], moments[view], depths[view])
+            for view in range(len(found))
+        )
+        ends = triangulate(left, right, views[0].ends, views[1].ends)
+        radii = obj.radius(np.array([0.0, obj.height]))
+        for _ in range(self.config.refine_iterations):
+            axis = ends[1] - ends[0]
+            if not np.linalg.norm(axis) > 0:
+                return None
+            rims = np.concatenate(
+                [ends, _rim(ends[0], axis, radii[0]), _rim(ends[1], axis, radii[1])]
+            )
+            shifted = []
+            for cam, view in zip(self.cameras, views, strict=True):
+                # How far beyond its projected centre each rim's extreme point lies.
+                along = (cam.project(rims) - view.origin) @ view.direction
+                beyond = np.array(
+                    [
+                        along[2 : 2 + _RIM_POINTS].min() - along[0],
+                        along[2 + _RIM_POINTS :].max() - along[1],
+                    ]
+                )
+                shifted.append(view.origin + np.outer(view.extent - beyond, view.direction))
+            ends = triangulate(left, right, shifted[0], shifted[1])
+        length = np.linalg.norm(ends[1] - ends[0])
+        if not 0.5 * obj.height < length < 1.5 * obj.height:
+            return None  # the two views do not agree on one object of this size
+        return Measurement(ends.mean(axis=0), (ends[1] - ends[0]) / length, ends, views)
+
+    def _view(self, obj: ObjectModel, view: int, found: _Silhouette, moments, depth: float):
+        """Axis line and extremes of ``obj`` in one image (module steps 2-4).
+
+        Args:
+            obj: the object.
+            view: 0 left, 1 right.
+            found: its silhouette.
+            moments: ``(centroid (2,) [px], principal direction (2,))`` of the silhouette.
+            depth: the object's rough depth along this camera's optical axis [m].
+        """
+        cfg, key = self.config, (obj.name, view)
+        offset = np.asarray(found.offset, dtype=float)
+        centroid, direction = moments
+        if direction @ self._directions.get(key, np.array([0.0, -1.0])) < 0:
+            direction = -direction
+        contours, _ = cv2.findContours(found.mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+        outline = np.concatenate(contours)[:, 0, :] + offset  # (n, 2) (col, row)
+        occluded = None
+        if cfg.occluder is not None:
+            occluded = cv2.dilate(cfg.occluder.mask(found.hsv), np.ones((3, 3), np.uint8)) > 0
+        origin, free = centroid, 0
+        px_per_m = self.cameras[view].intrinsics[0, 0] / depth
+        for _ in range(2):  # the second pass splits the sides along the refined axis
+            fit = _fit_axis_line(outline, origin, direction, obj, px_per_m, occluded, offset, cfg)
+            if fit is None:
+                break
+            origin, direction, free = fit
+        along = (outline - origin) @ direction
+        self._directions[key] = direction
+        return ViewMeasurement(
+            area=found.area,
+            centroid=centroid,
+            origin=origin,
+            direction=direction,
+            extent=np.array([along.min(), along.max()]),
+            box=found.box,
+            free_edges=free,
+        )
+
+
+def _moments(found: _Silhouette) -> tuple[np.ndarray, np.ndarray]:
+    """Centroid ``(2,)`` [px] and principal direction ``(2,)`` (sign arbitrary) of a silhouette."""
+    m = cv2.moments(found.mask, binaryImage=True)
+    centroid = np.asarray(found.offset, dtype=float) + np.array([m["m10"], m["m01"]]) / m["m00"]
+    theta = 0.5 * np.arctan2(2 * m["mu11"], m["mu20"] - m["mu02"])
+    return centroid, np.array([np.cos(theta), np.sin(theta)])
+
+
+def keep_threshold(areas: np.ndarray, config: PerceptionConfig) -> float:
+    """Smallest connected component kept [px], given the components' ``areas``."""
+    return max(config.keep_fraction * float(areas.max()), 1.0)
+
+
+def _fit_axis_line(outline, origin, direction, obj, px_per_m, occluded, offset, cfg):
+    """Least-squares axis line through the free side edges, one apparent radius inside them.
+
+    Args:
+        outline: ``(n, 2)`` outer contour pixels ``(col, row)`` of the silhouette.
+        origin: ``(2,)`` a point of the current axis estimate [px].
+        direction: ``(2,)`` its unit direction, bottom to top.
+        obj: the object (its radius profile).
+        px_per_m: image scale at the object's depth [px/m].
+        occluded: boolean occluder mask of the searched window, or ``None``.
+        offset: ``(2,)`` ``(col0, row0)`` of that window in the image.
+        cfg: tracker settings.
+
+    Returns:
+        ``(origin (2,), direction (2,), number of edge pixels used)``, or ``None`` with fewer
+        than ``cfg.min_edges``.
+    """
+    perp = np.array([-direction[1], direction[0]])
+    rel = outline - origin
+    s_all, x_all = rel @ direction, rel @ perp
+    low, high = s_all.min(), s_all.max()
+    # Slices one pixel thick across the axis; each has two edges, its extremes across it.
+    slot = (s_all - low).astype(int)
+    n = int(slot.max()) + 1
+    lo, hi = np.full(n, np.inf), np.full(n, -np.inf)
+    np.minimum.at(lo, slot, x_all)
+    np.maximum.at(hi, slot, x_all)
+    filled = np.isfinite(lo)
+    centre = (low + np.arange(n) + 0.5)[filled]
+    s = np.concatenate([centre, centre])
+    x = np.concatenate([lo[filled], hi[filled]])
+    side = np.repeat([-1.0, 1.0], len(centre))
+    height = (s - low) / max(high - low, 1e-9) * obj.height
+    rho = obj.radius(height) * px_per_m
+    free = (height > cfg.end_zone * obj.height) & (height < (1 - cfg.end_zone) * obj.height)
+    free &= side * x > 0  # a slice narrower than the axis estimate has no usable edge there
+    if occluded is not None:
+        # An edge whose outside neighbour is an occluder is where something covers the object,
+        # not the object's own side.
+        edge = origin + np.outer(s, direction) + np.outer(x + 1.5 * side, perp)
+        probe = np.round(edge - offset).astype(int)
+        inside = (probe[:, 0] >= 0) & (probe[:, 0] < occluded.shape[1])
+        inside &= (probe[:, 1] >= 0) & (probe[:, 1] < occluded.shape[0])
+        hit = np.zeros(len(s), dtype=bool)
+        hit[inside] = occluded[probe[inside, 1], probe[inside, 0]]
+        free &= ~hit
+    if free.sum() < cfg.min_edges:
+        return None
+    axis_x = x[free] - side[free] * rho[free]
+    # Least squares x = x0 + slope * s, by its normal equations.
+    at = s[free]
+    n, sum_s, sum_x = len(at), at.sum(), axis_x.sum()
+    det = n * (at @ at) - sum_s**2
+    if not det > 0:
+        return None
+    slope = (n * (at @ axis_x) - sum_s * sum_x) / det
+    x0 = (sum_x - slope * sum_s) / n
+    new_direction = (direction + slope * perp) / np.hypot(1.0, slope)
+    return origin + x0 * perp, new_direction, int(free.sum())
+
+
+_RIM_POINTS = 24
+_RIM_PHASES = np.linspace(0.0, 2 * np.pi, _RIM_POINTS, endpoint=False)
+_RIM_COS, _RIM_SIN = np.cos(_RIM_PHASES)[:, None], np.sin(_RIM_PHASES)[:, None]
+
+
+def _rim(centre: np.ndarray, axis: np.ndarray, radius: float) -> np.ndarray:
+    """``(_RIM_POINTS, 3)`` points of the circle of ``radius`` [m] around ``axis`` at ``centre``."""
+    a = axis / np.linalg.norm(axis)
+    # u: a unit vector perpendicular to a (a x e for the basis vector e least aligned with a).
+    if abs(a[0]) < 0.9:
+        u = np.array([0.0, a[2], -a[1]])
+    else:
+        u = np.array([-a[2], 0.0, a[0]])
+    u /= np.linalg.norm(u)
+    v = np.array([a[1] * u[2] - a[2] * u[1], a[2] * u[0] - a[0] * u[2], a[0] * u[1] - a[1] * u[0]])
+    return centre + radius * (_RIM_COS * u + _RIM_SIN * v)
+
+
+def _grow(box, fraction, minimum, width, height) -> tuple[int, int, int, int]:
+    """``box`` grown by ``fraction`` of its size (at least ``minimum`` px), inside the image."""
+    c0, r0, c1, r1 = box
+    dc = max(int(fraction * (c1 - c0)), minimum)
+    dr = max(int(fraction * (r1 - r0)), minimum)
+    return (max(c0 - dc, 0), max(r0 - dr, 0), min(c1 + dc, width), min(r1 + dr, height))
+
+
+def _union(a, b) -> tuple[int, int, int, int]:
+    return (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))
