@@ -121,15 +121,15 @@ _KEYS = ("glass", "glass_tilt", "mouth", "bottle_tilt")
 # the bottle tilt towards the glass [deg]; with each waypoint's spread over demonstrations (one
 # standard deviation, [m] and [deg]). The first and last rows are the rest pose, shared with the
 # previous and next demonstration. The mouth is placed relative to the glass, so the bottle's
-# position relative to the glass varies by millimetres while pouring (rows 3-4) and by centimetres
-# while transporting.
+# position relative to the glass varies by millimetres while pouring (rows 3-4, the bottle tilting
+# further as it empties) and by centimetres while transporting.
 _WAYPOINTS = (
     # u,  glass bottom,        tilt, mouth - rim,          tilt, spreads (glass, tilt, mouth, tilt)
     (0.00, (1.21, 0.11, 1.00), 0.0, (0.00, -0.24, 0.165), 0.0, (0.020, 0.0, 0.020, 0.0)),
     (0.20, (1.19, 0.07, 1.04), 3.0, (-0.01, -0.17, 0.22), 15.0, (0.020, 1.5, 0.030, 5.0)),
     (0.38, (1.18, 0.05, 1.05), 8.0, (0.00, -0.07, 0.09), 65.0, (0.020, 2.0, 0.020, 5.0)),
-    (0.50, (1.18, 0.05, 1.05), 12.0, (0.00, -0.025, 0.040), 105.0, (0.020, 1.0, 0.003, 2.5)),
-    (0.68, (1.18, 0.05, 1.05), 12.0, (0.00, -0.020, 0.035), 115.0, (0.003, 1.0, 0.003, 2.5)),
+    (0.50, (1.18, 0.05, 1.05), 12.0, (0.00, -0.025, 0.040), 100.0, (0.020, 1.0, 0.003, 2.5)),
+    (0.68, (1.18, 0.05, 1.05), 14.0, (0.00, -0.020, 0.035), 125.0, (0.003, 1.0, 0.003, 2.5)),
     (0.82, (1.19, 0.07, 1.03), 4.0, (0.00, -0.10, 0.13), 35.0, (0.020, 2.0, 0.030, 8.0)),
     (1.00, (1.21, 0.11, 1.00), 0.0, (0.00, -0.24, 0.165), 0.0, (0.020, 0.0, 0.020, 0.0)),
 )

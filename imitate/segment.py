@@ -1,0 +1,263 @@
+"""Cutting continuous object tracks into demonstrations at stillness (paper II).
+
+"If the observed objects are held still for a defined duration, the current demonstration is
+finished and the next one starts when the objects are moving again." Held still means neither
+moved nor turned: a frame is still when it lies in a window of ``min_still`` seconds over which
+every object's (smoothed) tracked point stays within a box of ``still_range`` and its angle
+around the gaze vector within ``still_turn``. Spread over a window separates a slow movement
+(the bottle turning while it pours, a slow return) from tracking noise much better than an
+instantaneous speed does. A demonstration is a stretch between still frames lasting at least
+``min_moving``.
+
+Its boundaries are then placed where the movement really starts and stops. A hand leaves rest
+with about constant acceleration, so the distance from the rest position grows with the square
+of time and its square root linearly: a line through the square root of the distance, where it
+is between ``onset_distance`` and eight times that, extended to zero gives the onset (and, run
+backwards from the next rest position, the stop). This puts the boundary on the motion's onset
+rather than on the later moment the spread test notices it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import maximum_filter1d, minimum_filter1d
+from scipy.signal import savgol_filter
+
+from imitate.artifacts import load_npz, save_npz
+from imitate.errors import ImitateError
+from imitate.perception import Tracks
+
+
+@dataclass(frozen=True)
+class StillnessConfig:
+    """Settings of the stillness segmentation.
+
+    Attributes:
+        min_still: a still window lasts this long [s]; stillness shorter than this does not end
+            a demonstration.
+        still_range: largest extent of an object's path over a still window [m] (the norm of
+            its x, y, z ranges); above the tracking noise and tremor.
+        still_turn: largest range of an object's angle over a still window [rad].
+        min_moving: movements shorter than this are not demonstrations [s].
+        smoothing: Savitzky-Golay window smoothing the tracks first [s].
+        onset_distance: distance from rest [m] where the onset fit begins (above the smoothed
+            noise); the fit uses distances up to eight times this.
+    """
+
+    min_still: float = 0.5
+    still_range: float = 0.012
+    still_turn: float = np.radians(3.0)
+    min_moving: float = 1.0
+    smoothing: float = 0.2
+    onset_distance: float = 0.003
+
+    def __post_init__(self):
+        for name in (
+            "min_still",
+            "still_range",
+            "still_turn",
+            "min_moving",
+            "smoothing",
+            "onset_distance",
+        ):
+            if not getattr(self, name) > 0:
+                raise ImitateError(f"{name}={getattr(self, name)!r} not accepted: a value > 0")
+
+    def describe(self) -> str:
+        """The settings, for messages."""
+        return (
+            f"min_still={self.min_still} s, still_range={self.still_range} m, still_turn="
+            f"{np.degrees(self.still_turn):.1f} deg, min_moving={self.min_moving} s"
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class Demonstration:
+    """One demonstration, cut from the tracks with its still parts trimmed.
+
+    Attributes:
+        start: time of the motion's onset [s] (session time).
+        end: time it stops [s].
+        times: ``(m,)`` frame times inside ``[start, end]`` [s].
+        position: ``(n_objects, m, 3)`` tracked points [m].
+        axis: ``(n_objects, m, 3)`` unit long axes.
+        angle: ``(n_objects, m)`` angles around the gaze vector [rad].
+    """
+
+    start: float
+    end: float
+    times: np.ndarray
+    position: np.ndarray
+    axis: np.ndarray
+    angle: np.ndarray
+
+
+def smoothed(tracks: Tracks, smoothing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Savitzky-Golay (quadratic) smoothed positions ``(n_objects, n, 3)`` and angles.
+
+    Gaps left in the tracks are bridged linearly for this purpose.
+
+    Raises:
+        ImitateError: tracks too short for the smoothing window.
+    """
+    t = tracks.times
+    window = max(5, _frames(t, smoothing) | 1)
+    if window > len(t):
+        raise ImitateError(
+            f"tracks of {len(t)} frames are too short to segment with smoothing={smoothing} s "
+            f"({window} frames)"
+        )
+    out = []
+    for tracked in (tracks.position, tracks.angle[..., None]):
+        values = tracked.copy()
+        for k in range(values.shape[0]):
+            ok = np.all(np.isfinite(values[k]), axis=-1)
+            for c in range(values.shape[-1]):
+                values[k, :, c] = np.interp(t, t[ok], values[k, ok, c])
+        out.append(savgol_filter(values, window, 2, axis=1))
+    return out[0], out[1][..., 0]
+
+
+def still_frames(
+    times: np.ndarray, position: np.ndarray, angle: np.ndarray, config: StillnessConfig
+) -> np.ndarray:
+    """Which frames ``(n,)`` lie in a still window (see the module docstring).
+
+    Args:
+        times: ``(n,)`` [s].
+        position: ``(n_objects, n, 3)`` smoothed tracked points [m].
+        angle: ``(n_objects, n)`` smoothed angles [rad].
+        config: the stillness settings.
+    """
+    width = max(_frames(times, config.min_still), 3) | 1  # odd: windows centred on frames
+
+    def spread(values):
+        return maximum_filter1d(values, width, axis=1) - minimum_filter1d(values, width, axis=1)
+
+    extent = np.linalg.norm(spread(position), axis=-1).max(axis=0)
+    turn = spread(angle).max(axis=0)
+    centred = (extent < config.still_range) & (turn < config.still_turn)
+    # A frame is still if any still window covers it.
+    return maximum_filter1d(centred.astype(np.uint8), width).astype(bool)
+
+
+def find_demonstrations(
+    times: np.ndarray, position: np.ndarray, angle: np.ndarray, config: StillnessConfig
+) -> np.ndarray:
+    """Start and end times ``(n_demos, 2)`` [s] of the movements separated by stillness.
+
+    Args:
+        times: ``(n,)`` increasing frame times [s].
+        position: ``(n_objects, n, 3)`` smoothed tracked points [m].
+        angle: ``(n_objects, n)`` smoothed angles [rad].
+        config: the stillness settings.
+    """
+    still = still_frames(times, position, angle, config)
+    edges = np.flatnonzero(np.diff(np.concatenate([[1], still.astype(int), [1]])))
+    found = []
+    for i0, i1 in zip(edges[::2], edges[1::2], strict=True):  # moving frames [i0, i1)
+        if times[i1 - 1] - times[i0] < config.min_moving or i0 == 0 or i1 == len(times):
+            continue  # too short, or not framed by stillness on both sides
+        start = _onset(times, position, still, i0, +1, config.onset_distance)
+        end = _onset(times, position, still, i1 - 1, -1, config.onset_distance)
+        found.append((start, end))
+    return np.array(found, dtype=float).reshape(-1, 2)
+
+
+def _onset(times, position, still, index: int, step: int, distance: float) -> float:
+    """Onset (``step`` +1) or stop (``step`` -1) time of the movement next to frame ``index``.
+
+    ``index`` is the first (last) moving frame. The rest position is the median over the still
+    run before (after) it; see the module docstring for the fit. Without a usable fit the
+    boundary stays at ``index``'s time.
+    """
+    n = len(times)
+    rest_frames = []
+    i = index - step
+    while 0 <= i < n and still[i]:
+        rest_frames.append(i)
+        i -= step
+    rest = np.median(position[:, rest_frames], axis=1)  # (n_objects, 3)
+    dist = np.linalg.norm(position - rest[:, None], axis=-1).max(axis=0)
+    i = index
+    while 0 <= i - step < n and dist[i - step] >= distance:
+        i -= step  # back to where the distance rises through onset_distance
+    fit = []
+    while 0 <= i < n and dist[i] < _FIT_SPAN * distance:
+        fit.append(i)
+        i += step
+    if len(fit) < 2:
+        return float(times[index])
+    slope, intercept = np.polyfit(times[fit], np.sqrt(dist[fit]), 1)
+    if not slope * step > 0:
+        return float(times[index])
+    return float(-intercept / slope)
+
+
+_FIT_SPAN = 8.0  # the onset fit uses distances from onset_distance up to this multiple
+
+
+def _frames(times: np.ndarray, duration: float) -> int:
+    """Number of frames spanning ``duration`` [s] at the frame rate of ``times``."""
+    dt = float(np.median(np.diff(times))) if len(times) > 1 else 1.0
+    return int(round(duration / dt))
+
+
+def segment(tracks: Tracks, config: StillnessConfig = StillnessConfig()) -> list[Demonstration]:
+    """The demonstrations in ``tracks``, still parts trimmed.
+
+    Raises:
+        ImitateError: fewer than 2 demonstrations found; the message names the settings.
+    """
+    position, angle = smoothed(tracks, config.smoothing)
+    bounds = find_demonstrations(tracks.times, position, angle, config)
+    if len(bounds) < 2:
+        raise ImitateError(
+            f"found {len(bounds)} demonstration(s) in {tracks.times[-1] - tracks.times[0]:.1f} s "
+            f"of tracks, at least 2 needed; stillness settings: {config.describe()} (a lower "
+            f"speed_threshold or min_still finds more)"
+        )
+    demos = []
+    for start, end in bounds:
+        inside = (tracks.times >= start) & (tracks.times <= end)
+        demos.append(
+            Demonstration(
+                start=float(start),
+                end=float(end),
+                times=tracks.times[inside],
+                position=tracks.position[:, inside],
+                axis=tracks.axis[:, inside],
+                angle=tracks.angle[:, inside],
+            )
+        )
+    return demos
+
+
+def save_demos(path, demos: list[Demonstration], tracks: Tracks):
+    """Write ``demos.npz``: boundaries and, per demonstration ``i``, ``demo{i}_*`` arrays.
+
+    Also stores ``objects`` and the ``gaze`` frame of the tracks, so the file is self-contained.
+    """
+    arrays = {
+        "objects": np.array(tracks.objects),
+        "gaze": tracks.gaze,
+        "boundaries": np.array([(d.start, d.end) for d in demos]),
+    }
+    for i, demo in enumerate(demos):
+        for name in ("times", "position", "axis", "angle"):
+            arrays[f"demo{i}_{name}"] = getattr(demo, name)
+    return save_npz(path, arrays)
+
+
+def load_demos(path) -> tuple[list[Demonstration], tuple[str, ...], np.ndarray]:
+    """Read ``demos.npz``: ``(demonstrations, object names, gaze frame (3, 3))``."""
+    a = load_npz(path, required=("objects", "gaze", "boundaries"))
+    demos = []
+    for i, (start, end) in enumerate(a["boundaries"]):
+        fields = {name: a.get(f"demo{i}_{name}") for name in ("times", "position", "axis", "angle")}
+        if any(value is None for value in fields.values()):
+            raise ImitateError(f"{path} lacks the arrays of demonstration {i}; re-run observe")
+        demos.append(Demonstration(float(start), float(end), **fields))
+    return demos, tuple(str(name) for name in a["objects"]), a["gaze"]
