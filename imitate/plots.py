@@ -109,3 +109,48 @@ def plot_gmr(model: LearnedModel, demos: Sequence[np.ndarray] | None = None) -> 
         ax.set_ylabel(f"{name}\n[{unit}]" if unit else name, fontsize=8)
     np.atleast_1d(axes)[-1].set_xlabel("t [s]")
     return fig
+
+
+def plot_observation(observations, boundaries: np.ndarray | None = None) -> Figure:
+    """Tracked against true object trajectories, with the demonstration boundaries.
+
+    Args:
+        observations: :class:`imitate.perception.Observations`; the true tracks are drawn when
+            it carries ground truth, their demonstrations shaded.
+        boundaries: ``(n_demos, 2)`` detected demonstration start and end [s], drawn as
+            vertical lines (green start, red end).
+
+    Returns:
+        The figure: per object, its tracked point x, y, z [m] and its angle around the gaze
+        vector [deg].
+    """
+    tracks, truth = observations.tracks, observations.truth
+    rows = [(k, c) for k in range(len(tracks.objects)) for c in range(4)]
+    fig, axes = plt.subplots(
+        len(rows), 1, figsize=(10, 1.25 * len(rows)), sharex=True, layout="constrained"
+    )
+    t = tracks.times
+    for ax, (k, c) in zip(axes, rows, strict=True):
+        if c < 3:
+            tracked = tracks.position[k, :, c]
+            true = truth.position[k, :, c] if truth is not None else None
+            label = f"{tracks.objects[k]} {'xyz'[c]}\n[m]"
+        else:
+            tracked = np.degrees(tracks.angle[k])
+            true = np.degrees(truth.angle[k]) if truth is not None else None
+            label = f"{tracks.objects[k]} angle\n[deg]"
+        if true is not None:
+            ax.plot(t, true, color="0.2", lw=1.6, label="true")
+            for start, end in truth.boundaries:
+                ax.axvspan(start, end, color="0.85", lw=0)
+        ax.plot(t, tracked, color="tab:orange", lw=0.9, label="tracked")
+        missing = ~tracks.detected[k]
+        if missing.any():
+            ax.plot(t[missing], tracked[missing], "x", color="tab:red", ms=3, label="gap")
+        for start, end in boundaries if boundaries is not None else ():
+            ax.axvline(start, color="tab:green", lw=0.9)
+            ax.axvline(end, color="tab:red", lw=0.9)
+        ax.set_ylabel(label, fontsize=8)
+    axes[0].legend(loc="upper right", fontsize=7, ncol=3)
+    axes[-1].set_xlabel("t [s]")
+    return fig
