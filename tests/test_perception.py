@@ -1,0 +1,204 @@
+"""Stereo perception: camera model against MuJoCo's renderer, tracking against truth, gaps."""
+
+import mujoco
+import numpy as np
+import pytest
+
+import imitate  # noqa: F401  (selects the headless GL backend)
+from envs import observation
+from envs.scene import SceneConfig, build_spec
+from envs.teacher import TeacherConfig
+from imitate.errors import ImitateError
+from imitate.perception import (
+    ColourRange,
+    ObjectModel,
+    PerceptionConfig,
+    StereoTracker,
+    axis_angle,
+    fill_gaps,
+    gaze_frame,
+    mujoco_camera,
+    track,
+    tracks_from_ends,
+    triangulate,
+)
+from imitate.rendering import make_renderer
+from models import humanoid
+
+RED = ColourRange((170, 120, 40), (8, 255, 255))  # wraps around hue 0
+MARKERS = np.array([[0.62, 0.05, 1.10], [0.70, -0.12, 1.02], [0.55, 0.10, 0.98]])  # [m]
+
+
+@pytest.fixture(scope="module")
+def marker_views():
+    """Left and right 640x480 images of red spheres at MARKERS, with the cameras."""
+    spec = build_spec(SceneConfig(teacher=False, particles=0))
+    for i, pos in enumerate(MARKERS):
+        body = spec.worldbody.add_body(name=f"marker_{i}", pos=pos)
+        body.add_geom(
+            name=f"marker_{i}",
+            type=mujoco.mjtGeom.mjGEOM_SPHERE,
+            size=(0.01, 0, 0),
+            rgba=(0.9, 0.05, 0.05, 1),
+            contype=0,
+            conaffinity=0,
+        )
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    data.qpos[model.joint("head_tilt").qposadr[0]] = 0.3
+    mujoco.mj_forward(model, data)
+    renderer = make_renderer(model, 480, 640)
+    images, cameras = [], []
+    for eye in (humanoid.LEFT_EYE, humanoid.RIGHT_EYE):
+        renderer.update_scene(data, camera=eye)
+        images.append(renderer.render())
+        cameras.append(mujoco_camera(model, data, eye, 640, 480))
+    renderer.close()
+    return images, cameras
+
+
+def _marker_centroids(image):
+    import cv2
+
+    mask = RED.mask(cv2.cvtColor(image, cv2.COLOR_RGB2HSV))
+    count, _, _, centroids = cv2.connectedComponentsWithStats(mask)
+    return centroids[1:]
+
+
+def test_projection_matches_the_rendered_images(marker_views):
+    images, cameras = marker_views
+    for image, camera in zip(images, cameras, strict=True):
+        seen = _marker_centroids(image)
+        predicted = camera.project(MARKERS)
+        assert len(seen) == len(MARKERS)
+        nearest = np.linalg.norm(seen[:, None] - predicted[None], axis=-1).min(axis=0)
+        assert nearest.max() < 0.25  # [px]; a half-pixel convention error would fail
+
+
+def test_triangulation_of_rendered_markers_is_sub_millimetre(marker_views):
+    images, (left, right) = marker_views
+    seen_left, seen_right = (_marker_centroids(image) for image in images)
+    # Match by the nearest predicted projection, then triangulate what was seen.
+    order_left = np.argmin(
+        np.linalg.norm(seen_left[:, None] - left.project(MARKERS)[None], axis=-1), axis=0
+    )
+    order_right = np.argmin(
+        np.linalg.norm(seen_right[:, None] - right.project(MARKERS)[None], axis=-1), axis=0
+    )
+    points = triangulate(left, right, seen_left[order_left], seen_right[order_right])
+    assert np.linalg.norm(points - MARKERS, axis=1).max() < 1e-3
+
+
+def test_triangulation_inverts_projection(marker_views):
+    _, (left, right) = marker_views
+    points = np.random.default_rng(0).uniform([0.5, -0.4, 0.7], [1.5, 0.4, 1.4], (50, 3))
+    back = triangulate(left, right, left.project(points), right.project(points))
+    assert np.abs(back - points).max() < 1e-9
+
+
+def test_gaze_frame_is_the_left_camera_and_right_handed(marker_views):
+    _, (left, _) = marker_views
+    gaze = gaze_frame(left)
+    assert np.allclose(gaze.T @ gaze, np.eye(3)) and np.linalg.det(gaze) > 0
+    assert gaze[:, 2] @ np.array([1.0, 0.0, 0.0]) > 0.9  # looks at the teacher (+x)
+    upright = np.array([0.0, 0.0, 1.0])
+    assert axis_angle(upright, gaze) == pytest.approx(-np.pi / 2, abs=0.01)
+
+
+@pytest.fixture(scope="module")
+def rendered_session():
+    """Eight 320x240 stereo pairs spread over the first demonstration, with ground truth."""
+    config = observation.ObservationConfig(
+        teacher=TeacherConfig(n_demos=2, seed=3), width=320, height=240
+    )
+    sess = observation.session(config)
+    start, end = sess.motion.boundaries[0]
+    times = np.linspace(start - 0.3, end + 0.3, 8)
+    sess = observation.Session(sess.motion, times, sess.cameras, sess.model, sess.data)
+    return sess, list(observation.frames(sess))
+
+
+def test_tracking_rendered_frames_matches_ground_truth(rendered_session):
+    sess, pairs = rendered_session
+    perception = observation.perception_config()
+    tracks = track(StereoTracker(*sess.cameras, perception), pairs, sess.times)
+    truth = observation.ground_truth(sess, tracks.objects)
+    assert tracks.detected.all()
+    error = np.linalg.norm(tracks.position - truth.position, axis=-1)
+    assert np.median(error) < 0.008 and error.max() < 0.03  # [m], at 320x240
+    turn = np.abs(np.angle(np.exp(1j * (tracks.angle - truth.angle))))
+    assert np.degrees(np.median(turn)) < 2.0 and np.degrees(turn.max()) < 6.0
+
+
+def test_tracker_recovers_after_an_object_leaves_the_view(rendered_session):
+    sess, pairs = rendered_session
+    tracker = StereoTracker(*sess.cameras, observation.perception_config())
+    blank = np.full_like(pairs[0][0], 200)
+    assert all(m is not None for m in tracker.update(*pairs[0]).values())
+    assert all(m is None for m in tracker.update(blank, blank).values())
+    assert all(m is not None for m in tracker.update(*pairs[1]).values())
+
+
+def test_an_object_found_in_no_frame_is_named_with_its_colour(rendered_session):
+    sess, pairs = rendered_session
+    models = observation.object_models()
+    purple = ObjectModel(
+        "purple_cup", ColourRange((140, 100, 30), (160, 255, 255)), models[1].profile
+    )
+    config = PerceptionConfig(objects=(models[0], purple))
+    with pytest.raises(ImitateError, match=r"'purple_cup'.*h 140..160, s 100..255, v 30..255"):
+        track(StereoTracker(*sess.cameras, config), pairs[:3], sess.times[:3])
+
+
+@pytest.mark.parametrize(
+    "frame",
+    [
+        np.zeros((240, 320), np.uint8),
+        np.zeros((240, 320, 3), np.float32),
+        np.zeros((480, 640, 3), np.uint8),
+    ],
+)
+def test_frames_of_the_wrong_shape_or_dtype_are_refused(rendered_session, frame):
+    sess, pairs = rendered_session
+    tracker = StereoTracker(*sess.cameras, observation.perception_config())
+    with pytest.raises(ImitateError, match=r"left frame not accepted: .*\(240, 320, 3\).*uint8"):
+        tracker.update(frame, pairs[0][1])
+
+
+def test_short_gaps_are_interpolated_and_long_ones_reported():
+    times = np.arange(20) / 10.0
+    values = np.stack([times, 2 * times], axis=1)
+    valid = np.ones(20, dtype=bool)
+    valid[[0, 1]] = False  # at the start: nothing before it
+    valid[5:7] = False  # 0.3 s between valid samples: short
+    valid[10:16] = False  # 0.7 s: long
+    filled, gaps = fill_gaps(times, values, valid, max_gap=0.35)
+    assert gaps == [(0, 2, False), (5, 7, True), (10, 16, False)]
+    assert np.allclose(filled[5:7], values[5:7])
+    assert np.isnan(filled[[0, 1, 10, 15]]).all() and np.isfinite(filled[[4, 7, 9, 16]]).all()
+
+
+def test_tracks_report_long_gaps_and_fill_short_ones():
+    perception = observation.perception_config(max_gap=0.1)
+    times = np.arange(30) / 30.0
+    ends = np.zeros((2, 30, 2, 3))
+    ends[:, :, 1, 2] = 0.2  # upright, 0.2 m long
+    ends[:, :, :, 0] = times[:, None]  # moving along x
+    ends[0, 10:12] = np.nan  # 3/30 s between valid samples: interpolated
+    ends[1, 20:27] = np.nan  # too long
+    tracks = tracks_from_ends(times, perception.objects, ends, np.eye(3), perception)
+    assert [(g.obj, g.interpolated) for g in tracks.gaps] == [("bottle", True), ("glass", False)]
+    assert tracks.long_gaps[0].start == pytest.approx(20 / 30) and tracks.long_gaps[
+        0
+    ].end == pytest.approx(26 / 30)
+    assert np.allclose(tracks.position[0, 10:12, 0], times[10:12])
+    assert np.isnan(tracks.position[1, 20:27]).all()
+
+
+@pytest.mark.parametrize(
+    "lower, upper",
+    [((0, 0, 0), (180, 255, 255)), ((0, 200, 0), (10, 100, 255)), ((0, 0), (1, 1, 1))],
+)
+def test_bad_colour_ranges_are_refused(lower, upper):
+    with pytest.raises(ImitateError, match="colour range"):
+        ColourRange(lower, upper)
