@@ -7,6 +7,7 @@ error of the axis angle around the gaze vector, demonstrations found and the lar
 error against the scripted ones.
 
     python scripts/bench_perception.py [--seeds 0 1 2] [--width 640 --height 480] [--json F]
+        [--out DIR]
 """
 
 from __future__ import annotations
@@ -25,12 +26,21 @@ import numpy as np
 import imitate  # noqa: F401  (selects the headless GL backend before MuJoCo is imported)
 from envs.observation import ObservationConfig, frames, ground_truth, perception_config, session
 from envs.teacher import TeacherConfig
-from imitate.perception import StereoTracker, gaze_frame, tracks_from_ends
+from imitate.perception import (
+    Observations,
+    StereoTracker,
+    gaze_frame,
+    save_observations,
+    tracks_from_ends,
+)
 from imitate.segment import StillnessConfig, segment
 
 
-def run_seed(seed: int, width: int, height: int) -> dict:
-    """Render, track and segment one session; returns its measurements."""
+def run_seed(seed: int, width: int, height: int, out: Path | None = None) -> dict:
+    """Render, track and segment one session; returns its measurements.
+
+    With ``out``, the observations are kept as ``out/observations_seed{seed}.npz``.
+    """
     config = ObservationConfig(teacher=TeacherConfig(seed=seed), width=width, height=height)
     perception = perception_config()
     sess = session(config)
@@ -49,6 +59,10 @@ def run_seed(seed: int, width: int, height: int) -> dict:
         sess.times, perception.objects, ends, gaze_frame(sess.cameras[0]), perception
     )
     truth = ground_truth(sess, tracks.objects)
+    if out is not None:
+        projections = np.array([cam.projection for cam in sess.cameras])
+        observations = Observations(tracks, projections, (width, height), truth)
+        save_observations(out / f"observations_seed{seed}.npz", observations)
     row = {
         "seed": seed,
         "pairs": len(pairs),
@@ -84,13 +98,14 @@ def main(argv=None) -> None:
     parser.add_argument("--width", type=int, default=640)
     parser.add_argument("--height", type=int, default=480)
     parser.add_argument("--json", type=Path, help="also write the rows to this JSON file")
+    parser.add_argument("--out", type=Path, help="also keep each seed's observations here")
     args = parser.parse_args(argv)
     print(
         f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores; "
         f"MUJOCO_GL={os.environ['MUJOCO_GL']}; mujoco {mujoco.__version__}; opencv "
         f"{cv2.__version__}; {args.width}x{args.height}, 30 Hz"
     )
-    rows = [run_seed(seed, args.width, args.height) for seed in args.seeds]
+    rows = [run_seed(seed, args.width, args.height, args.out) for seed in args.seeds]
     head = (
         f"{'seed':>4} {'object':<7} {'det':>6} {'pos med':>8} {'pos p95':>8} {'pos max':>8} "
         f"{'ang med':>8} {'ang p95':>8} {'demos':>6} {'bound':>7} {'track/s':>8} {'render/s':>9}"
