@@ -50,7 +50,7 @@ class StillnessConfig:
     still_range: float = 0.012
     still_turn: float = np.radians(3.0)
     min_moving: float = 1.0
-    smoothing: float = 0.2
+    smoothing: float = 0.3
     onset_distance: float = 0.003
 
     def __post_init__(self):
