@@ -8,6 +8,7 @@ physics and measures the pour.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -94,10 +95,12 @@ def replay(
     approach: float = 1.0,
     settle: float = 1.5,
     options: dict | None = None,
+    on_step: Callable[[PouringEnv], None] | None = None,
 ) -> ReplayResult:
     """Drives ``env`` along ``plan`` in physics: from the reset pose to the plan's start in
     ``approach`` [s] (cosine blend), the plan interpolated at the env's control rate, then
-    ``settle`` [s] holding the last posture."""
+    ``settle`` [s] holding the last posture. ``on_step(env)``, if given, is called after the
+    reset and after every step (to record states for a video, say)."""
     env.reset(seed=seed, options=options)
     dt = env.dt
     q_reset = env.data.qpos[env._joint_qpos].copy()
@@ -114,8 +117,12 @@ def replay(
     min_distance = np.inf
     reached = []
     info = {}
+    if on_step is not None:
+        on_step(env)
     for k, target in enumerate(targets):
         _, _, _, _, info = env.step(target)
+        if on_step is not None:
+            on_step(env)
         min_distance = min(min_distance, info["min_distance"])
         if n_approach <= k < n_approach + len(play):
             reached.append(_task_state(env, task, plan, (k - n_approach) * dt))
