@@ -5,23 +5,30 @@ components with priors ``pi_k``, means ``mu_k`` and covariances ``Sigma_k``.
 
 Numerics follow scikit-learn's ``GaussianMixture(covariance_type="full")`` so that both reach the
 same log-likelihood from the same start: densities are evaluated in log space through the
-Cholesky factor of each precision matrix (no explicit inverse of ``Sigma_k``), responsibilities are
-normalised with the log-sum-exp trick, and ``reg_covar`` is added to the diagonal of every
-covariance. The regularisation is also what keeps duplicated points (a cluster of identical
-samples has a zero covariance) usable: such a component gets the covariance ``reg_covar * I``.
+Cholesky factor of each covariance (no explicit inverse of ``Sigma_k``), responsibilities are
+normalised with the log-sum-exp trick (terms below ``exp(-460)`` of the largest are flushed to
+zero), and ``reg_covar`` is added to the diagonal of every covariance. The regularisation is
+also what keeps duplicated points (a cluster of identical samples has a zero covariance) usable:
+such a component gets the covariance ``reg_covar * I``.
 
 Model selection (eqs. 5-7). The paper's eq. 6 divides the log-likelihood by ``N``; combined with
 eq. 5's penalty ``P ln N`` that makes the penalty dominate and always selects ``K = 1``. We use
 the total log-likelihood, the standard BIC (``BIC = -2 sum_i log p(x_i) + P ln N``, as
 scikit-learn's ``GaussianMixture.bic``), with ``P`` from eq. 7.
 
-Speed. K-means runs as compiled loops (numba): Lloyd's algorithm with Hamerly's distance bounds
-(exactly Lloyd's iterates, but most samples are not measured again once centres move little),
-and the clusterings for ``K = 1, 2, ...`` grow incrementally, each from the previous optimum plus
-one k-means++ centre, in ``n_init`` independent chains. The fast BIC sweep computes the cluster
-moments in one pass and the log-likelihood from one matrix product per ``K``, without
-responsibilities. The first call of a process compiles the loops (about 10 s) or loads them from
-numba's on-disk cache (about 0.5 s).
+Speed. Everything per sample runs as compiled loops (numba), one call per K-means sweep, per EM
+fit and per likelihood. K-means is Lloyd's algorithm with Hamerly's distance bounds (exactly
+Lloyd's iterates, but most samples are not measured again once centres move little), and the
+clusterings for ``K = 1, 2, ...`` grow incrementally, each from the previous optimum plus one
+k-means++ centre, in ``n_init`` independent chains. Densities use the Cholesky factor ``L_k`` of
+each covariance: ``z = L_k^{-1} (x - mu_k)`` is built one dimension at a time, and its partial
+squared norm is the Mahalanobis distance of the leading dimensions, a lower bound of the full
+one; a component is dropped for a sample as soon as that bound puts it below the flush threshold
+relative to the best component so far. With time as the first dimension most components are
+dropped after one multiplication, so a density pass costs about ``N (K + a few D^2)`` rather
+than ``N K D^2``. The EM M-step accumulates only the responsibilities that were not flushed.
+The first call of a process compiles the loops (about 10 s) or loads them from numba's on-disk
+cache (well under 1 s).
 """
 
 from __future__ import annotations
@@ -47,10 +54,10 @@ __all__ = [
 _LOG_2PI = np.log(2.0 * np.pi)
 # scikit-learn adds this to the soft counts so that an empty component does not divide by zero.
 _EPS_COUNTS = 10.0 * np.finfo(float).eps
-# exp() of anything below this is flushed to 0: subnormal numbers (below ~1e-308, reached by
-# exp(-708)) make the following matrix products about 100x slower and carry no information.
-_LOG_FLUSH = -460.0  # exp(-460) ~ 1e-200
-# exp(-38) ~ 3e-17 < 2^-53 / 2: negligible next to a term exp(0) = 1 (see _sum_log_mixture).
+# Responsibilities below exp(-460) ~ 1e-200 of a sample's largest term are flushed to 0: they
+# carry no information, and subnormal numbers (exp(-708) and below) slow arithmetic down.
+_LOG_FLUSH = -460.0
+# exp(-38) ~ 3e-17 < 2^-53 / 2: negligible next to a term exp(0) = 1 (likelihood-only sums).
 _LOG_NEGLIGIBLE = -38.0
 # K-means defaults (scikit-learn's) used for the initialisation of EM and for the BIC sweep.
 _KMEANS_MAX_ITER = 100
@@ -59,7 +66,7 @@ _KMEANS_TOL = 1e-4
 
 def _check_data(X: ArrayLike, name: str = "X") -> np.ndarray:
     """Validates samples as a finite float array of shape ``(n_samples, n_dims)``."""
-    arr = np.asarray(X, dtype=float)
+    arr = np.ascontiguousarray(X, dtype=float)
     if arr.ndim != 2 or arr.shape[0] == 0 or arr.shape[1] == 0:
         raise ImitateError(
             f"{name} must be a non-empty 2-D array of shape (n_samples, n_dims); "
@@ -87,33 +94,6 @@ def _check_n_components(n_components: int, n_samples: int) -> None:
 def n_parameters(n_components: int, n_dims: int) -> int:
     """Number of free parameters ``P`` of a full-covariance GMM (eq. 7)."""
     return (n_components - 1) + n_components * (n_dims + n_dims * (n_dims + 1) // 2)
-
-
-# ---------------------------------------------------------------------------------------------
-# Data in centred form, shared by K-means, EM and the BIC sweep
-
-
-@dataclass(frozen=True)
-class _Data:
-    """Samples centred on their mean, with their flattened outer products.
-
-    Densities and covariances are computed from ``outer`` with one matrix product for all
-    components (``(x-mu)^T P (x-mu) = <x x^T, P> - 2 mu^T P x + mu^T P mu``); centring keeps the
-    cancellation in that expansion at round-off level.
-    """
-
-    x: np.ndarray  # (N, D), centred
-    centre: np.ndarray  # (D,)
-    outer: np.ndarray  # (N, D * D)
-    x_sq: np.ndarray  # (N,), squared norms of the centred samples
-
-    @classmethod
-    def of(cls, X: np.ndarray) -> _Data:
-        centre = X.mean(axis=0)
-        x = X - centre
-        outer = (x[:, :, None] * x[:, None, :]).reshape(x.shape[0], -1)
-        x_sq = np.einsum("ij,ij->i", x, x)
-        return cls(x=x, centre=centre, outer=outer, x_sq=x_sq)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -299,9 +279,64 @@ def _lloyd(
     return inertia, n_iter
 
 
+@numba.njit(cache=True)
+def _kmeans_chains(
+    x: np.ndarray, first: np.ndarray, draws: np.ndarray, max_iter: int, tol: float,
+    best_centers: np.ndarray, best_labels: np.ndarray, best_inertia: np.ndarray,
+) -> None:
+    """Grows every chain ``K = 1..k_max`` and keeps the lowest-inertia clustering of each ``K``.
+
+    Args:
+        x: Samples, shape ``(N, D)``.
+        first: Index of the first centre of every chain, shape ``(n_init,)``.
+        draws: Uniform numbers in ``[0, 1)`` that pick the k-means++ centre added at ``K = 2..``,
+            shape ``(n_init, k_max - 1)``.
+        max_iter, tol: Lloyd's limits, see :func:`_lloyd`.
+        best_centers: Output, shape ``(k_max, k_max, D)``; row ``K-1`` holds ``K`` centres.
+        best_labels: Output, shape ``(k_max, N)``.
+        best_inertia: Output, shape ``(k_max,)``, filled with ``inf`` by the caller.
+    """
+    n, d = x.shape
+    k_max = best_labels.shape[0]
+    centers = np.empty((k_max, d))
+    labels = np.empty(n, dtype=np.intp)
+    upper = np.empty(n)
+    lower = np.empty(n)
+    cumulative = np.empty(n)
+    for start in range(first.shape[0]):
+        centers[0] = x[first[start]]
+        _assign_all(x, centers[:1], labels, upper, lower)
+        for k in range(1, k_max + 1):
+            if k > 1:  # k-means++: probability proportional to the squared distance
+                total = 0.0
+                for i in range(n):
+                    total += upper[i] * upper[i]
+                    cumulative[i] = total
+                if total > 0.0:
+                    idx = min(np.searchsorted(cumulative, draws[start, k - 2] * total), n - 1)
+                else:  # fewer distinct points than clusters: any point will do
+                    idx = min(int(draws[start, k - 2] * n), n - 1)
+                centers[k - 1] = x[idx]
+                _add_center(x, centers[:k], labels, upper, lower)
+            inertia, _ = _lloyd(x, centers[:k], labels, upper, lower, max_iter, tol)
+            if inertia < best_inertia[k - 1]:
+                best_inertia[k - 1] = inertia
+                best_centers[k - 1, :k] = centers[:k]
+                best_labels[k - 1] = labels
+
+
+@dataclass(frozen=True)
+class _Sweep:
+    """Best K-means clustering for every ``K = 1..k_max`` (see :func:`_kmeans_sweep`)."""
+
+    centers: np.ndarray  # (k_max, k_max, D); row K-1 holds K centres
+    labels: np.ndarray  # (k_max, N)
+    inertia: np.ndarray  # (k_max,)
+
+
 def _kmeans_sweep(
-    data: _Data, k_max: int, n_init: int, max_iter: int, tol: float, seed: int
-) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    X: np.ndarray, k_max: int, n_init: int, max_iter: int, tol: float, seed: int
+) -> _Sweep:
     """Best of ``n_init`` K-means chains for every ``K = 1..k_max``.
 
     Each start is a chain: its ``K``-cluster run begins from its converged ``(K-1)``-cluster
@@ -309,35 +344,24 @@ def _kmeans_sweep(
     squared distance to the current centres), as in incremental / global K-means (Likas et al.,
     2003). Starting from a nearby optimum, Lloyd needs few iterations, and the distance bounds
     carry over. The chains are independent, so a poor optimum in one does not reach the others;
-    for every ``K`` the lowest inertia over the chains wins.
-
-    Returns:
-        ``(centers, labels, inertia)`` for ``K = 1..k_max`` (centres in centred coordinates).
+    for every ``K`` the lowest inertia over the chains wins. Start ``i`` draws its first centre
+    and then one uniform number per added centre from ``default_rng([seed, i])``.
     """
-    x = data.x
-    n_samples = x.shape[0]
-    tol_abs = tol * float(np.mean(data.x_sq)) / x.shape[1]  # tol relative to mean variance
-    best: list[tuple[np.ndarray, np.ndarray, float] | None] = [None] * k_max
+    n_samples, n_dims = X.shape
+    first = np.empty(n_init, dtype=np.intp)
+    draws = np.empty((n_init, k_max - 1))
     for start in range(n_init):
         rng = _start_generator(seed, start)
-        centers = x[[rng.integers(n_samples)]]
-        labels = np.zeros(n_samples, dtype=np.intp)
-        upper = np.sqrt(np.sum((x - centers[0]) ** 2, axis=1))
-        lower = np.full(n_samples, np.inf)
-        for k in range(1, k_max + 1):
-            if k > 1:
-                cumulative = np.cumsum(upper**2)
-                if cumulative[-1] > 0.0:
-                    drawn = np.searchsorted(cumulative, rng.uniform(0.0, cumulative[-1]))
-                    idx = min(int(drawn), n_samples - 1)
-                else:  # fewer distinct points than clusters: any point will do
-                    idx = int(rng.integers(n_samples))
-                centers = np.vstack((centers, x[idx]))
-                _add_center(x, centers, labels, upper, lower)
-            inertia, _ = _lloyd(x, centers, labels, upper, lower, max_iter, tol_abs)
-            if best[k - 1] is None or inertia < best[k - 1][2]:
-                best[k - 1] = (centers.copy(), labels.copy(), inertia)
-    return best
+        first[start] = rng.integers(n_samples)
+        draws[start] = rng.random(k_max - 1)
+    tol_abs = tol * float(np.mean(np.var(X, axis=0)))  # relative to the mean variance
+    sweep = _Sweep(
+        centers=np.zeros((k_max, k_max, n_dims)),
+        labels=np.empty((k_max, n_samples), dtype=np.intp),
+        inertia=np.full(k_max, np.inf),
+    )
+    _kmeans_chains(X, first, draws, max_iter, tol_abs, sweep.centers, sweep.labels, sweep.inertia)
+    return sweep
 
 
 def kmeans(
@@ -376,9 +400,10 @@ def kmeans(
     _check_n_components(n_clusters, X.shape[0])
     if n_init < 1 or max_iter < 1:
         raise ImitateError(f"n_init and max_iter must be >= 1; got {n_init} and {max_iter}")
-    data = _Data.of(X)
-    centers, labels, inertia = _kmeans_sweep(data, n_clusters, n_init, max_iter, tol, seed)[-1]
-    return KMeansResult(centers=centers + data.centre, labels=labels, inertia=inertia)
+    sweep = _kmeans_sweep(X, n_clusters, n_init, max_iter, tol, seed)
+    return KMeansResult(
+        centers=sweep.centers[-1], labels=sweep.labels[-1], inertia=float(sweep.inertia[-1])
+    )
 
 
 def kmeans_parameters(
@@ -396,117 +421,349 @@ def kmeans_parameters(
         ``(weights, means, covariances)`` of shapes ``(K,)``, ``(K, D)``, ``(K, D, D)``:
         cluster fractions, centroids and (biased) cluster covariances plus ``reg_covar * I``.
     """
-    data = _Data.of(_check_data(X))
-    labels = np.asarray(labels, dtype=np.intp)
-    weights, means, cov = _cluster_parameters(data, labels, n_components, reg_covar)
-    return weights, means + data.centre, cov
-
-
-def _cluster_parameters(
-    data: _Data, labels: np.ndarray, n_components: int, reg_covar: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The M-step (eqs. 9-12) for hard responsibilities, in one pass over the samples."""
-    counts, sums, second = _cluster_moments(data.x, labels, n_components)
-    counts += _EPS_COUNTS
-    means = sums / counts[:, None]
-    covariances = second / counts[:, None, None] - means[:, :, None] * means[:, None, :]
-    n_dims = data.x.shape[1]
-    covariances[:, np.arange(n_dims), np.arange(n_dims)] += reg_covar
-    return counts / counts.sum(), means, covariances
+    X = _check_data(X)
+    return _cluster_parameters(X, np.asarray(labels, dtype=np.intp), n_components, reg_covar)
 
 
 @numba.njit(cache=True)
-def _cluster_moments(
-    x: np.ndarray, labels: np.ndarray, n_components: int
+def _cluster_parameters(
+    x: np.ndarray, labels: np.ndarray, n_components: int, reg_covar: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-cluster sample counts (K,), sums (K, D) and sums of outer products (K, D, D)."""
+    """The M-step (eqs. 9-12) for hard responsibilities: counts and means in one pass over the
+    samples, covariances about those means in a second (no cancellation)."""
     n, d = x.shape
     counts = np.zeros(n_components)
-    sums = np.zeros((n_components, d))
-    second = np.zeros((n_components, d, d))
+    means = np.zeros((n_components, d))
+    cov = np.zeros((n_components, d, d))
     for i in range(n):
         c = labels[i]
         counts[c] += 1.0
         for e in range(d):
-            sums[c, e] += x[i, e]
-            for f in range(d):
-                second[c, e, f] += x[i, e] * x[i, f]
-    return counts, sums, second
+            means[c, e] += x[i, e]
+    counts += _EPS_COUNTS
+    for c in range(n_components):
+        means[c] /= counts[c]
+    diff = np.empty(d)
+    for i in range(n):
+        c = labels[i]
+        for e in range(d):
+            diff[e] = x[i, e] - means[c, e]
+        for e in range(d):
+            for f in range(e + 1):
+                cov[c, e, f] += diff[e] * diff[f]
+    for c in range(n_components):
+        for e in range(d):
+            for f in range(e + 1):
+                cov[c, e, f] /= counts[c]
+                cov[c, f, e] = cov[c, e, f]
+            cov[c, e, e] += reg_covar
+    return counts / counts.sum(), means, cov
 
 
 # ---------------------------------------------------------------------------------------------
-# Gaussian densities and the two EM steps
+# Gaussian densities and EM
 
 
-def _precisions(covariances: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Precision matrices through Cholesky factors, and ``-1/2 log |Sigma_k|``.
+@numba.njit(cache=True)
+def _factor(
+    weights: np.ndarray, covariances: np.ndarray, prec_chol: np.ndarray, log_coef: np.ndarray
+) -> bool:
+    """Cholesky factors of the precisions and log normalisers of all components, in place.
+
+    Args:
+        weights: Priors ``pi_k``, shape ``(K,)``.
+        covariances: ``Sigma_k``, shape ``(K, D, D)``, symmetric.
+        prec_chol: Output, shape ``(K, D, D)``: ``U_k = L_k^{-T}`` (upper triangle, zeros below)
+            with ``Sigma_k = L_k L_k^T``, so that ``Sigma_k^{-1} = U_k U_k^T`` (scikit-learn's
+            ``precisions_cholesky_``).
+        log_coef: Output, shape ``(K,)``: ``log pi_k - log |L_k| - D/2 log(2 pi)``.
 
     Returns:
-        ``(precisions, half_log_det)`` of shapes ``(K, D, D)`` and ``(K,)``.
+        ``False`` if a covariance is not positive definite (outputs then undefined).
     """
-    try:
-        lower = np.linalg.cholesky(covariances)
-    except np.linalg.LinAlgError:
-        raise ImitateError(
-            "a component covariance is not positive definite (singular data such as duplicated "
-            "points or a constant dimension); increase reg_covar, use fewer components or "
-            "rescale the data"
-        ) from None
-    inv_lower = np.linalg.inv(lower)
-    precisions = inv_lower.transpose(0, 2, 1) @ inv_lower
-    return precisions, -np.log(np.diagonal(lower, axis1=1, axis2=2)).sum(axis=1)
+    n_components, d, _ = covariances.shape
+    chol = np.zeros((d, d))
+    for k in range(n_components):
+        log_det = 0.0
+        for j in range(d):
+            s = covariances[k, j, j]
+            for e in range(j):
+                s -= chol[j, e] * chol[j, e]
+            if not s > 0.0:
+                return False
+            chol[j, j] = math.sqrt(s)
+            log_det += math.log(chol[j, j])
+            for r in range(j + 1, d):
+                t = covariances[k, r, j]
+                for e in range(j):
+                    t -= chol[r, e] * chol[j, e]
+                chol[r, j] = t / chol[j, j]
+        for j in range(d):
+            prec_chol[k, j, j] = 1.0 / chol[j, j]
+            for r in range(j + 1, d):
+                t = 0.0
+                for e in range(j, r):
+                    t -= chol[r, e] * prec_chol[k, j, e]
+                prec_chol[k, j, r] = t / chol[r, r]
+        log_coef[k] = math.log(weights[k]) - log_det - 0.5 * d * _LOG_2PI
+    return True
 
 
-def _log_gaussian(
-    data: _Data, means: np.ndarray, precisions: np.ndarray, half_log_det: np.ndarray
+@numba.njit(cache=True)
+def _block_differences(
+    xt: np.ndarray, start: int, stop: int, mean: np.ndarray, diff: np.ndarray
+) -> None:
+    """``diff[e, i] = xt[e, start + i] - mean[e]`` for one block, ``diff`` of shape ``(D, B)``."""
+    for e in range(xt.shape[0]):
+        source = xt[e, start:stop]
+        target = diff[e]
+        mu = mean[e]
+        for i in range(stop - start):
+            target[i] = source[i] - mu
+
+
+@numba.njit(cache=True, fastmath={"reassoc", "contract"})
+def _accumulate_moments(
+    resp: np.ndarray, diff: np.ndarray, size: int, k: int, counts: np.ndarray,
+    first: np.ndarray, second: np.ndarray,
+) -> None:
+    """Adds one block's weighted moments to component ``k``: ``counts[k] += sum_i r_i``,
+    ``first[k] += sum_i r_i d_i`` and the lower triangle of ``second[k] += sum_i r_i d_i d_i^T``.
+
+    ``resp`` (B,) holds ``r_i``, ``diff`` (D, B) the differences ``d_i``; only the first ``size``
+    samples count. The sums are reassociated (vectorised); all terms are finite.
+    """
+    d = diff.shape[0]
+    total = 0.0
+    for i in range(size):
+        total += resp[i]
+    counts[k] += total
+    weighted = np.empty(size)
+    for e in range(d):
+        diff_e = diff[e]
+        for i in range(size):
+            weighted[i] = resp[i] * diff_e[i]
+        total = 0.0
+        for i in range(size):
+            total += weighted[i]
+        first[k, e] += total
+        for f in range(e + 1):
+            diff_f = diff[f]
+            total = 0.0
+            for i in range(size):
+                total += weighted[i] * diff_f[i]
+            second[k, e, f] += total
+
+
+@numba.njit(cache=True)
+def _block_log_densities(
+    xt: np.ndarray, start: int, stop: int, means: np.ndarray, prec_chol: np.ndarray,
+    log_coef: np.ndarray, threshold: float, terms: np.ndarray, diff: np.ndarray,
+    partial: np.ndarray, tops: np.ndarray,
+) -> None:
+    """Weighted log-densities ``log pi_k N(x_i; mu_k, Sigma_k)`` of one block of samples.
+
+    The samples are sorted by their first dimension, so the block spans a short interval of it;
+    ``(x_0 - mu_k0)^2 / Sigma_k00``, evaluated at the interval's point nearest ``mu_k0``, is a
+    lower bound of every sample's Mahalanobis distance to component ``k``. Components are visited
+    from the largest resulting upper bound down; once a component's bound is more than
+    ``-threshold`` below the smallest best-so-far term of the block, it and all following ones
+    are left out (``-inf``): their responsibilities would be below ``exp(threshold)``. Each
+    evaluated component costs ``D (D + 3) / 2`` multiply-adds per sample, in loops over the
+    samples (vectorised).
+
+    Args:
+        xt: Sorted samples, transposed, shape ``(D, N)``.
+        start, stop: The block, samples ``start..stop-1``.
+        means, prec_chol, log_coef: The mixture, see :func:`_factor`.
+        threshold: Log-ratio to a sample's best term below which terms may be dropped (< 0).
+        terms: Output, shape ``(K, >= stop - start)``.
+        diff, partial, tops: Scratch, shapes ``(D, B)``, ``(B,)``, ``(B,)`` with
+            ``B >= stop - start``.
+    """
+    n_components, d = means.shape
+    size = stop - start
+    lo, hi = xt[0, start], xt[0, stop - 1]
+    bounds = np.empty(n_components)
+    for k in range(n_components):
+        gap = max(lo - means[k, 0], means[k, 0] - hi, 0.0) * prec_chol[k, 0, 0]
+        bounds[k] = log_coef[k] - 0.5 * gap * gap
+    order = np.argsort(-bounds)
+    tops[:size] = -np.inf
+    floor = -np.inf  # smallest best-so-far term over the block
+    for rank in range(n_components):
+        k = order[rank]
+        if bounds[k] - floor < threshold:
+            for rest in range(rank, n_components):
+                terms[order[rest], :size] = -np.inf
+            return
+        _block_differences(xt, start, stop, means[k], diff)
+        row = terms[k]
+        for i in range(size):
+            row[i] = log_coef[k]
+        for j in range(d):
+            for i in range(size):
+                partial[i] = 0.0
+            for e in range(j + 1):
+                u = prec_chol[k, e, j]
+                diff_e = diff[e]
+                for i in range(size):
+                    partial[i] += u * diff_e[i]
+            for i in range(size):
+                row[i] -= 0.5 * partial[i] * partial[i]
+        floor = np.inf
+        for i in range(size):
+            tops[i] = max(tops[i], row[i])
+            floor = min(floor, tops[i])
+
+
+@numba.njit(cache=True)
+def _log_norm(terms: np.ndarray, i: int, threshold: float) -> float:
+    """``log sum_k exp(terms[k, i])`` by the log-sum-exp trick, dropping terms below
+    ``exp(threshold)`` of the largest."""
+    top = -np.inf
+    for k in range(terms.shape[0]):
+        top = max(top, terms[k, i])
+    total = 0.0
+    for k in range(terms.shape[0]):
+        if terms[k, i] - top >= threshold:
+            total += math.exp(terms[k, i] - top)
+    return top + math.log(total)
+
+
+_BLOCK = 128  # samples per block: the scratch arrays stay in the L1 cache
+
+
+@numba.njit(cache=True)
+def _e_step(
+    xt: np.ndarray, means: np.ndarray, prec_chol: np.ndarray, log_coef: np.ndarray,
+    threshold: float, resp: np.ndarray,
 ) -> np.ndarray:
-    """``log N(x_i; mu_k, Sigma_k)`` (eq. 4) for all samples and (centred) means, ``(N, K)``."""
-    n_components, n_dims = means.shape
-    p_mu = np.einsum("kde,ke->kd", precisions, means)
-    maha = data.outer @ precisions.reshape(n_components, n_dims * n_dims).T
-    maha -= 2.0 * (data.x @ p_mu.T)
-    maha += np.einsum("kd,kd->k", means, p_mu)
-    np.maximum(maha, 0.0, out=maha)
-    maha *= -0.5
-    maha += half_log_det - 0.5 * n_dims * _LOG_2PI
-    return maha
+    """Per-sample log-likelihood ``log p(x_i)`` (eq. 3), shape ``(N,)``, of sorted samples.
+
+    Args:
+        xt: Samples sorted by their first dimension, transposed, shape ``(D, N)``.
+        means, prec_chol, log_coef: The mixture, see :func:`_factor`.
+        threshold: Terms below ``exp(threshold)`` of a sample's largest are dropped (< 0).
+        resp: Output, shape ``(N, K)``, or ``(0, K)`` to skip it: responsibilities ``p(k | x_i)``
+            (eq. 8), exactly 0 where below ``exp(threshold)``.
+    """
+    d, n = xt.shape
+    n_components = means.shape[0]
+    terms = np.empty((n_components, _BLOCK))
+    diff = np.empty((d, _BLOCK))
+    partial = np.empty(_BLOCK)
+    tops = np.empty(_BLOCK)
+    log_norm = np.empty(n)
+    for start in range(0, n, _BLOCK):
+        stop = min(start + _BLOCK, n)
+        _block_log_densities(xt, start, stop, means, prec_chol, log_coef, threshold, terms,
+                             diff, partial, tops)
+        for i in range(stop - start):
+            log_norm[start + i] = _log_norm(terms, i, threshold)
+            if resp.shape[0] == n:
+                for k in range(n_components):
+                    log_resp = terms[k, i] - log_norm[start + i]
+                    resp[start + i, k] = math.exp(log_resp) if log_resp >= threshold else 0.0
+    return log_norm
+
+
+@numba.njit(cache=True)
+def _em_loop(
+    xt: np.ndarray, weights: np.ndarray, means: np.ndarray, covariances: np.ndarray,
+    reg_covar: float, tol: float, max_iter: int,
+) -> tuple[int, bool, float, bool]:
+    """EM (eqs. 8-12) in place on ``weights`` (K,), ``means`` (K, D), ``covariances`` (K, D, D).
+
+    Each iteration is one pass over the blocks of sorted samples ``xt`` (D, N): the E-step of a
+    block (responsibilities below ``exp(-460)`` flushed to 0) is accumulated at once into the
+    soft counts and the first and second moments about the current means; the M-step then
+    shifts the means and subtracts the shift from the second moments. Stops when the mean
+    log-likelihood per sample (before the M-step) changes by less than ``tol``.
+
+    Returns:
+        ``(n_iter, converged, lower_bound, positive_definite)``; ``positive_definite`` is
+        ``False`` when a covariance lost definiteness (parameters then undefined).
+    """
+    d, n = xt.shape
+    n_components = means.shape[0]
+    prec_chol = np.zeros((n_components, d, d))
+    log_coef = np.empty(n_components)
+    if not _factor(weights, covariances, prec_chol, log_coef):
+        return 0, False, -np.inf, False
+    counts = np.empty(n_components)
+    first = np.empty((n_components, d))
+    second = np.empty((n_components, d, d))
+    terms = np.empty((n_components, _BLOCK))
+    diff = np.empty((d, _BLOCK))
+    partial = np.empty(_BLOCK)
+    tops = np.empty(_BLOCK)
+    resp = np.empty(_BLOCK)
+    lower_bound = -np.inf
+    n_iter = 0
+    while n_iter < max_iter:
+        n_iter += 1
+        previous = lower_bound
+        counts[:] = 0.0
+        first[:] = 0.0
+        second[:] = 0.0
+        total = 0.0
+        for start in range(0, n, _BLOCK):
+            stop = min(start + _BLOCK, n)
+            _block_log_densities(xt, start, stop, means, prec_chol, log_coef, _LOG_FLUSH,
+                                 terms, diff, partial, tops)
+            size = stop - start
+            for i in range(size):  # log p(x_i), kept in tops
+                tops[i] = _log_norm(terms, i, _LOG_FLUSH)
+                total += tops[i]
+            for k in range(n_components):
+                row = terms[k]
+                used = False
+                for i in range(size):
+                    log_resp = row[i] - tops[i]
+                    resp[i] = math.exp(log_resp) if log_resp >= _LOG_FLUSH else 0.0
+                    used = used or resp[i] > 0.0
+                if used:
+                    _block_differences(xt, start, stop, means[k], diff)
+                    _accumulate_moments(resp, diff, size, k, counts, first, second)
+        counts += _EPS_COUNTS  # e_k, eq. 9
+        total_counts = counts.sum()
+        for k in range(n_components):
+            weights[k] = counts[k] / total_counts  # eq. 10
+            for e in range(d):
+                first[k, e] /= counts[k]
+            for e in range(d):
+                for f in range(e + 1):  # eq. 12 about the new mean (eq. 11)
+                    c = second[k, e, f] / counts[k] - first[k, e] * first[k, f]
+                    covariances[k, e, f] = c
+                    covariances[k, f, e] = c
+                covariances[k, e, e] += reg_covar
+                means[k, e] += first[k, e]
+        lower_bound = total / n
+        if not _factor(weights, covariances, prec_chol, log_coef):
+            return n_iter, False, lower_bound, False
+        if abs(lower_bound - previous) < tol:
+            return n_iter, True, lower_bound, True
+    return n_iter, False, lower_bound, True
+
+
+def _sorted_transposed(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Samples sorted by their first dimension and transposed, ``(D, N)``, and the order."""
+    order = np.argsort(X[:, 0], kind="stable")
+    return np.ascontiguousarray(X[order].T), order
+
+
+def _not_positive_definite() -> ImitateError:
+    return ImitateError(
+        "a component covariance is not positive definite (singular data such as duplicated "
+        "points or a constant dimension); increase reg_covar, use fewer components or "
+        "rescale the data"
+    )
 
 
 def _exp_flushed(a: np.ndarray) -> np.ndarray:
     """``exp(a)`` with entries where ``a < -460`` set to exactly 0 (no subnormal numbers)."""
     return np.exp(a, out=np.zeros_like(a), where=a >= _LOG_FLUSH)
-
-
-def _e_step(
-    data: _Data, weights: np.ndarray, means: np.ndarray, precisions: np.ndarray,
-    half_log_det: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Responsibilities (eq. 8) in log space, for centred means.
-
-    Returns:
-        ``(log_norm, log_resp)``: per-sample log-likelihood ``log p(x_i)`` (eq. 3), shape ``(N,)``,
-        and ``log p(k | x_i)``, shape ``(N, K)``.
-    """
-    weighted = _log_gaussian(data, means, precisions, half_log_det)
-    weighted += np.log(weights)
-    top = weighted.max(axis=1, keepdims=True)
-    log_norm = np.log(_exp_flushed(weighted - top).sum(axis=1)) + top[:, 0]
-    weighted -= log_norm[:, None]
-    return log_norm, weighted
-
-
-def _m_step(
-    data: _Data, resp: np.ndarray, reg_covar: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Priors, centred means and regularised covariances from responsibilities (eqs. 9-12)."""
-    n_dims = data.x.shape[1]
-    counts = resp.sum(axis=0) + _EPS_COUNTS  # e_k, eq. 9
-    means = (resp.T @ data.x) / counts[:, None]  # eq. 11
-    second = (resp.T @ data.outer).reshape(-1, n_dims, n_dims) / counts[:, None, None]
-    covariances = second - means[:, :, None] * means[:, None, :]  # eq. 12
-    covariances[:, np.arange(n_dims), np.arange(n_dims)] += reg_covar
-    weights = counts / counts.sum()  # eq. 10
-    return weights, means, covariances
 
 
 # ---------------------------------------------------------------------------------------------
@@ -607,7 +864,11 @@ class GMM:
         return model
 
     def _set_parameters(self, weights: np.ndarray, means: np.ndarray, cov: np.ndarray) -> None:
-        self.precisions_, self._half_log_det = _precisions(cov)
+        self._prec_chol = np.zeros_like(cov)
+        self._log_coef = np.empty_like(weights)
+        if not _factor(weights, cov, self._prec_chol, self._log_coef):
+            raise _not_positive_definite()
+        self.precisions_ = self._prec_chol @ self._prec_chol.transpose(0, 2, 1)
         self.weights_ = weights
         self.means_ = means
         self.covariances_ = cov
@@ -623,8 +884,10 @@ class GMM:
         """
         X = _check_data(X)
         _check_n_components(self.n_components, X.shape[0])
-        clusters = kmeans(X, self.n_components, n_init=self.n_init, seed=self.seed)
-        return kmeans_parameters(X, clusters.labels, self.n_components, self.reg_covar)
+        labels = _kmeans_sweep(
+            X, self.n_components, self.n_init, _KMEANS_MAX_ITER, _KMEANS_TOL, self.seed
+        ).labels[-1]
+        return _cluster_parameters(X, labels, self.n_components, self.reg_covar)
 
     def fit(self, X: ArrayLike) -> GMM:
         """Fits the mixture by EM (eqs. 8-12) from the K-means initialisation.
@@ -639,33 +902,18 @@ class GMM:
             ImitateError: On non-finite samples, more components than samples, or a covariance
                 that ``reg_covar`` cannot make positive definite.
         """
-        X = _check_data(X)
-        _check_n_components(self.n_components, X.shape[0])
-        data = _Data.of(X)
-        _, labels, _ = _kmeans_sweep(
-            data, self.n_components, self.n_init, _KMEANS_MAX_ITER, _KMEANS_TOL, self.seed
-        )[-1]
-        self._em(data, *_cluster_parameters(data, labels, self.n_components, self.reg_covar))
-        return self
+        return self.fit_from(X, *self.initial_parameters(X))
 
-    def _em(self, data: _Data, weights: np.ndarray, means: np.ndarray, cov: np.ndarray) -> None:
-        """EM from given parameters (means centred on ``data.centre``)."""
-        precisions, half_log_det = _precisions(cov)
-        lower_bound = -np.inf
-        self.converged_ = False
-        self.n_iter_ = 0
-        while self.n_iter_ < self.max_iter:
-            self.n_iter_ += 1
-            previous = lower_bound
-            log_norm, log_resp = _e_step(data, weights, means, precisions, half_log_det)
-            weights, means, cov = _m_step(data, _exp_flushed(log_resp), self.reg_covar)
-            precisions, half_log_det = _precisions(cov)
-            lower_bound = float(log_norm.mean())
-            if abs(lower_bound - previous) < self.tol:
-                self.converged_ = True
-                break
-        self.lower_bound_ = lower_bound
-        self._set_parameters(weights, means + data.centre, cov)
+    def _em(self, xt: np.ndarray, weights: np.ndarray, means: np.ndarray, cov: np.ndarray) -> None:
+        """EM (see :func:`_em_loop`) on sorted, transposed samples ``xt`` (D, N) from given
+        parameters, which it may overwrite."""
+        n_iter, converged, lower_bound, ok = _em_loop(
+            xt, weights, means, cov, self.reg_covar, self.tol, self.max_iter
+        )
+        if not ok:
+            raise _not_positive_definite()
+        self.n_iter_, self.converged_, self.lower_bound_ = n_iter, converged, lower_bound
+        self._set_parameters(weights, means, cov)
 
     def fit_from(
         self, X: ArrayLike, weights: ArrayLike, means: ArrayLike, covariances: ArrayLike
@@ -688,11 +936,11 @@ class GMM:
                 f"initial means must have shape ({self.n_components}, {X.shape[1]}); "
                 f"got {init.means_.shape}"
             )
-        data = _Data.of(X)
-        self._em(data, init.weights_, init.means_ - data.centre, init.covariances_)
+        self._em(_sorted_transposed(X)[0], *(np.array(a, order="C") for a in (
+            init.weights_, init.means_, init.covariances_)))
         return self
 
-    def _check_fitted(self, X: ArrayLike) -> _Data:
+    def _check_fitted(self, X: ArrayLike) -> np.ndarray:
         if not hasattr(self, "means_"):
             raise ImitateError("this GMM is not fitted yet; call fit(X) or from_parameters first")
         X = _check_data(X)
@@ -701,16 +949,21 @@ class GMM:
                 f"X has {X.shape[1]} dimensions but the model was fitted on "
                 f"{self.means_.shape[1]}"
             )
-        return _Data.of(X)
+        return X
 
-    def _e_step(self, X: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-        data = self._check_fitted(X)
-        return _e_step(data, self.weights_, self.means_ - data.centre, self.precisions_,
-                       self._half_log_det)
+    def _e_step(self, X: ArrayLike, with_resp: bool) -> tuple[np.ndarray, np.ndarray]:
+        """``log p(x_i)`` (N,) and responsibilities (N, K) (or (0, K)) in the order of ``X``."""
+        xt, order = _sorted_transposed(self._check_fitted(X))
+        resp = np.empty((xt.shape[1] if with_resp else 0, self.n_components))
+        log_norm = _e_step(xt, self.means_, self._prec_chol, self._log_coef, _LOG_FLUSH, resp)
+        log_norm[order] = log_norm.copy()
+        if with_resp:
+            resp[order] = resp.copy()
+        return log_norm, resp
 
     def score_samples(self, X: ArrayLike) -> np.ndarray:
         """Log-likelihood ``log p(x_i)`` of each sample (eq. 3), shape ``(n_samples,)`` [nats]."""
-        return self._e_step(X)[0]
+        return self._e_step(X, with_resp=False)[0]
 
     def score(self, X: ArrayLike) -> float:
         """Mean log-likelihood per sample [nats]."""
@@ -718,7 +971,7 @@ class GMM:
 
     def predict_proba(self, X: ArrayLike) -> np.ndarray:
         """Responsibilities ``p(k | x_i)`` (eq. 8), shape ``(n_samples, K)``, rows summing to 1."""
-        return _exp_flushed(self._e_step(X)[1])
+        return self._e_step(X, with_resp=True)[1]
 
     def bic(self, X: ArrayLike) -> float:
         """Bayesian information criterion (eq. 5 with the *total* log-likelihood, see module)."""
@@ -734,52 +987,22 @@ def _bic(log_likelihood: float, n_components: int, n_dims: int, n_samples: int) 
     return -2.0 * log_likelihood + n_parameters(n_components, n_dims) * np.log(n_samples)
 
 
-def _total_log_likelihood(
-    lifted: np.ndarray, weights: np.ndarray, means: np.ndarray, precisions: np.ndarray,
-    half_log_det: np.ndarray,
-) -> float:
-    """``sum_i log p(x_i)`` (eq. 3) without responsibilities, for the fast BIC sweep.
-
-    Args:
-        lifted: Centred samples as rows ``(x x^T flattened, x, 1)``, shape ``(N, D*D + D + 1)``.
-        weights, means, precisions, half_log_det: The mixture (centred means), see
-            :func:`_precisions`.
-
-    Returns:
-        The total log-likelihood [nats]. All Mahalanobis distances come from one matrix product.
-    """
-    n_components, n_dims = means.shape
-    p_mu = np.einsum("kde,ke->kd", precisions, means)
-    coefficients = np.vstack((
-        precisions.reshape(n_components, n_dims * n_dims).T,
-        -2.0 * p_mu.T,
-        np.einsum("kd,kd->k", means, p_mu)[None, :],
-    ))
-    log_coefficients = np.log(weights) + half_log_det - 0.5 * n_dims * _LOG_2PI
-    return _sum_log_mixture(lifted @ coefficients, log_coefficients)
-
-
 @numba.njit(cache=True)
-def _sum_log_mixture(maha: np.ndarray, log_coefficients: np.ndarray) -> float:
-    """``sum_i log sum_k exp(c_k - maha_ik / 2)`` by the log-sum-exp trick, row by row.
+def _cluster_log_likelihood(
+    x: np.ndarray, xt: np.ndarray, labels: np.ndarray, k: int, reg_covar: float
+) -> float:
+    """``sum_i log p(x_i)`` (eq. 3) of the mixture taken from hard clusters (the fast BIC).
 
-    Terms below ``exp(_LOG_NEGLIGIBLE)`` times the largest one are skipped: added to a sum of at
-    least 1 they are below half a unit in the last place, so they would not change it.
+    Terms below ``exp(-38)`` of a sample's largest term are left out: added to a sum of at least 1
+    they are below half a unit in the last place. ``x`` (N, D) are the samples, ``xt`` the same
+    sorted and transposed (see :func:`_e_step`). Returns ``nan`` if a covariance is singular.
     """
-    n, k = maha.shape
-    terms = np.empty(k)
-    total = 0.0
-    for i in range(n):
-        top = -np.inf
-        for c in range(k):
-            terms[c] = log_coefficients[c] - 0.5 * max(maha[i, c], 0.0)
-            top = max(top, terms[c])
-        acc = 0.0
-        for c in range(k):
-            if terms[c] - top > _LOG_NEGLIGIBLE:
-                acc += math.exp(terms[c] - top)
-        total += top + math.log(acc)
-    return total
+    weights, means, cov = _cluster_parameters(x, labels, k, reg_covar)
+    prec_chol = np.zeros_like(cov)
+    log_coef = np.empty(k)
+    if not _factor(weights, cov, prec_chol, log_coef):
+        return np.nan
+    return _e_step(xt, means, prec_chol, log_coef, _LOG_NEGLIGIBLE, np.empty((0, k))).sum()
 
 
 _BIC_METHODS = ("fast", "full")
@@ -824,18 +1047,18 @@ def select_components(
         raise ImitateError(f"method must be one of {_BIC_METHODS}; got {method!r}")
     X = _check_data(X)
     _check_n_components(k_max, X.shape[0])
-    data = _Data.of(X)
     n_samples, n_dims = X.shape
-    lifted = np.hstack((data.outer, data.x, np.ones((n_samples, 1)))) if method == "fast" else None
+    labels = _kmeans_sweep(X, k_max, n_init, _KMEANS_MAX_ITER, _KMEANS_TOL, seed).labels
+    xt = _sorted_transposed(X)[0]
     curve = np.empty(k_max)
-    runs = _kmeans_sweep(data, k_max, n_init, _KMEANS_MAX_ITER, _KMEANS_TOL, seed)
-    for k, (_, labels, _) in enumerate(runs, start=1):
-        weights, means, cov = _cluster_parameters(data, labels, k, reg_covar)
+    for k in range(1, k_max + 1):
         if method == "fast":
-            log_likelihood = _total_log_likelihood(lifted, weights, means, *_precisions(cov))
+            log_likelihood = _cluster_log_likelihood(X, xt, labels[k - 1], k, reg_covar)
+            if np.isnan(log_likelihood):
+                raise _not_positive_definite()
         else:
             model = GMM(k, reg_covar=reg_covar, tol=tol, max_iter=max_iter)
-            model._em(data, weights, means, cov)
+            model._em(xt, *_cluster_parameters(X, labels[k - 1], k, reg_covar))
             log_likelihood = float(model.score_samples(X).sum())
         curve[k - 1] = _bic(log_likelihood, k, n_dims, n_samples)
     return int(np.argmin(curve)) + 1, curve

@@ -14,7 +14,6 @@ from imitate.errors import ImitateError
 from imitate.gmm import (
     GMM,
     _assign_all,
-    _Data,
     _lloyd,
     kmeans,
     kmeans_parameters,
@@ -96,14 +95,13 @@ def test_kmeans_matches_sklearn_on_blobs():
 def test_lloyd_with_bounds_converges_like_plain_lloyd(demo_data, k):
     # Hamerly's bounds only skip distance computations: from the same centres the converged
     # clustering is scikit-learn's plain Lloyd result.
-    data = _Data.of(demo_data)
-    init = data.x[np.random.default_rng(k).choice(len(data.x), k, replace=False)]
+    x = demo_data - demo_data.mean(axis=0)  # as scikit-learn centres it
+    init = x[np.random.default_rng(k).choice(len(x), k, replace=False)]
     centers = init.copy()
-    labels, upper, lower = (np.empty(len(data.x), dtype=np.intp), np.empty(len(data.x)),
-                            np.empty(len(data.x)))
-    _assign_all(data.x, centers, labels, upper, lower)
-    inertia, _ = _lloyd(data.x, centers, labels, upper, lower, 1000, 0.0)
-    ref = KMeans(k, init=init, n_init=1, max_iter=1000, tol=0.0, algorithm="lloyd").fit(data.x)
+    labels, upper, lower = np.empty(len(x), dtype=np.intp), np.empty(len(x)), np.empty(len(x))
+    _assign_all(x, centers, labels, upper, lower)
+    inertia, _ = _lloyd(x, centers, labels, upper, lower, 1000, 0.0)
+    ref = KMeans(k, init=init, n_init=1, max_iter=1000, tol=0.0, algorithm="lloyd").fit(x)
     np.testing.assert_array_equal(labels, ref.labels_)
     np.testing.assert_allclose(inertia, ref.inertia_, rtol=1e-9)
     np.testing.assert_allclose(centers, ref.cluster_centers_, rtol=1e-9, atol=1e-12)
