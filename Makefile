@@ -2,29 +2,37 @@
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
+RUN ?= runs/latest
 MUJOCO_GL ?= egl
 export MUJOCO_GL
 
-.PHONY: setup run test lint clean
+.PHONY: setup setup-test run test lint clean
 
+# System libraries, the virtual environment and the package (what `make run` needs).
 $(BIN)/.installed: pyproject.toml scripts/install_system_deps.sh
 	bash scripts/install_system_deps.sh
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e .
+	touch $@
+
+# Plus the test-only dependencies (pytest, ruff and the cross-check libraries).
+$(BIN)/.installed-test: $(BIN)/.installed
 	$(BIN)/pip install --quiet -e ".[test]"
 	touch $@
 
 setup: $(BIN)/.installed
+setup-test: $(BIN)/.installed-test
 
-# Until the `imitate run` pipeline lands, the main job renders the testbed scene headless.
+# The whole pipeline on the default settings: watch, learn, optimise, pour, figures, video.
 run: setup
-	$(BIN)/python scripts/render_ci_video.py --out runs/latest/video.mp4 --seconds 4
+	$(BIN)/imitate run --out $(RUN)
 
-test: setup lint
+test: setup-test lint
 	$(BIN)/python -m pytest
 	$(BIN)/python scripts/render_ci_video.py --out runs/ci/video.mp4 --width 160 --height 120 --check
 
-lint: setup
+lint: setup-test
 	$(BIN)/ruff check .
 
 clean:

@@ -1,7 +1,8 @@
-"""Figures of the learning stage: Fig. 4 (GMM with and without DTW), Fig. 5 (BIC), GMR bands.
+"""Figures of a run: tracked against true trajectories, Fig. 4 (GMM with and without DTW),
+Fig. 5 (BIC), GMR bands, Fig. 9 (reproductions over a sweep of collision weights), costs.
 
-Every function draws on a new matplotlib figure (Agg backend, headless) and returns it; saving is
-the caller's choice (``fig.savefig(path)``).
+Every ``plot_*`` function draws on a new matplotlib figure (Agg backend, headless) and returns
+it; :func:`save` writes one atomically and frees it.
 """
 
 from __future__ import annotations
@@ -17,11 +18,21 @@ import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.patches import Ellipse  # noqa: E402
 
+from imitate.artifacts import write_atomic  # noqa: E402
 from imitate.gmm import GMM  # noqa: E402
 from imitate.learning import LearnedModel  # noqa: E402
 from imitate.taskspace import TASK_DIMS, TASK_UNITS  # noqa: E402
 
-__all__ = ["plot_bic_curves", "plot_gmm_with_and_without_dtw", "plot_gmr"]
+__all__ = [
+    "plot_bic_curves",
+    "plot_collision_sweep",
+    "plot_costs",
+    "plot_gmm_with_and_without_dtw",
+    "plot_gmr",
+    "plot_observation",
+    "plot_snapshots",
+    "save",
+]
 
 
 def _ellipse(ax, mean: np.ndarray, cov: np.ndarray, n_std: float = 2.0, **kwargs) -> None:
@@ -154,3 +165,61 @@ def plot_observation(observations, boundaries: np.ndarray | None = None) -> Figu
     axes[0].legend(loc="upper right", fontsize=7, ncol=3)
     axes[-1].set_xlabel("t [s]")
     return fig
+
+
+def plot_collision_sweep(
+    times: np.ndarray,
+    mean: np.ndarray,
+    variance: np.ndarray,
+    reproductions: dict[float, np.ndarray],
+    dim: int = 2,
+) -> Figure:
+    """Fig. 9: one task dimension over time, GMR mean +- sigma and the reproduction for each
+    collision weight.
+
+    Args:
+        times: ``(T,)`` [s].
+        mean, variance: GMR mean and variance at ``times``, ``(T, 7)``.
+        reproductions: ``{collision weight: task states (T, 7)}``.
+        dim: Task dimension (default ``dz``, the paper's).
+    """
+    fig, ax = plt.subplots(figsize=(7, 4), layout="constrained")
+    sd = np.sqrt(variance[:, dim])
+    ax.fill_between(times, mean[:, dim] - sd, mean[:, dim] + sd, color="0.85",
+                    label="GMR mean +- sigma")
+    ax.plot(times, mean[:, dim], "k--", lw=1)
+    for weight, x in reproductions.items():
+        ax.plot(times, x[:, dim], label=f"collision weight {weight:g}")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel(f"{TASK_DIMS[dim]} [{TASK_UNITS[dim]}]")
+    ax.legend(fontsize=8)
+    return fig
+
+
+def plot_costs(costs: dict[float, np.ndarray]) -> Figure:
+    """Total cost per optimiser iteration, ``{collision weight: (n_iter + 1,)}``."""
+    fig, ax = plt.subplots(figsize=(7, 4), layout="constrained")
+    for weight, total in costs.items():
+        ax.semilogy(total, label=f"collision weight {weight:g}")
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("total cost")
+    ax.legend(fontsize=8)
+    return fig
+
+
+def plot_snapshots(images: Sequence[np.ndarray], times: Sequence[float]) -> Figure:
+    """Paper Fig. 8: a row of rendered snapshots ``(h, w, 3) uint8``, titled with their time
+    [s]."""
+    fig, axes = plt.subplots(1, len(images), figsize=(2.6 * len(images), 2.3),
+                             layout="constrained")
+    for ax, image, t in zip(np.atleast_1d(axes), images, times, strict=True):
+        ax.imshow(image)
+        ax.set_title(f"t = {t:.1f} s", fontsize=9)
+        ax.set_axis_off()
+    return fig
+
+
+def save(fig: Figure, path, dpi: int = 110) -> None:
+    """Write ``fig`` as a PNG to ``path`` atomically and close it."""
+    write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi))
+    plt.close(fig)

@@ -1,0 +1,143 @@
+"""The ``imitate`` command end to end: ``imitate run --quick``, its report, determinism, errors."""
+
+import json
+import shutil
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+
+from imitate.artifacts import load_npz
+from imitate.cli import main
+from imitate.pipeline import RunConfig
+
+NPZ = ("observations.npz", "demos.npz", "model.npz", "plan.npz", "replay.npz")
+FIGURES = (
+    "observation", "fig4_gmm_dtw", "fig5_bic", "gmr", "fig8_snapshots", "fig9_collision_sweep",
+    "costs",
+)
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    run_dir = tmp_path_factory.mktemp("quick")
+    assert main(["run", "--quick", "--out", str(run_dir)]) == 0
+    return run_dir
+
+
+def report_of(run_dir):
+    return json.loads((run_dir / "report.json").read_text())
+
+
+def without_timings(report):
+    """The report less what depends on the machine's speed."""
+    report = {k: v for k, v in report.items() if k != "timings"}
+    report["learning"] = {k: v for k, v in report["learning"].items() if k != "seconds"}
+    report["optimization"] = {k: v for k, v in report["optimization"].items() if k != "seconds"}
+    report["perception"] = {
+        k: v for k, v in report["perception"].items() if not k.endswith("_per_s")
+    }
+    return report
+
+
+def test_quick_run_report(quick_run):
+    r = report_of(quick_run)
+    assert r["seed"] == 0
+    assert r["demos"]["detected"] == r["demos"]["expected"] == RunConfig.quick().n_demos
+    assert r["demos"]["boundary_err_s_max"] < 0.6
+    assert r["perception"]["pos_err_mm_median"] < 10.0
+    assert r["perception"]["pos_err_mm_p95"] < 30.0
+    assert r["perception"]["angle_err_deg_median"] < 3.0
+    k, k_full = r["learning"]["n_components"], r["learning"]["n_components_full_bic"]
+    assert 2 <= k <= RunConfig.quick().k_max and 1 <= k_full <= RunConfig.quick().k_max
+    opt = r["optimization"]
+    assert opt["iterations"] >= 1 and np.isfinite(opt["min_distance_m"])
+    assert opt["min_distance_m"] > 0.0, opt["message"]
+    weights = [entry["weight"] for entry in opt["sweep"]]
+    assert weights == sorted(weights) and opt["collision_weight"] in weights
+    assert 0.0 <= r["replay"]["pour_fraction"] <= 1.0
+    assert r["replay"]["success"] == (
+        r["replay"]["pour_fraction"] >= 0.9 and r["replay"]["min_distance_m"] >= 0.0
+    )
+    assert set(r["timings"]) == {"observe", "learn", "optimize", "replay", "figures"}
+    for name in r["artifacts"].values():
+        assert (quick_run / name).is_file(), name
+
+
+def test_quick_run_pours(quick_run):
+    r = report_of(quick_run)["replay"]
+    assert r["pour_fraction"] >= 0.9 and r["spilled"] <= 3 and r["success"], r
+
+
+def test_quick_run_figures_and_video_are_not_blank(quick_run):
+    for name in FIGURES:
+        image = iio.imread(quick_run / "figures" / f"{name}.png")
+        assert image.std() > 5.0, name
+    video = iio.imread(quick_run / "video.mp4")
+    assert len(video) == report_of(quick_run)["video"]["frames"]
+    assert video.std() > 5.0 and np.abs(np.diff(video[::10].astype(float), axis=0)).mean() > 0.1
+
+
+def test_same_seed_same_report_and_arrays(quick_run, tmp_path):
+    assert main(["run", "--quick", "--out", str(tmp_path)]) == 0
+    assert without_timings(report_of(tmp_path)) == without_timings(report_of(quick_run))
+    for name in NPZ:
+        first, second = load_npz(quick_run / name), load_npz(tmp_path / name)
+        assert first.keys() == second.keys(), name
+        for key in first:
+            assert first[key].tobytes() == second[key].tobytes(), f"{name}:{key}"
+
+
+def test_later_stage_reuses_artifacts_and_keeps_settings(quick_run, tmp_path):
+    run_dir = tmp_path / "rerun"
+    shutil.copytree(quick_run, run_dir)
+    assert main(["optimize", str(run_dir), "--collision-weight", "30", "--max-iter", "5"]) == 0
+    r = report_of(run_dir)
+    config = json.loads((run_dir / "config.json").read_text())
+    assert config["collision_weight"] == 30.0 and config["n_demos"] == RunConfig.quick().n_demos
+    assert r["optimization"]["collision_weight"] == 30.0
+    assert r["optimization"]["iterations"] <= 5
+    assert "replay" not in r and r["learning"] == report_of(quick_run)["learning"]
+
+
+def test_missing_artifact_names_file_and_stage(tmp_path, capsys):
+    (tmp_path / "config.json").write_text(json.dumps(RunConfig.quick().to_json()))
+    assert main(["optimize", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert "model.npz is missing" in err and "imitate learn" in err
+
+
+def test_corrupt_artifact_names_file_and_stage(quick_run, tmp_path, capsys):
+    run_dir = tmp_path / "corrupt"
+    shutil.copytree(quick_run, run_dir)
+    (run_dir / "plan.npz").write_bytes(b"not a zip file")
+    assert main(["replay", str(run_dir)]) == 1
+    err = capsys.readouterr().err
+    assert "plan.npz is corrupt" in err and "imitate optimize" in err
+
+
+@pytest.mark.parametrize(
+    ("argv", "expected"),
+    [
+        (["run", "--demos", "1"], "n_demos=1 not accepted: a value in 2..20"),
+        (["run", "--collision-weight", "-1"], "collision_weight=-1.0 not accepted"),
+        (["run", "--particles", "500"], "particles=500 not accepted: a value in 1..120"),
+        (["run", "--obstacle", "box:9,9,9:0.1,0.1,0.1"], "outside the table"),
+        (["run", "--obstacle", "sphere"], "box:X,Y,Z:SX,SY,SZ"),
+        (["run", "--bottle-grasp", "2"], "bottle grasp height 2.0 m not accepted"),
+        (["run", "--demos", "two"], "invalid int value"),
+    ],
+)
+def test_bad_flag_values_are_refused(argv, expected, tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main([*argv, "--out", str(tmp_path)])
+    assert exit_info.value.code == 2
+    assert expected in capsys.readouterr().err
+    assert not (tmp_path / "config.json").exists()
+
+
+def test_config_round_trips_through_json():
+    from envs.scene import Obstacle
+
+    config = RunConfig.quick(obstacle=Obstacle("box", (0.55, 0.0, 0.70), (0.03, 0.03, 0.05)))
+    assert RunConfig.from_json(json.loads(json.dumps(config.to_json()))) == config
