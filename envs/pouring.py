@@ -193,6 +193,10 @@ class PouringEnv(gym.Env):
             self._renderer = None
 
     # ---------------------------------------------------------------- measurements
+    def joint_positions(self) -> np.ndarray:
+        """Robot joint angles ``(18,)`` [rad] in ``models.humanoid.JOINTS`` order (a copy)."""
+        return self.data.qpos[self._joint_qpos].copy()
+
     @property
     def pour_fraction(self) -> float:
         """Fraction of particles inside the glass, 0..1."""

@@ -48,9 +48,9 @@ def oracle_model(
     rate: float = 50.0,
 ) -> LearnedModel:
     """Learns the task from the teacher's ground-truth poses, sampled at ``rate`` [Hz]
-    (default learning: BIC over ``K <= 12``)."""
+    (default learning: BIC over ``K <= 20``)."""
     motion = script_demonstrations(teacher or TeacherConfig())
-    learning = learning or LearningConfig(k_max=12)
+    learning = learning or LearningConfig(k_max=20)
     demos = []
     for start, end in motion.boundaries:
         poses = motion.poses(np.arange(start, end, 1.0 / rate))
@@ -103,7 +103,7 @@ def replay(
     reset and after every step (to record states for a video, say)."""
     env.reset(seed=seed, options=options)
     dt = env.dt
-    q_reset = env.data.qpos[env._joint_qpos].copy()
+    q_reset = env.joint_positions()
     targets = []
     n_approach = int(round(approach / dt))
     for i in range(1, n_approach + 1):

@@ -122,16 +122,18 @@ _KEYS = ("glass", "glass_tilt", "mouth", "bottle_tilt")
 # standard deviation, [m] and [deg]). The first and last rows are the rest pose, shared with the
 # previous and next demonstration. The mouth is placed relative to the glass, so the bottle's
 # position relative to the glass varies by millimetres while pouring (rows 3-4, the bottle tilting
-# further as it empties) and by centimetres while transporting.
+# further as it empties) and by centimetres while transporting. On its way over (rows 1-2) the
+# bottle swings out in front of the glass, towards the robot (world -x), still upright: followed
+# exactly, this brings the robot's bottle hand back against its chest (paper Fig. 8).
 _WAYPOINTS = (
     # u,  glass bottom,        tilt, mouth - rim,          tilt, spreads (glass, tilt, mouth, tilt)
-    (0.00, (1.21, 0.11, 1.00), 0.0, (0.00, -0.24, 0.165), 0.0, (0.020, 0.0, 0.020, 0.0)),
-    (0.20, (1.19, 0.07, 1.04), 3.0, (-0.01, -0.17, 0.22), 15.0, (0.020, 1.5, 0.030, 5.0)),
-    (0.38, (1.18, 0.05, 1.05), 8.0, (0.00, -0.07, 0.09), 65.0, (0.020, 2.0, 0.020, 5.0)),
-    (0.50, (1.18, 0.05, 1.05), 12.0, (0.00, -0.025, 0.040), 100.0, (0.020, 1.0, 0.003, 2.5)),
-    (0.68, (1.18, 0.05, 1.05), 14.0, (0.00, -0.020, 0.035), 125.0, (0.003, 1.0, 0.003, 2.5)),
-    (0.82, (1.19, 0.07, 1.03), 4.0, (0.00, -0.10, 0.13), 35.0, (0.020, 2.0, 0.030, 8.0)),
-    (1.00, (1.21, 0.11, 1.00), 0.0, (0.00, -0.24, 0.165), 0.0, (0.020, 0.0, 0.020, 0.0)),
+    (0.00, (1.21, 0.11, 1.00), 0.0, (0.00, -0.24, 0.165), 0.0, (0.020, 0.0, 0.010, 0.0)),
+    (0.20, (1.19, 0.07, 1.04), 3.0, (-0.28, 0.00, 0.30), 5.0, (0.020, 1.5, 0.045, 5.0)),
+    (0.38, (1.18, 0.05, 1.05), 8.0, (-0.12, -0.05, 0.13), 65.0, (0.020, 2.0, 0.035, 5.0)),
+    (0.50, (1.18, 0.05, 1.05), 12.0, (0.00, -0.025, 0.040), 100.0, (0.020, 1.0, 0.003, 1.0)),
+    (0.68, (1.18, 0.05, 1.05), 14.0, (0.00, -0.020, 0.035), 125.0, (0.003, 1.0, 0.003, 1.0)),
+    (0.86, (1.19, 0.07, 1.03), 4.0, (0.00, -0.10, 0.13), 35.0, (0.020, 2.0, 0.045, 8.0)),
+    (1.00, (1.21, 0.11, 1.00), 0.0, (0.00, -0.24, 0.165), 0.0, (0.020, 0.0, 0.010, 0.0)),
 )
 _POUR_ROWS = (3, 4)  # the glass barely moves while the bottle pours into it
 _WARP_GRID = 2001  # samples of a demonstration's time warp
@@ -149,7 +151,8 @@ class TeacherConfig:
         pause: range ``(low, high)`` [s] of the stillness between demonstrations; also the
             stillness before the first and after the last demonstration is drawn from it.
         spread: scale of the spatial variation between demonstrations: 1 gives the spreads of
-            the nominal waypoints (3 cm while transporting, 3 mm and 2.5 deg while pouring).
+            the nominal waypoints (up to 4.5 cm while transporting, 3 mm and 1 deg while
+            pouring).
         tilt_plane_spread: standard deviation of the azimuth of the plane the bottle tilts in
             [rad] (0: it tilts straight across the robot's view).
         speed_variation: amplitude of the time warp: the local speed is

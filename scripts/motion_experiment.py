@@ -2,7 +2,7 @@
 error, where the deviation from the GMR mean falls, and (``--physics``) the replay in physics,
 also over seeded variations of grasp heights and an obstacle.
 
-Usage: ``python scripts/motion_experiment.py [--weights 0 30 300] [--physics] [--variations 10]
+Usage: ``python scripts/motion_experiment.py [--weights 0 300 3000] [--physics] [--variations 10]
 [--out runs/motion]``; writes ``fig9.png`` and ``costs.png`` under ``--out``.
 """
 
@@ -21,6 +21,7 @@ from envs.replay import oracle_model, planning_task, replay
 from envs.scene import GRASP_RANGE, Obstacle, SceneConfig
 from imitate.motion import PlanConfig, plan
 from models import humanoid, objects
+from models.scene import TABLE_HEIGHT
 
 
 def pour_phase(mean: np.ndarray) -> np.ndarray:
@@ -48,7 +49,7 @@ def _save(fig, path: Path) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--weights", type=float, nargs="+", default=[0.0, 30.0, 300.0, 3000.0])
+    parser.add_argument("--weights", type=float, nargs="+", default=[0.0, 300.0, 3000.0, 30000.0])
     parser.add_argument("--max-iter", type=int, default=60)
     parser.add_argument("--physics", action="store_true")
     parser.add_argument("--variations", type=int, default=0)
@@ -87,9 +88,10 @@ def main() -> None:
     _figures(plans, args.out)
 
     if args.physics:
-        weight = args.weights[-1] if len(args.weights) > 1 else args.weights[0]
+        weight = PlanConfig().collision_weight
+        p = plans[weight] if weight in plans else run_plan(task, learned, weight, args.max_iter)[0]
         env = PouringEnv()
-        r = replay(plans[weight], env)
+        r = replay(p, env)
         print(
             f"physics (w_coll={weight}): pour fraction {r.pour_fraction:.2f}, spilled "
             f"{r.spilled}, min distance {r.min_distance * 1000:.1f} mm, task position error "
@@ -101,13 +103,13 @@ def main() -> None:
         for k in range(args.variations):
             grasp = {obj: float(rng.uniform(*GRASP_RANGE[obj])) for obj in GRASP_RANGE}
             obstacle = Obstacle("box", (float(rng.uniform(0.45, 0.6)), float(rng.uniform(
-                -0.1, 0.1)), 0.70), (0.03, 0.03, 0.05))
+                -0.1, 0.1)), TABLE_HEIGHT + 0.05), (0.03, 0.03, 0.05))
             config = SceneConfig(
                 obstacles=(obstacle,), bottle_grasp=grasp[objects.BOTTLE],
                 glass_grasp=grasp[objects.GLASS],
             )
             vtask = planning_task(config)
-            p, seconds = run_plan(vtask, learned, args.weights[-1], args.max_iter)
+            p, seconds = run_plan(vtask, learned, PlanConfig().collision_weight, args.max_iter)
             env = PouringEnv(obstacles=(obstacle,))
             r = replay(p, env, seed=k, options={f"{o}_grasp": h for o, h in grasp.items()})
             ok = r.is_success and r.min_distance >= 0

@@ -106,21 +106,37 @@ class AttractorDynamics:
         """Gradient w.r.t. the attractors ``(K, m)`` from the gradient w.r.t. ``x_{0:T}``."""
         return self.psi.T @ dx
 
-    def fit(self, target: np.ndarray, x0: np.ndarray, reg: float = 1e-6) -> np.ndarray:
+    def fit(
+        self,
+        target: np.ndarray,
+        x0: np.ndarray,
+        weights: np.ndarray | None = None,
+        reg: float = 1e-6,
+    ) -> np.ndarray:
         """Attractors whose trajectory from ``x0`` at rest fits ``target`` in least squares.
 
         Args:
             target: ``(T + 1, m)``, e.g. the GMR mean.
             x0: Start ``(m,)``.
-            reg: Tikhonov weight pulling each attractor towards the target's mean over the steps
-                it acts in (keeps an attractor that barely acts well defined).
+            weights: ``(T + 1, m)`` weights of the squared residuals, e.g. eq. 21's ``W_t``
+                (then the fit minimises the similarity cost alone); ``None`` for equal.
+            reg: Tikhonov weight, relative to each dimension's mean weight, pulling each
+                attractor towards the target's mean over the steps it acts in (keeps an
+                attractor that barely acts well defined).
 
         Returns:
             ``(K, m)`` attractor points.
         """
-        K = self.n_attractors
+        K, m = self.n_attractors, target.shape[1]
         share = self.blend / np.maximum(self.blend.sum(axis=0), 1e-12)
         prior = share.T @ target[1:]
         residual = target - self.free[:, :1] * x0
-        lhs = self.psi.T @ self.psi + reg * np.eye(K)
-        return np.linalg.solve(lhs, self.psi.T @ residual + reg * prior)
+        if weights is None:
+            weights = np.ones_like(target)
+        a = np.empty((K, m))
+        for d in range(m):
+            w = weights[:, d]
+            scale = reg * max(float(w.mean()), 1e-12)
+            lhs = self.psi.T @ (w[:, None] * self.psi) + scale * np.eye(K)
+            a[:, d] = np.linalg.solve(lhs, self.psi.T @ (w * residual[:, d]) + scale * prior[:, d])
+        return a

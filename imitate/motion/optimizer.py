@@ -65,7 +65,7 @@ class PlanConfig:
     w_max: tuple[float, ...] | None = None
     sigma_max: tuple[float, ...] | None = None
     similarity_weight: float = 1.0
-    collision_weight: float = 300.0
+    collision_weight: float = 3000.0
     joint_limit_weight: float = 1.0
     path_length_weight: float = 0.01
     margin: float = 0.011
@@ -278,7 +278,7 @@ def plan(
     limits = JointLimitCost(kin.lower, kin.upper, c.control.free_ratio)
     q_start = reach(task, mu[0], q0, c.control, limits)
     problem = Problem(task, dynamics, q_start, mu, weights, c)
-    a0 = dynamics.fit(mu, problem.x_start)
+    a0 = dynamics.fit(mu, problem.x_start, weights)
 
     history: list[tuple[float, dict[str, float]]] = []
     best = {"a": a0, "cost": np.inf}
