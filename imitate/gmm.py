@@ -6,7 +6,7 @@ components with priors ``pi_k``, means ``mu_k`` and covariances ``Sigma_k``.
 Numerics follow scikit-learn's ``GaussianMixture(covariance_type="full")`` so that both reach the
 same log-likelihood from the same start: densities are evaluated in log space through the
 Cholesky factor of each covariance (no explicit inverse of ``Sigma_k``), responsibilities are
-normalised with the log-sum-exp trick (terms below ``exp(-460)`` of the largest are flushed to
+normalised with the log-sum-exp trick (terms below ``exp(-50)`` of the largest are flushed to
 zero), and ``reg_covar`` is added to the diagonal of every covariance. The regularisation is
 also what keeps duplicated points (a cluster of identical samples has a zero covariance) usable:
 such a component gets the covariance ``reg_covar * I``.
@@ -44,7 +44,9 @@ from imitate.errors import ImitateError
 
 __all__ = [
     "GMM",
+    "BicSweep",
     "KMeansResult",
+    "bic_sweep",
     "kmeans",
     "kmeans_parameters",
     "n_parameters",
@@ -54,9 +56,10 @@ __all__ = [
 _LOG_2PI = np.log(2.0 * np.pi)
 # scikit-learn adds this to the soft counts so that an empty component does not divide by zero.
 _EPS_COUNTS = 10.0 * np.finfo(float).eps
-# Responsibilities below exp(-460) ~ 1e-200 of a sample's largest term are flushed to 0: they
-# carry no information, and subnormal numbers (exp(-708) and below) slow arithmetic down.
-_LOG_FLUSH = -460.0
+# Responsibilities below exp(-50) ~ 2e-22 of a sample's largest are flushed to 0: over all N
+# samples they add less than N * 2e-22 to a soft count (below round-off for any component that
+# holds a hundredth of a sample), and skipping them lets most components go unevaluated.
+_LOG_FLUSH = -50.0
 # exp(-38) ~ 3e-17 < 2^-53 / 2: negligible next to a term exp(0) = 1 (likelihood-only sums).
 _LOG_NEGLIGIBLE = -38.0
 # K-means defaults (scikit-learn's) used for the initialisation of EM and for the BIC sweep.
@@ -676,7 +679,7 @@ def _em_loop(
     """EM (eqs. 8-12) in place on ``weights`` (K,), ``means`` (K, D), ``covariances`` (K, D, D).
 
     Each iteration is one pass over the blocks of sorted samples ``xt`` (D, N): the E-step of a
-    block (responsibilities below ``exp(-460)`` flushed to 0) is accumulated at once into the
+    block (responsibilities below ``exp(-50)`` flushed to 0) is accumulated at once into the
     soft counts and the first and second moments about the current means; the M-step then
     shifts the means and subtracts the shift from the second moments. Stops when the mean
     log-likelihood per sample (before the M-step) changes by less than ``tol``.
@@ -762,7 +765,7 @@ def _not_positive_definite() -> ImitateError:
 
 
 def _exp_flushed(a: np.ndarray) -> np.ndarray:
-    """``exp(a)`` with entries where ``a < -460`` set to exactly 0 (no subnormal numbers)."""
+    """``exp(a)`` with entries where ``a < -50`` set to exactly 0 (see ``_LOG_FLUSH``)."""
     return np.exp(a, out=np.zeros_like(a), where=a >= _LOG_FLUSH)
 
 
@@ -1008,6 +1011,27 @@ def _cluster_log_likelihood(
 _BIC_METHODS = ("fast", "full")
 
 
+@dataclass(frozen=True)
+class BicSweep:
+    """Outcome of :func:`bic_sweep`.
+
+    Attributes:
+        k: The chosen number of components (smallest BIC).
+        curve: BIC for ``K = 1..k_max``, shape ``(k_max,)``.
+        labels: The K-means clustering of every ``K`` (the EM start), shape ``(k_max, n_samples)``.
+    """
+
+    k: int
+    curve: np.ndarray
+    labels: np.ndarray
+
+    def initial_parameters(
+        self, X: ArrayLike, reg_covar: float = 1e-6
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The K-means start of the chosen ``K``, as :meth:`GMM.initial_parameters` gives it."""
+        return kmeans_parameters(X, self.labels[self.k - 1], self.k, reg_covar)
+
+
 def select_components(
     X: ArrayLike,
     k_max: int = 30,
@@ -1020,6 +1044,27 @@ def select_components(
     max_iter: int = 100,
 ) -> tuple[int, np.ndarray]:
     """Chooses the number of components ``K`` by the smallest BIC over ``K = 1..k_max``.
+
+    Returns ``(k, bic_curve)`` (curve of shape ``(k_max,)``); see :func:`bic_sweep`, which takes
+    the same arguments and also keeps the K-means clusterings.
+    """
+    sweep = bic_sweep(X, k_max, method, seed, reg_covar=reg_covar, n_init=n_init, tol=tol,
+                      max_iter=max_iter)
+    return sweep.k, sweep.curve
+
+
+def bic_sweep(
+    X: ArrayLike,
+    k_max: int = 30,
+    method: str = "fast",
+    seed: int = 0,
+    *,
+    reg_covar: float = 1e-6,
+    n_init: int = 3,
+    tol: float = 1e-3,
+    max_iter: int = 100,
+) -> BicSweep:
+    """BIC for ``K = 1..k_max`` and the ``K`` of the smallest one.
 
     ``"fast"`` is the paper's heuristic (section IV-B.1): K-means only, priors, means and
     covariances taken from the clusters, no EM. ``"full"`` trains a GMM by EM for every ``K``
@@ -1038,7 +1083,9 @@ def select_components(
         max_iter: EM iteration limit for ``"full"``.
 
     Returns:
-        ``(k, bic_curve)``: the chosen ``K`` and the BIC for ``K = 1..k_max``, shape ``(k_max,)``.
+        The :class:`BicSweep`: the chosen ``K``, the BIC curve and the K-means clusterings, so
+        that ``GMM(sweep.k, seed=seed, n_init=n_init).fit(X)`` equals EM from
+        ``sweep.initial_parameters(X)`` without clustering again.
 
     Raises:
         ImitateError: On a bad method, ``k_max`` out of range or non-finite samples.
@@ -1061,4 +1108,4 @@ def select_components(
             model._em(xt, *_cluster_parameters(X, labels[k - 1], k, reg_covar))
             log_likelihood = float(model.score_samples(X).sum())
         curve[k - 1] = _bic(log_likelihood, k, n_dims, n_samples)
-    return int(np.argmin(curve)) + 1, curve
+    return BicSweep(k=int(np.argmin(curve)) + 1, curve=curve, labels=labels)

@@ -2,8 +2,9 @@
 
 Task-space demonstrations are aligned by DTW onto the medoid (:mod:`imitate.dtw`), time is
 prepended as the first dimension, the number of components is chosen by BIC
-(:func:`imitate.gmm.select_components`), a GMM is trained by EM from the K-means start
-(:class:`imitate.gmm.GMM`) and conditioned on time by GMR (:func:`imitate.gmr.gmr`).
+(:func:`imitate.gmm.bic_sweep`), a GMM is trained by EM from the sweep's K-means start of that
+``K`` (:class:`imitate.gmm.GMM`; the clustering is not repeated) and conditioned on time by GMR
+(:func:`imitate.gmr.gmr`).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from numpy.typing import ArrayLike
 
 from imitate.dtw import Alignment, align
 from imitate.errors import ImitateError
-from imitate.gmm import GMM, select_components
+from imitate.gmm import GMM, bic_sweep
 from imitate.gmr import gmr
 
 __all__ = ["LearnedModel", "LearningConfig", "learn", "time_stacked"]
@@ -143,15 +144,17 @@ def learn(
             )
     data = time_stacked(series, rate)
     if c.n_components is None:
-        k, curve = select_components(
+        sweep = bic_sweep(
             data, c.k_max, c.bic_method, c.seed, reg_covar=c.reg_covar, n_init=c.n_init,
             tol=c.tol, max_iter=c.max_iter,
         )
+        k, curve, init = sweep.k, sweep.curve, sweep.initial_parameters(data, c.reg_covar)
     else:
-        k, curve = c.n_components, np.empty(0)
+        k, curve, init = c.n_components, np.empty(0), None
     gmm = GMM(
         k, reg_covar=c.reg_covar, tol=c.tol, max_iter=c.max_iter, n_init=c.n_init, seed=c.seed
-    ).fit(data)
+    )
+    gmm = gmm.fit(data) if init is None else gmm.fit_from(data, *init)
     times = np.arange(max(len(s) for s in series)) / rate
     mean, cov = gmr(gmm, times, covariance=c.covariance)
     return LearnedModel(
