@@ -184,8 +184,9 @@ def _lloyd(
     """Lloyd iterations in place, with Hamerly's distance bounds (exactly Lloyd's result).
 
     Each sample keeps an upper bound on the distance to its centre and a lower bound on the
-    distance to every other centre; when centres move the bounds are loosened by the moves, and
-    only samples whose bounds overlap are measured again. An empty cluster takes the sample
+    distance to every other centre; when centres move the bounds are loosened by the moves (the
+    lower bound by the largest move among the other centres), and only samples whose bounds
+    overlap are measured again. An empty cluster takes the sample
     farthest from its centre.
 
     Args:
@@ -240,12 +241,17 @@ def _lloyd(
                 if other != c:
                     gap = min(gap, _distance(centers[c], centers[other]))
             half_gap[c] = 0.5 * gap
-        max_moved = moved.max()
+        fastest, max_moved, second_moved = 0, -1.0, 0.0
+        for c in range(k):
+            if moved[c] > max_moved:
+                fastest, max_moved, second_moved = c, moved[c], max(max_moved, 0.0)
+            elif moved[c] > second_moved:
+                second_moved = moved[c]
         changed = 0
         for i in range(n):
             own = labels[i]
             upper[i] += moved[own]
-            lower[i] -= max_moved
+            lower[i] -= second_moved if own == fastest else max_moved  # other centres' moves
             bound = max(half_gap[own], lower[i])
             if upper[i] <= bound:
                 continue

@@ -15,6 +15,7 @@ from imitate.gmm import (
     GMM,
     _assign_all,
     _lloyd,
+    bic_sweep,
     kmeans,
     kmeans_parameters,
     n_parameters,
@@ -118,6 +119,16 @@ def test_fast_bic_is_the_bic_of_the_kmeans_start_and_never_below_full(demo_data)
         )
     # EM from the K-means start never lowers the likelihood: the full curve lies below.
     assert np.all(full <= fast + 1e-6 * np.abs(fast))
+
+
+def test_bic_sweep_keeps_the_em_start_of_every_k(demo_data):
+    sweep = bic_sweep(demo_data, 8, "fast")
+    k, curve = select_components(demo_data, 8, "fast")
+    assert sweep.k == k
+    np.testing.assert_array_equal(sweep.curve, curve)
+    for got, want in zip(sweep.initial_parameters(demo_data),
+                         GMM(sweep.k).initial_parameters(demo_data), strict=True):
+        np.testing.assert_array_equal(got, want)
 
 
 @settings(max_examples=40, deadline=None)
