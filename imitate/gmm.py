@@ -27,8 +27,8 @@ one; a component is dropped for a sample as soon as that bound puts it below the
 relative to the best component so far. With time as the first dimension most components are
 dropped after one multiplication, so a density pass costs about ``N (K + a few D^2)`` rather
 than ``N K D^2``. The EM M-step accumulates only the responsibilities that were not flushed.
-The first call of a process compiles the loops (about 10 s) or loads them from numba's on-disk
-cache (well under 1 s).
+The first call of a process compiles the loops (about 30 s on a 2-core CPU) or loads them from
+numba's on-disk cache (about 1 s).
 """
 
 from __future__ import annotations
