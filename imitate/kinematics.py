@@ -113,8 +113,12 @@ class Kinematics:
             held[obj] = (hand, m.eq_data[e, 3:6].copy(), rot.reshape(3, 3))
         return held
 
-    def update(self, q: np.ndarray) -> None:
-        """Sets the joint angles ``q`` ``(n,)`` [rad] and updates all poses (no physics)."""
+    def update(self, q: np.ndarray, geoms: bool = True) -> None:
+        """Sets the joint angles ``q`` ``(n,)`` [rad] and updates all poses (no physics).
+
+        ``geoms=False`` skips the held objects' geom poses (enough for Jacobians and body
+        poses, not for distances).
+        """
         m, d = self.model, self.data
         d.qpos[self.qpos_adr] = q
         mujoco.mj_kinematics(m, d)
@@ -124,9 +128,11 @@ class Kinematics:
             R = R_hand @ rel_rot
             d.xpos[obj] = d.xpos[hand] + R_hand @ rel_pos
             d.xmat[obj] = R.ravel()
-            geoms, local = self._held_geoms[obj]
-            d.geom_xpos[geoms] = d.xpos[obj] + m.geom_pos[geoms] @ R.T
-            d.geom_xmat[geoms] = (R @ local).reshape(-1, 9)
+            if not geoms:
+                continue
+            held, local = self._held_geoms[obj]
+            d.geom_xpos[held] = d.xpos[obj] + m.geom_pos[held] @ R.T
+            d.geom_xmat[held] = (R @ local).reshape(-1, 9)
 
     def body_pose(self, body: str) -> tuple[np.ndarray, np.ndarray]:
         """World pose of ``body`` at the last :meth:`update`: ``(pos (3,) [m], R (3, 3))``."""

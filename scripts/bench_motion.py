@@ -1,6 +1,7 @@
 """Benchmark of the movement optimisation: total time and per-iteration breakdown.
 
-Usage: ``python scripts/bench_motion.py [--repeats 3] [--max-iter 60]``.
+Usage: ``python scripts/bench_motion.py [--repeats 3] [--max-iter 100]
+[--collision-weight 3000]``.
 """
 
 from __future__ import annotations
@@ -12,15 +13,15 @@ import numpy as np
 
 from envs.replay import oracle_model, planning_task
 from imitate.motion import PlanConfig, plan
-from imitate.motion.control import backward
+from imitate.motion.control import backward, rollout
 from models import humanoid
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--max-iter", type=int, default=60)
-    parser.add_argument("--collision-weight", type=float, default=300.0)
+    parser.add_argument("--max-iter", type=int, default=PlanConfig().max_iter)
+    parser.add_argument("--collision-weight", type=float, default=PlanConfig().collision_weight)
     args = parser.parse_args()
     task = planning_task()
     learned = oracle_model(task.gaze)
@@ -45,20 +46,24 @@ def main() -> None:
     from imitate.motion.optimizer import Problem  # noqa: PLC0415
 
     problem = Problem(task, _dynamics(p, learned, config), p.q_start, p.mean, p.weights, config)
-    timings = {"rollout": [], "costs": [], "backward": []}
+    distmax = problem.terms["collision"][1].distmax
+    timings = {"rollout (kinematics, RMR)": [], "distances": [], "costs": [], "gradient": []}
     for _ in range(args.repeats):
+        target = problem.dynamics.trajectory(p.attractors, problem.x_start)
         t0 = time.perf_counter()
-        target, result = problem.rollout(p.attractors)
+        rollout(task, target, p.q_start, config.control, problem.limits)
         t1 = time.perf_counter()
+        result = rollout(task, target, p.q_start, config.control, problem.limits, distmax)
+        t2 = time.perf_counter()
         gq, gx = np.zeros_like(result.q), np.zeros_like(target)
         for weight, term in problem.terms.values():
             _, tq, tx = term(result, target)
             gq += weight * tq
             gx += weight * tx
-        t2 = time.perf_counter()
-        backward(result, task, target, config.control, gq, gx)
         t3 = time.perf_counter()
-        for name, dt in zip(timings, (t1 - t0, t2 - t1, t3 - t2), strict=True):
+        problem.dynamics.gradient(backward(result, task, target, config.control, gq, gx))
+        t4 = time.perf_counter()
+        for name, dt in zip(timings, (t1 - t0, t2 - t1 - (t1 - t0), t3 - t2, t4 - t3), strict=True):
             timings[name].append(dt)
     print(f"\nper iteration, {len(p.times) - 1} steps (median of {args.repeats}):")
     print("| part | ms | us per step |")

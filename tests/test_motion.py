@@ -8,6 +8,7 @@ import pytest
 
 from envs.replay import oracle_model, planning_task
 from imitate.errors import ImitateError
+from imitate.learning import LearningConfig
 from imitate.motion import (
     AttractorDynamics,
     ControlConfig,
@@ -33,7 +34,7 @@ def task():
 
 @pytest.fixture(scope="module")
 def learned(task):
-    return oracle_model(task.gaze)
+    return oracle_model(task.gaze, learning=LearningConfig(k_max=12))  # smaller K: faster
 
 
 @pytest.fixture(scope="module")

@@ -199,7 +199,7 @@ def rollout(
     eye = config.damping * np.eye(m)
     angle_ref = target[:, [3, 5]]
     for t in range(T + 1):
-        kin.update(q[t])
+        kin.update(q[t], geoms=distmax > 0)
         x[t], J = task(angle_ref[t])
         if distmax > 0:
             distances.append(kin.distances(distmax, jacobian=True))
@@ -275,7 +275,7 @@ def _along(task: TaskMap, q: np.ndarray, J: np.ndarray, b: np.ndarray, angle_ref
     if norm == 0.0:
         return np.zeros_like(J)
     h = 1e-6 / norm
-    task.kin.update(q + h * b)
+    task.kin.update(q + h * b, geoms=False)
     return (task(angle_ref)[1] - J) / h
 
 
@@ -292,7 +292,7 @@ def reach(
     steps from ``q0`` that each close ``rate`` of the remaining task error."""
     kin = task.kin
     target = np.empty((steps + 1, len(goal)))
-    kin.update(q0)
+    kin.update(q0, geoms=False)
     x0, _ = task(goal[[3, 5]])
     remaining = (1.0 - rate) ** np.arange(steps + 1)
     target[:] = goal + remaining[:, None] * (x0 - goal)

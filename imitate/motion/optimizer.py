@@ -60,7 +60,7 @@ class PlanConfig:
         control: RMR parameters.
     """
 
-    dt: float = 0.04
+    dt: float = 0.08
     omega_per_interval: float = 2.0
     w_max: tuple[float, ...] | None = None
     sigma_max: tuple[float, ...] | None = None
@@ -72,9 +72,9 @@ class PlanConfig:
     epsilon: float = 0.004
     optimizer: str = "rprop"
     max_iter: int = 100
-    tol: float = 1e-3
+    tol: float = 1e-2
     patience: int = 5
-    rprop_step: float = 0.03
+    rprop_step: float = 0.1
     control: ControlConfig = field(default_factory=ControlConfig)
 
     def __post_init__(self):
@@ -307,8 +307,6 @@ def plan(
 
     a = best["a"]
     target, final = problem.rollout(a)
-    for t in range(len(final.q)):
-        kin.update(final.q[t])
     min_d, closest = _min_distance(kin, final.q)
     names = tuple(problem.terms) + ("total",)
     costs = {
