@@ -29,29 +29,32 @@ HELP = {
     "figures": "figures/*.png and video.mp4 from the run's artifacts",
     "run": "all stages: observe, learn, optimize, replay, figures",
 }
-# The settings each stage owns, as (flag, RunConfig field, type, help).
+# The settings each stage owns: (flag, RunConfig field, type, help); tests check the defaults.
 KNOBS = {
     "observe": (
-        ("--demos", "n_demos", int, "demonstrations the teacher shows (2..20; default 5)"),
-        ("--width", "width", int, "head-camera image width [px] (default 640)"),
-        ("--height", "height", int, "head-camera image height [px] (default 480)"),
-        ("--fps", "fps", float, "camera rate [Hz] (default 30)"),
+        ("--demos", "n_demos", int, "demonstrations the teacher shows, 2..20 (default 5)"),
+        ("--width", "width", int, "head-camera image width [px], 64..1920 (default 640)"),
+        ("--height", "height", int, "head-camera image height [px], 48..1080 (default 480)"),
+        ("--fps", "fps", float, "camera rate [Hz], 5..120 (default 30)"),
     ),
     "learn": (
-        ("--k-max", "k_max", int, "largest number of GMM components tried (default 30)"),
+        ("--k-max", "k_max", int, "largest number of GMM components tried, 1..50 (default 30)"),
     ),
     "optimize": (
-        ("--collision-weight", "collision_weight", float, "collision cost weight (default 300)"),
-        ("--max-iter", "max_iter", int, "optimiser iteration limit (default 100)"),
-        ("--bottle-grasp", "bottle_grasp", float, "robot's grasp height on the bottle [m]"),
-        ("--glass-grasp", "glass_grasp", float, "robot's grasp height on the glass [m]"),
+        ("--collision-weight", "collision_weight", float,
+         "weight of the collision cost, >= 0 (default 3000)"),
+        ("--max-iter", "max_iter", int, "optimiser iteration limit, >= 1 (default 100)"),
+        ("--bottle-grasp", "bottle_grasp", float,
+         "where the robot holds the bottle, height above its bottom [m] (default 0.09)"),
+        ("--glass-grasp", "glass_grasp", float,
+         "where the robot holds the glass, height above its bottom [m] (default 0.05)"),
     ),
     "replay": (
-        ("--particles", "particles", int, "liquid spheres in the bottle (1..120; default 60)"),
+        ("--particles", "particles", int, "liquid spheres in the bottle, 1..120 (default 60)"),
     ),
     "figures": (
-        ("--video-width", "video_width", int, "video width [px] (default 640)"),
-        ("--video-height", "video_height", int, "video height [px] (default 480)"),
+        ("--video-width", "video_width", int, "video width [px], 64..1920 (default 640)"),
+        ("--video-height", "video_height", int, "video height [px], 48..1080 (default 480)"),
     ),
 }
 STAGE_ORDER = tuple(KNOBS)
@@ -93,20 +96,22 @@ def build_parser() -> argparse.ArgumentParser:
         sub = commands.add_parser(command, help=text, description=text)
         sub.add_argument("run_dir", nargs="?", type=Path, metavar="RUN_DIR",
                          help=f"run directory (default {DEFAULT_RUN}); same as --out")
-        sub.add_argument("--out", type=Path, help="run directory")
-        sub.add_argument("--seed", type=int, help="seed of the whole run (default 0)")
+        sub.add_argument("--out", type=Path, metavar="DIR", help="run directory")
+        sub.add_argument("--seed", type=int, metavar="N", help="seed of the whole run (default 0)")
         sub.add_argument("--quick", action="store_true",
                          help="small images, 3 demonstrations, short optimisation (tests)")
         stages = STAGE_ORDER if command == "run" else (command,)
         for stage in stages:
             group = sub.add_argument_group(f"{stage} settings")
             for flag, dest, kind, knob_help in KNOBS[stage]:
-                group.add_argument(flag, dest=dest, type=kind, help=knob_help)
+                group.add_argument(flag, dest=dest, type=kind, help=knob_help,
+                                   metavar=kind.__name__.upper())
             if stage == "learn":
                 group.add_argument("--oracle", action="store_true", default=None,
                                    help="learn from ground-truth poses instead of perception")
             if stage == "optimize":
                 group.add_argument("--obstacle", type=obstacle, default=argparse.SUPPRESS,
+                                   metavar="SHAPE:POS:SIZE",
                                    help=obstacle.__doc__.split(": ", 1)[1].replace("``", ""))
     return parser
 

@@ -141,3 +141,16 @@ def test_config_round_trips_through_json():
 
     config = RunConfig.quick(obstacle=Obstacle("box", (0.55, 0.0, 0.70), (0.03, 0.03, 0.05)))
     assert RunConfig.from_json(json.loads(json.dumps(config.to_json()))) == config
+
+
+def test_help_states_the_real_defaults():
+    import re
+
+    from imitate.cli import KNOBS
+
+    defaults = RunConfig()
+    for knobs in KNOBS.values():
+        for flag, dest, _, text in knobs:
+            stated = re.search(r"\(default ([0-9.]+)\)", text)
+            assert stated, flag
+            assert float(stated.group(1)) == getattr(defaults, dest), flag
