@@ -49,6 +49,9 @@ class ObservationConfig:
         height: image height [px].
         head_tilt: the robot's head tilt while watching [rad] (> 0 looks down); the default
             centres the teacher's hands in the images.
+        fast_render: render the eye cameras without shadows, reflections and multisample
+            anti-aliasing: about 5x faster on a CPU (Mesa llvmpipe), tracking as accurate
+            (the colour thresholds do not need them); ``False`` renders as the scene is set.
     """
 
     teacher: teacher_motion.TeacherConfig = field(default_factory=teacher_motion.TeacherConfig)
@@ -56,6 +59,7 @@ class ObservationConfig:
     width: int = 640
     height: int = 480
     head_tilt: float = 0.08
+    fast_render: bool = True
 
     def __post_init__(self):
         if not self.fps > 0:
@@ -134,6 +138,7 @@ class Session:
         cameras: left and right :class:`imitate.perception.PinholeCamera`.
         model: the scene.
         data: its data (the robot's pose; objects and arms are set per frame).
+        fast_render: shadows and reflections off (see :class:`ObservationConfig`).
     """
 
     motion: teacher_motion.TeacherMotion
@@ -141,6 +146,7 @@ class Session:
     cameras: tuple
     model: mujoco.MjModel
     data: mujoco.MjData
+    fast_render: bool = False
 
 
 def session(config: ObservationConfig = ObservationConfig()) -> Session:
@@ -152,7 +158,9 @@ def session(config: ObservationConfig = ObservationConfig()) -> Session:
         for eye in (humanoid.LEFT_EYE, humanoid.RIGHT_EYE)
     )
     times = np.arange(0.0, motion.duration, 1.0 / config.fps)
-    return Session(motion, times, cameras, model, data)
+    if config.fast_render:
+        model.vis.quality.offsamples = 0  # read when the renderer's context is made
+    return Session(motion, times, cameras, model, data, config.fast_render)
 
 
 def frames(sess: Session, timing: dict | None = None) -> Iterator[tuple[np.ndarray, np.ndarray]]:
@@ -166,7 +174,10 @@ def frames(sess: Session, timing: dict | None = None) -> Iterator[tuple[np.ndarr
         ``(left, right)`` RGB images ``(height, width, 3)`` uint8.
     """
     left_cam = sess.cameras[0]
-    renderer = make_renderer(sess.model, left_cam.height, left_cam.width)
+    renderer = make_renderer(
+        sess.model, left_cam.height, left_cam.width, shadows=not sess.fast_render
+    )
+    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = not sess.fast_render
     poses = sess.motion.poses(sess.times)
     try:
         for i in range(len(sess.times)):

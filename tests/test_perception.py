@@ -114,7 +114,9 @@ def rendered_session():
     sess = observation.session(config)
     start, end = sess.motion.boundaries[0]
     times = np.linspace(start - 0.3, end + 0.3, 8)
-    sess = observation.Session(sess.motion, times, sess.cameras, sess.model, sess.data)
+    sess = observation.Session(
+        sess.motion, times, sess.cameras, sess.model, sess.data, sess.fast_render
+    )
     return sess, list(observation.frames(sess))
 
 
