@@ -39,6 +39,8 @@ KNOBS = {
     ),
     "learn": (
         ("--k-max", "k_max", int, "largest number of GMM components tried, 1..50 (default 30)"),
+        ("--smoothing", "smoothing", float,
+         "Savitzky-Golay window over the tracks before learning [s], 0..1 (default 0.3)"),
     ),
     "optimize": (
         ("--collision-weight", "collision_weight", float,
@@ -107,8 +109,9 @@ def build_parser() -> argparse.ArgumentParser:
                 group.add_argument(flag, dest=dest, type=kind, help=knob_help,
                                    metavar=kind.__name__.upper())
             if stage == "learn":
-                group.add_argument("--oracle", action="store_true", default=None,
-                                   help="learn from ground-truth poses instead of perception")
+                group.add_argument("--oracle", action=argparse.BooleanOptionalAction,
+                                   help="learn from ground-truth poses instead of perception "
+                                   "(default --no-oracle)")
             if stage == "optimize":
                 group.add_argument("--obstacle", type=obstacle, default=argparse.SUPPRESS,
                                    metavar="SHAPE:POS:SIZE",

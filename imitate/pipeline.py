@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.signal import savgol_filter
 from tqdm import tqdm
 
 from envs import scene
@@ -79,6 +80,8 @@ class RunConfig:
         width, height: Head-camera image size [px], 64..1920 by 48..1080.
         fps: Camera rate [Hz], 5..120.
         oracle: Learn from the ground-truth object poses instead of the tracked ones.
+        smoothing: Savitzky-Golay window over the tracked positions and axes before learning
+            [s], 0..1 (0: none; the segmentation's window by default).
         k_max: Largest number of GMM components of the BIC sweep, 1..50.
         collision_weight: Weight of the collision cost of the optimiser, >= 0.
         sweep: Collision weights of the Fig. 9 sweep, as fractions of ``collision_weight``.
@@ -97,6 +100,7 @@ class RunConfig:
     height: int = 480
     fps: float = 30.0
     oracle: bool = False
+    smoothing: float = StillnessConfig.smoothing
     k_max: int = 30
     collision_weight: float = PlanConfig.collision_weight
     sweep: tuple[float, ...] = (0.0, 0.1, 1.0)
@@ -120,6 +124,7 @@ class RunConfig:
             ("width", 64, 1920),
             ("height", 48, 1080),
             ("fps", 5, 120),
+            ("smoothing", 0, 1),
             ("k_max", 1, 50),
             ("max_iter", 1, 10_000),
             ("particles", 1, scene.MAX_PARTICLES),
@@ -207,8 +212,12 @@ def learn(run_dir: Path, config: RunConfig) -> dict:
     else:
         segments, names, gaze = load_demos(run_dir / "demos.npz")
         bridged = sum(int(np.isnan(d.position).any(axis=-1).sum()) for d in segments)
-        demos = [_task_demo(*_bridged(d.times, d.position, d.axis), names, gaze) for d in segments]
         rate = 1.0 / float(np.median(np.diff(segments[0].times)))
+        frames = int(round(config.smoothing * rate)) | 1
+        demos = [
+            _task_demo(*_smoothed(*_bridged(d.times, d.position, d.axis), frames), names, gaze)
+            for d in segments
+        ]
     k_max = min(config.k_max, *(len(d) for d in demos))
     settings = LearningConfig(k_max=k_max, seed=config.seed)
     start = time.perf_counter()
@@ -418,6 +427,15 @@ def _bridged(times, position, axis) -> tuple[np.ndarray, np.ndarray]:
         for values in (position[k], axis[k]):
             for c in range(3):
                 values[:, c] = np.interp(times, times[ok], values[ok, c])
+    return position, axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+
+
+def _smoothed(position, axis, frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """Tracks ``(n_objects, m, 3)`` smoothed over time by a quadratic Savitzky-Golay filter of
+    ``frames`` (odd; below 5: unchanged), axes renormalised."""
+    if frames < 5 or frames > position.shape[1]:
+        return position, axis
+    position, axis = (savgol_filter(v, frames, 2, axis=1) for v in (position, axis))
     return position, axis / np.linalg.norm(axis, axis=-1, keepdims=True)
 
 
