@@ -247,14 +247,14 @@ def optimize(run_dir: Path, config: RunConfig) -> dict:
     """Whole-body attractor optimisation at ``collision_weight``, and the Fig. 9 sweep."""
     model = load_npz(run_dir / "model.npz", required=("times", "mean", "covariance", "gaze"))
     task = _task_map(config, model["gaze"])
-    weight = config.collision_weight
-    weights = sorted({weight * s for s in config.sweep} | {weight})
+    chosen = config.collision_weight
+    weights = sorted({chosen * s for s in config.sweep} | {chosen})
     plans, seconds = {}, {}
-    for weight in tqdm(weights, desc="optimize", unit="plan", disable=None):
+    for w in tqdm(weights, desc="optimize", unit="plan", disable=None):
         start = time.perf_counter()
-        plans[weight] = _plan(task, model, config, weight)
-        seconds[weight] = time.perf_counter() - start
-    main = plans[config.collision_weight]
+        plans[w] = _plan(task, model, config, w)
+        seconds[w] = time.perf_counter() - start
+    main = plans[chosen]
     save_npz(run_dir / "plan.npz", {
         **_plan_arrays(main),
         "sweep_weights": np.array(weights),
@@ -265,8 +265,8 @@ def optimize(run_dir: Path, config: RunConfig) -> dict:
     zero = plans[weights[0]]
     return {
         "optimization": {
-            "collision_weight": config.collision_weight,
-            "seconds": seconds[config.collision_weight],
+            "collision_weight": chosen,
+            "seconds": seconds[chosen],
             "iterations": main.n_iter,
             "converged": main.converged,
             "min_distance_m": main.min_distance,

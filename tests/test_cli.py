@@ -154,3 +154,20 @@ def test_help_states_the_real_defaults():
             stated = re.search(r"\(default ([0-9.]+)\)", text)
             assert stated, flag
             assert float(stated.group(1)) == getattr(defaults, dest), flag
+
+
+def test_interrupted_stage_leaves_no_half_written_file(quick_run, tmp_path, monkeypatch):
+    run_dir = tmp_path / "interrupted"
+    shutil.copytree(quick_run, run_dir)
+    (run_dir / "model.npz").unlink()
+
+    def interrupted(file, **arrays):
+        with open(file, "wb") as out:
+            out.write(b"half of it")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(np, "savez", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        main(["learn", str(run_dir)])
+    assert not (run_dir / "model.npz").exists()
+    assert not [p.name for p in run_dir.iterdir() if "partial" in p.name]
