@@ -149,8 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.run_dir and args.out and args.run_dir != args.out:
         parser.error(f"two run directories given: {args.run_dir} and --out {args.out}; give one")
     run_dir = args.out or args.run_dir or DEFAULT_RUN
-    import imitate  # noqa: F401  (selects the headless GL backend before MuJoCo loads)
-    from imitate import pipeline
+    from imitate import pipeline  # heavy (MuJoCo, numba): only once the arguments are fine
 
     try:
         config = config_for(args, run_dir)
