@@ -2,10 +2,11 @@
 
 The planner sees the robot as its hinge joints (``joints``, in a fixed order, ``n`` of them) and
 the objects it holds as rigid extensions of its hands: every *active* weld equality constraint
-whose second body is a free body (a held object) is read once, and after each
-:meth:`Kinematics.update` the object's body and geom poses are written as the hand's pose
-composed with the weld's relative pose, so no physics runs. Jacobians of points on a held object
-are ``mj_jac`` of its hand body at that point.
+whose second body is a free body (a held object) is read once, and each
+:meth:`Kinematics.update` sets the object's free joint to the hand's pose composed with the weld's
+relative pose and runs ``mj_kinematics`` a second time, so no physics runs. Jacobians of points on
+a held object are ``mj_jac`` of its hand body at that point; their derivatives along a joint
+velocity are ``mj_jacDot``.
 
 Jacobians are restricted to the ``joints`` columns, shape ``(3, n)``, world frame (MuJoCo's
 convention: translational ``dp/dq``; rotational maps joint velocities to angular velocity).
@@ -78,19 +79,16 @@ class Kinematics:
         self.dof_adr = model.jnt_dofadr[ids].copy()
         self.lower, self.upper = model.jnt_range[ids].T.copy()
         self._held = self._held_objects()
-        self._geom_owner = model.geom_bodyid.copy()  # body whose Jacobian moves each geom
+        self._owner = np.arange(model.nbody)  # body whose Jacobian moves each body
         for obj, (hand, _, _) in self._held.items():
-            self._geom_owner[model.geom_bodyid == obj] = hand
-        self._held_geoms = {}
-        for obj in self._held:
-            own = np.flatnonzero(model.geom_bodyid == obj)
-            rot = np.zeros((len(own), 9))
-            for k, g in enumerate(own):
-                mujoco.mju_quat2Mat(rot[k], model.geom_quat[g])
-            self._held_geoms[obj] = (own, rot.reshape(-1, 3, 3))
+            self._owner[obj] = hand
         self.pairs = CollisionPairs.between(model, geoms) if geoms is not None else None
-        self._jacp = np.zeros((3, model.nv))
-        self._jacr = np.zeros((3, model.nv))
+        # Views kept once: MjData attribute access builds a new array each time.
+        d = self.data
+        self._qpos, self._qvel, self._xpos, self._xquat = d.qpos, d.qvel, d.xpos, d.xquat
+        self._offset = np.zeros(3)
+        self._jacp = np.zeros((2, 3, model.nv))
+        self._jacr = np.zeros((2, 3, model.nv))
 
     @property
     def n(self) -> int:
@@ -98,7 +96,7 @@ class Kinematics:
         return len(self.joints)
 
     def _held_objects(self) -> dict[int, tuple[int, np.ndarray, np.ndarray]]:
-        """``{object body: (hand body, relative position (3,), relative rotation (3, 3))}``."""
+        """``{object body: (hand body, relative position (3,), relative quaternion (4,))}``."""
         m = self.model
         held = {}
         for e in range(m.neq):
@@ -108,31 +106,24 @@ class Kinematics:
             jnt = m.body_jntadr[obj]
             if jnt < 0 or m.jnt_type[jnt] != mujoco.mjtJoint.mjJNT_FREE:
                 continue
-            rot = np.zeros(9)
-            mujoco.mju_quat2Mat(rot, m.eq_data[e, 6:10])
-            held[obj] = (hand, m.eq_data[e, 3:6].copy(), rot.reshape(3, 3))
+            held[obj] = (hand, m.eq_data[e, 3:6].copy(), m.eq_data[e, 6:10].copy())
         return held
 
-    def update(self, q: np.ndarray, geoms: bool = True) -> None:
-        """Sets the joint angles ``q`` ``(n,)`` [rad] and updates all poses (no physics).
-
-        ``geoms=False`` skips the held objects' geom poses (enough for Jacobians and body
-        poses, not for distances).
-        """
-        m, d = self.model, self.data
-        d.qpos[self.qpos_adr] = q
+    def update(self, q: np.ndarray) -> None:
+        """Sets the joint angles ``q`` ``(n,)`` [rad] and updates all body and geom poses (no
+        physics)."""
+        m, d, qpos = self.model, self.data, self._qpos
+        qpos[self.qpos_adr] = q
         mujoco.mj_kinematics(m, d)
+        if self._held:
+            for obj, (hand, rel_pos, rel_quat) in self._held.items():
+                adr = m.jnt_qposadr[m.body_jntadr[obj]]
+                hand_quat = self._xquat[hand]
+                mujoco.mju_rotVecQuat(self._offset, rel_pos, hand_quat)
+                qpos[adr : adr + 3] = self._xpos[hand] + self._offset
+                mujoco.mju_mulQuat(qpos[adr + 3 : adr + 7], hand_quat, rel_quat)
+            mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
-        for obj, (hand, rel_pos, rel_rot) in self._held.items():
-            R_hand = d.xmat[hand].reshape(3, 3)
-            R = R_hand @ rel_rot
-            d.xpos[obj] = d.xpos[hand] + R_hand @ rel_pos
-            d.xmat[obj] = R.ravel()
-            if not geoms:
-                continue
-            held, local = self._held_geoms[obj]
-            d.geom_xpos[held] = d.xpos[obj] + m.geom_pos[held] @ R.T
-            d.geom_xmat[held] = (R @ local).reshape(-1, 9)
 
     def body_pose(self, body: str) -> tuple[np.ndarray, np.ndarray]:
         """World pose of ``body`` at the last :meth:`update`: ``(pos (3,) [m], R (3, 3))``."""
@@ -151,19 +142,47 @@ class Kinematics:
         Returns:
             ``(jac_pos (3, n) [m/rad], jac_rot (3, n) [1])``.
         """
-        mujoco.mj_jac(self.model, self.data, self._jacp, self._jacr, point, int(body))
-        return self._jacp[:, self.dof_adr].copy(), self._jacr[:, self.dof_adr].copy()
+        jacp, jacr = self._jacp[0], self._jacr[0]
+        mujoco.mj_jac(self.model, self.data, jacp, jacr, point, int(self._owner[body]))
+        return jacp[:, self.dof_adr].copy(), jacr[:, self.dof_adr].copy()
+
+    def frame_jacobians(self, bodies: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        """Jacobians of the origins of two ``bodies`` (ids, held objects included).
+
+        Returns:
+            ``(jac_pos (2, 3, n) [m/rad], jac_rot (2, 3, n) [1])``.
+        """
+        m, d = self.model, self.data
+        for k, b in enumerate(bodies):
+            mujoco.mj_jac(m, d, self._jacp[k], self._jacr[k], self._xpos[b], self._owner[b])
+        return self._jacp[:, :, self.dof_adr], self._jacr[:, :, self.dof_adr]
+
+    def frame_jacobian_rates(
+        self, bodies: tuple[int, int], qdot: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Derivatives of :meth:`frame_jacobians` along the joint velocity ``qdot`` ``(n,)``
+        [rad/s] (``mj_comVel``, ``mj_jacDot``), the frames moving with their bodies.
+
+        Returns:
+            ``(d jac_pos / dt (2, 3, n) [m/s], d jac_rot / dt (2, 3, n) [1/s])``.
+        """
+        m, d = self.model, self.data
+        self._qvel[self.dof_adr] = qdot
+        mujoco.mj_comVel(m, d)
+        for k, b in enumerate(bodies):
+            mujoco.mj_jacDot(m, d, self._jacp[k], self._jacr[k], self._xpos[b], self._owner[b])
+        return self._jacp[:, :, self.dof_adr], self._jacr[:, :, self.dof_adr]
 
     def object_kinematics(self, body: str) -> ObjectKinematics:
         """Position (body frame origin), unit long axis (body ``z``) and Jacobians of ``body``."""
         b = self.model.body(body).id
         pos = self.data.xpos[b].copy()
-        jac_pos, jac_rot = self.point_jacobian(self.owner(b), pos)
+        jac_pos, jac_rot = self.point_jacobian(b, pos)
         return ObjectKinematics(pos, self.data.xmat[b].reshape(3, 3)[:, 2].copy(), jac_pos, jac_rot)
 
     def owner(self, body: int) -> int:
         """The body whose motion moves ``body`` (id): its hand for a held object, else itself."""
-        return self._held[body][0] if body in self._held else body
+        return int(self._owner[body])
 
     def distances(self, distmax: float, *, jacobian: bool = False) -> Distances:
         """Signed distances of the pairs closer than ``distmax`` [m] at the last :meth:`update`.
@@ -202,8 +221,8 @@ class Kinematics:
         if norm < 1e-12:
             return np.zeros(self.n)
         normal = np.sign(dist) * gap / norm if dist != 0 else gap / norm
-        j1, _ = self.point_jacobian(self._geom_owner[g1], p1)
-        j2, _ = self.point_jacobian(self._geom_owner[g2], p2)
+        j1, _ = self.point_jacobian(self.model.geom_bodyid[g1], p1)
+        j2, _ = self.point_jacobian(self.model.geom_bodyid[g2], p2)
         return normal @ (j2 - j1)
 
     def min_distance(self, distmax: float = 0.2) -> tuple[float, tuple[str, str] | None]:

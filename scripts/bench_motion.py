@@ -61,7 +61,7 @@ def main() -> None:
             gq += weight * tq
             gx += weight * tx
         t3 = time.perf_counter()
-        problem.dynamics.gradient(backward(result, task, target, config.control, gq, gx))
+        problem.dynamics.gradient(backward(result, task, config.control, gq, gx))
         t4 = time.perf_counter()
         for name, dt in zip(timings, (t1 - t0, t2 - t1 - (t1 - t0), t3 - t2, t4 - t3), strict=True):
             timings[name].append(dt)

@@ -76,7 +76,13 @@ class JointLimitCost:
 
 
 class TaskMap:
-    """Eq. 1 on the robot: ``x = (p_b - p_g, phi_b, phi_g)`` and ``J = dx/dq`` ``(7, n)``.
+    r"""Eq. 1 on the robot: ``x = (p_b - p_g, phi_b, phi_g)`` and ``J = dx/dq`` ``(7, n)``.
+
+    An object's angle and gaze-forward component depend on its long axis ``a`` only:
+    ``da = -[a]_x omega`` and ``d(angle, forward) = C R_gaze^T da`` with
+    ``C = [[-p_u, p_r, 0] / rho^2, [0, 0, 1]]`` (``p = R_gaze^T a``, ``rho^2 = p_r^2 + p_u^2``),
+    so their Jacobian rows are ``N J_rot`` with ``N = -C R_gaze^T [a]_x`` ``(2, 3)``, and their
+    derivatives along ``b`` are ``N' J_rot + N J_rot'`` (:meth:`rates`).
 
     Args:
         kin: The kinematics (its held objects give the bottle and glass poses).
@@ -102,41 +108,75 @@ class TaskMap:
         if unknown:
             raise ImitateError(f"fixed_joints {unknown} unknown; accepted: {list(kin.joints)}")
         self.driven = np.array([j not in fixed_joints for j in kin.joints])
+        self._bodies = (self.bottle, self.glass)
+        self._gaze_t = np.ascontiguousarray(self.gaze.T)
+        self._mask = self.driven.astype(float)
 
     def __call__(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(x (7,), J (7, n))`` at the kinematics' last update; angles on the branch nearest to
         ``angle_ref`` ``(2,)`` [rad]."""
-        r, u, f = self.gaze.T
-        x = np.empty(7)
-        J = np.empty((7, self.kin.n))
-        pos_b, jp_b, jr_b, ax_b = self._object(self.bottle)
-        pos_g, jp_g, jr_g, ax_g = self._object(self.glass)
-        x[:3] = pos_b - pos_g
-        J[:3] = jp_b - jp_g
-        for n, (a, jr, col) in enumerate(((ax_b, jr_b, 3), (ax_g, jr_g, 5))):
-            pr, pu, pf = (float(v) for v in self.gaze.T @ a)
-            rho2 = pr * pr + pu * pu
+        xpos = self.kin.data.xpos
+        axis, proj, coef, _ = self._axes()
+        jac_pos, jac_rot = self.kin.frame_jacobians(self._bodies)
+        x = (xpos[self.bottle] - xpos[self.glass]).tolist()
+        for (pr, pu, pf), ref in zip(proj, angle_ref.tolist(), strict=True):
             angle = math.atan2(pu, pr)
-            angle += 2.0 * math.pi * round((float(angle_ref[n]) - angle) / (2.0 * math.pi))
-            g = (pr * u - pu * r) / rho2 if rho2 > 1e-12 else np.zeros(3)
-            x[col], x[col + 1] = angle, pf
-            J[col] = _cross(a, g) @ jr
-            J[col + 1] = _cross(a, f) @ jr
-        J[:, ~self.driven] = 0.0
-        return x, J
+            x += (angle + 2.0 * math.pi * round((ref - angle) / (2.0 * math.pi)), pf)
+        J = np.empty((7, self.kin.n))
+        J[:3] = jac_pos[0] - jac_pos[1]
+        J[3:] = (coef @ self._gaze_t @ _spin(axis) @ jac_rot).reshape(4, -1)
+        J *= self._mask
+        return np.array(x), J
 
-    def _object(self, body: int):
-        d = self.kin.data
-        pos = d.xpos[body].copy()
-        jp, jr = self.kin.point_jacobian(self.kin.owner(body), pos)
-        return pos, jp, jr, d.xmat[body].reshape(3, 3)[:, 2].copy()
+    def rates(self, qdot: np.ndarray) -> np.ndarray:
+        """``D_b J`` ``(k, 7, n)``: derivatives of ``J`` at the kinematics' last update along
+        each joint direction ``b`` in ``qdot`` ``(k, n)`` [rad]."""
+        axis, proj, coef, inv = self._axes()
+        _, jac_rot = self.kin.frame_jacobians(self._bodies)
+        coef_gaze = coef @ self._gaze_t  # (2, 2, 3)
+        rows = coef_gaze @ _spin(axis)
+        out = np.empty((len(qdot), 7, self.kin.n))
+        for k, b in enumerate(qdot):
+            dpos, drot = self.kin.frame_jacobian_rates(self._bodies, b)
+            axis_dot = [_cross(w, a) for w, a in zip((jac_rot @ b).tolist(), axis, strict=True)]
+            coef_dot = []
+            for (pr, pu, _), (dr, du, _), s in zip(
+                proj, (np.array(axis_dot) @ self.gaze).tolist(), inv, strict=True
+            ):
+                ds = -2.0 * (pr * dr + pu * du) * s * s
+                coef_dot.append(((-du * s - pu * ds, dr * s + pr * ds, 0.0), (0.0, 0.0, 0.0)))
+            rows_dot = np.array(coef_dot) @ self._gaze_t @ _spin(axis) + coef_gaze @ _spin(axis_dot)
+            out[k, :3] = dpos[0] - dpos[1]
+            out[k, 3:] = (rows_dot @ jac_rot + rows @ drot).reshape(4, -1)
+        out *= self._mask
+        return out
+
+    def _axes(self):
+        """Long axes and their gaze coordinates ``p`` (right, up, forward), both two 3-tuples,
+        ``C`` ``(2, 2, 3)`` and ``1 / rho^2`` (two floats; 0 where the axis is along the gaze,
+        where the angle is undefined and its gradient is taken as 0)."""
+        xmat = self.kin.data.xmat
+        axis = [xmat[self.bottle, 2::3].tolist(), xmat[self.glass, 2::3].tolist()]
+        proj = (np.array(axis) @ self.gaze).tolist()
+        inv, coef = [], []
+        for pr, pu, _ in proj:
+            rho2 = pr * pr + pu * pu
+            s = 1.0 / rho2 if rho2 > 1e-12 else 0.0
+            inv.append(s)
+            coef.append(((-pu * s, pr * s, 0.0), (0.0, 0.0, 1.0)))
+        return axis, proj, np.array(coef), inv
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a x b`` for 3-vectors (``np.cross`` is slow on single vectors)."""
+def _spin(axes) -> np.ndarray:
+    """``-[a]_x`` ``(k, 3, 3)`` for each 3-vector ``a`` in ``axes``: ``omega -> omega x a``."""
+    return np.array([((0.0, a2, -a1), (-a2, 0.0, a0), (a1, -a0, 0.0)) for a0, a1, a2 in axes])
+
+
+def _cross(a, b) -> tuple[float, float, float]:
+    """``a x b`` for 3-vectors as float sequences (``np.cross`` is slow on single vectors)."""
     a0, a1, a2 = a
     b0, b1, b2 = b
-    return np.array((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0))
+    return (a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0)
 
 
 @dataclass(frozen=True)
@@ -199,7 +239,7 @@ def rollout(
     eye = config.damping * np.eye(m)
     angle_ref = target[:, [3, 5]]
     for t in range(T + 1):
-        kin.update(q[t], geoms=distmax > 0)
+        kin.update(q[t])
         x[t], J = task(angle_ref[t])
         if distmax > 0:
             distances.append(kin.distances(distmax, jacobian=True))
@@ -221,7 +261,6 @@ def rollout(
 def backward(
     result: Rollout,
     task: TaskMap,
-    target: np.ndarray,
     config: ControlConfig,
     gq: np.ndarray,
     gx: np.ndarray,
@@ -238,12 +277,11 @@ def backward(
     where ``u = M^-1 e``, ``p = (lambda J^#)^T``, ``l = W^-1 lambda^T``, ``y = J^# e``,
     ``z = W^-1 J^T p``, ``M = J W^-1 J^T + lambda I``, ``e = x_{t+1} - phi(q_t)``: the last two
     terms are ``lambda (dJ^#/dq) e``, using the symmetry of second derivatives,
-    ``a^T (dJ/dq_i) b = [a^T D_b J]_i``, with ``D_b J`` the derivative of ``J`` along ``b``, taken
-    by a forward difference. Neglected: the derivative of the null-space projector times the
-    joint-limit step (``alpha`` times a gradient that is zero inside the free zone).
+    ``a^T (dJ/dq_i) b = [a^T D_b J]_i``, with ``D_b J`` the derivative of ``J`` along ``b``
+    (:meth:`TaskMap.rates`, exact). Neglected: the derivative of the null-space projector times
+    the joint-limit step (``alpha`` times a gradient that is zero inside the free zone).
 
     Args:
-        target: ``(T + 1, m)`` the tracked trajectory (for the angle branches).
         gq: ``(T + 1, n)`` explicit gradients of the cost w.r.t. ``q_t``.
         gx: ``(T + 1, m)`` explicit gradients w.r.t. the target ``x_t``.
 
@@ -254,7 +292,6 @@ def backward(
     kin = task.kin
     winv = _metric(kin, task)
     alpha = config.nullspace_gain
-    angle_ref = target[:, [3, 5]]
     dx = gx.copy()
     lam = gq[T].copy()
     for t in range(T - 1, -1, -1):
@@ -262,21 +299,11 @@ def backward(
         p = lam @ Jp
         dx[t + 1] += p
         ln = lam - p @ J
-        y = winv * (J.T @ u)
-        curvature = _along(task, result.q[t], J, winv * lam - winv * (J.T @ p), angle_ref[t])
-        curvature = u @ curvature - p @ _along(task, result.q[t], J, y, angle_ref[t])
+        kin.update(result.q[t])
+        along = task.rates(np.stack((winv * lam - winv * (J.T @ p), winv * (J.T @ u))))
+        curvature = u @ along[0] - p @ along[1]
         lam = gq[t] + ln - alpha * (ln * winv) * result.limit_hessian[t] + curvature
     return dx
-
-
-def _along(task: TaskMap, q: np.ndarray, J: np.ndarray, b: np.ndarray, angle_ref) -> np.ndarray:
-    """``D_b J`` ``(m, n)``: derivative of the task Jacobian at ``q`` along ``b`` ``(n,)``."""
-    norm = float(np.linalg.norm(b))
-    if norm == 0.0:
-        return np.zeros_like(J)
-    h = 1e-6 / norm
-    task.kin.update(q + h * b, geoms=False)
-    return (task(angle_ref)[1] - J) / h
 
 
 def reach(
@@ -292,7 +319,7 @@ def reach(
     steps from ``q0`` that each close ``rate`` of the remaining task error."""
     kin = task.kin
     target = np.empty((steps + 1, len(goal)))
-    kin.update(q0, geoms=False)
+    kin.update(q0)
     x0, _ = task(goal[[3, 5]])
     remaining = (1.0 - rate) ** np.arange(steps + 1)
     target[:] = goal + remaining[:, None] * (x0 - goal)

@@ -210,7 +210,7 @@ class Problem:
         total = float(sum(values.values()))
         if not gradient:
             return total, values, None
-        dx = backward(result, self.task, target, self.config.control, gq, gx)
+        dx = backward(result, self.task, self.config.control, gq, gx)
         return total, values, self.dynamics.gradient(dx)
 
 
