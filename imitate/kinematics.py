@@ -87,8 +87,8 @@ class Kinematics:
         d = self.data
         self._qpos, self._qvel, self._xpos, self._xquat = d.qpos, d.qvel, d.xpos, d.xquat
         self._offset = np.zeros(3)
-        self._jacp = np.zeros((2, 3, model.nv))
-        self._jacr = np.zeros((2, 3, model.nv))
+        self._jacp = np.zeros((4, 3, model.nv))
+        self._jacr = np.zeros((3, model.nv))
 
     @property
     def n(self) -> int:
@@ -142,36 +142,30 @@ class Kinematics:
         Returns:
             ``(jac_pos (3, n) [m/rad], jac_rot (3, n) [1])``.
         """
-        jacp, jacr = self._jacp[0], self._jacr[0]
+        jacp, jacr = self._jacp[0], self._jacr
         mujoco.mj_jac(self.model, self.data, jacp, jacr, point, int(self._owner[body]))
         return jacp[:, self.dof_adr].copy(), jacr[:, self.dof_adr].copy()
 
-    def frame_jacobians(self, bodies: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-        """Jacobians of the origins of two ``bodies`` (ids, held objects included).
+    def point_jacobians(self, bodies: Sequence[int], points: np.ndarray) -> np.ndarray:
+        """Translational Jacobians ``(k, 3, n)`` [m/rad] of ``k <= 4`` points ``(k, 3)`` [m]
+        fixed to ``bodies`` (ids; held objects move with their hands)."""
+        m, d, jacp = self.model, self.data, self._jacp
+        for k, (b, p) in enumerate(zip(bodies, points, strict=True)):
+            mujoco.mj_jac(m, d, jacp[k], None, p, self._owner[b])
+        return jacp[: len(bodies), :, self.dof_adr]
 
-        Returns:
-            ``(jac_pos (2, 3, n) [m/rad], jac_rot (2, 3, n) [1])``.
-        """
-        m, d = self.model, self.data
-        for k, b in enumerate(bodies):
-            mujoco.mj_jac(m, d, self._jacp[k], self._jacr[k], self._xpos[b], self._owner[b])
-        return self._jacp[:, :, self.dof_adr], self._jacr[:, :, self.dof_adr]
-
-    def frame_jacobian_rates(
-        self, bodies: tuple[int, int], qdot: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Derivatives of :meth:`frame_jacobians` along the joint velocity ``qdot`` ``(n,)``
-        [rad/s] (``mj_comVel``, ``mj_jacDot``), the frames moving with their bodies.
-
-        Returns:
-            ``(d jac_pos / dt (2, 3, n) [m/s], d jac_rot / dt (2, 3, n) [1/s])``.
-        """
-        m, d = self.model, self.data
+    def point_jacobian_rates(
+        self, bodies: Sequence[int], points: np.ndarray, qdot: np.ndarray
+    ) -> np.ndarray:
+        """Derivatives ``(k, 3, n)`` [m/rad^2] of :meth:`point_jacobians` along the joint
+        velocity ``qdot`` ``(n,)`` [rad/s] (``mj_comVel``, ``mj_jacDot``), the points moving
+        with their bodies."""
+        m, d, jacp = self.model, self.data, self._jacp
         self._qvel[self.dof_adr] = qdot
         mujoco.mj_comVel(m, d)
-        for k, b in enumerate(bodies):
-            mujoco.mj_jacDot(m, d, self._jacp[k], self._jacr[k], self._xpos[b], self._owner[b])
-        return self._jacp[:, :, self.dof_adr], self._jacr[:, :, self.dof_adr]
+        for k, (b, p) in enumerate(zip(bodies, points, strict=True)):
+            mujoco.mj_jacDot(m, d, jacp[k], None, p, self._owner[b])
+        return jacp[: len(bodies), :, self.dof_adr]
 
     def object_kinematics(self, body: str) -> ObjectKinematics:
         """Position (body frame origin), unit long axis (body ``z``) and Jacobians of ``body``."""

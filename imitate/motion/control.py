@@ -79,10 +79,11 @@ class TaskMap:
     r"""Eq. 1 on the robot: ``x = (p_b - p_g, phi_b, phi_g)`` and ``J = dx/dq`` ``(7, n)``.
 
     An object's angle and gaze-forward component depend on its long axis ``a`` only:
-    ``da = -[a]_x omega`` and ``d(angle, forward) = C R_gaze^T da`` with
-    ``C = [[-p_u, p_r, 0] / rho^2, [0, 0, 1]]`` (``p = R_gaze^T a``, ``rho^2 = p_r^2 + p_u^2``),
-    so their Jacobian rows are ``N J_rot`` with ``N = -C R_gaze^T [a]_x`` ``(2, 3)``, and their
-    derivatives along ``b`` are ``N' J_rot + N J_rot'`` (:meth:`rates`).
+    ``d(angle, forward) = C R_gaze^T da`` with ``C = [[-p_u, p_r, 0] / rho^2, [0, 0, 1]]``
+    (``p = R_gaze^T a``, ``rho^2 = p_r^2 + p_u^2``). ``A = da/dq`` ``(3, n)`` is the Jacobian of
+    the point ``o + a`` minus that of the origin ``o``, so every row of ``J`` and of its
+    derivative along ``b`` (:meth:`rates`: ``C' R_gaze^T A + C R_gaze^T A'``) comes from
+    ``mj_jac`` and ``mj_jacDot`` of the four points ``o_b, o_g, o_b + a_b, o_g + a_g``.
 
     Args:
         kin: The kinematics (its held objects give the bottle and glass poses).
@@ -108,75 +109,67 @@ class TaskMap:
         if unknown:
             raise ImitateError(f"fixed_joints {unknown} unknown; accepted: {list(kin.joints)}")
         self.driven = np.array([j not in fixed_joints for j in kin.joints])
-        self._bodies = (self.bottle, self.glass)
+        self._bodies = [self.bottle, self.glass]
+        self._points_of = (self.bottle, self.glass, self.bottle, self.glass)
         self._gaze_t = np.ascontiguousarray(self.gaze.T)
         self._mask = self.driven.astype(float)
 
     def __call__(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(x (7,), J (7, n))`` at the kinematics' last update; angles on the branch nearest to
         ``angle_ref`` ``(2,)`` [rad]."""
-        xpos = self.kin.data.xpos
-        axis, proj, coef, _ = self._axes()
-        jac_pos, jac_rot = self.kin.frame_jacobians(self._bodies)
-        x = (xpos[self.bottle] - xpos[self.glass]).tolist()
+        points, proj, coef, _ = self._axes()
+        jac = self.kin.point_jacobians(self._points_of, points)
+        x = (points[0] - points[1]).tolist()
         for (pr, pu, pf), ref in zip(proj, angle_ref.tolist(), strict=True):
             angle = math.atan2(pu, pr)
             x += (angle + 2.0 * math.pi * round((ref - angle) / (2.0 * math.pi)), pf)
         J = np.empty((7, self.kin.n))
-        J[:3] = jac_pos[0] - jac_pos[1]
-        J[3:] = (coef @ self._gaze_t @ _spin(axis) @ jac_rot).reshape(4, -1)
+        J[:3] = jac[0] - jac[1]
+        J[3:] = (coef @ self._gaze_t @ (jac[2:] - jac[:2])).reshape(4, -1)
         J *= self._mask
         return np.array(x), J
 
     def rates(self, qdot: np.ndarray) -> np.ndarray:
         """``D_b J`` ``(k, 7, n)``: derivatives of ``J`` at the kinematics' last update along
         each joint direction ``b`` in ``qdot`` ``(k, n)`` [rad]."""
-        axis, proj, coef, inv = self._axes()
-        _, jac_rot = self.kin.frame_jacobians(self._bodies)
-        coef_gaze = coef @ self._gaze_t  # (2, 2, 3)
-        rows = coef_gaze @ _spin(axis)
+        points, proj, coef, inv = self._axes()
+        jac = self.kin.point_jacobians(self._points_of, points)
+        axis_jac = jac[2:] - jac[:2]  # (2, 3, n)
+        coef_gaze = coef @ self._gaze_t
         out = np.empty((len(qdot), 7, self.kin.n))
         for k, b in enumerate(qdot):
-            dpos, drot = self.kin.frame_jacobian_rates(self._bodies, b)
-            axis_dot = [_cross(w, a) for w, a in zip((jac_rot @ b).tolist(), axis, strict=True)]
+            rate = self.kin.point_jacobian_rates(self._points_of, points, b)
             coef_dot = []
             for (pr, pu, _), (dr, du, _), s in zip(
-                proj, (np.array(axis_dot) @ self.gaze).tolist(), inv, strict=True
+                proj, (axis_jac @ b @ self.gaze).tolist(), inv, strict=True
             ):
                 ds = -2.0 * (pr * dr + pu * du) * s * s
-                coef_dot.append(((-du * s - pu * ds, dr * s + pr * ds, 0.0), (0.0, 0.0, 0.0)))
-            rows_dot = np.array(coef_dot) @ self._gaze_t @ _spin(axis) + coef_gaze @ _spin(axis_dot)
-            out[k, :3] = dpos[0] - dpos[1]
-            out[k, 3:] = (rows_dot @ jac_rot + rows @ drot).reshape(4, -1)
+                coef_dot.append(((-du * s - pu * ds, dr * s + pr * ds, 0.0), (0.0,) * 3))
+            out[k, :3] = rate[0] - rate[1]
+            out[k, 3:] = (
+                np.array(coef_dot) @ self._gaze_t @ axis_jac + coef_gaze @ (rate[2:] - rate[:2])
+            ).reshape(4, -1)
         out *= self._mask
         return out
 
     def _axes(self):
-        """Long axes and their gaze coordinates ``p`` (right, up, forward), both two 3-tuples,
-        ``C`` ``(2, 2, 3)`` and ``1 / rho^2`` (two floats; 0 where the axis is along the gaze,
-        where the angle is undefined and its gradient is taken as 0)."""
-        xmat = self.kin.data.xmat
-        axis = [xmat[self.bottle, 2::3].tolist(), xmat[self.glass, 2::3].tolist()]
-        proj = (np.array(axis) @ self.gaze).tolist()
+        """Points ``(4, 3)`` (bottle and glass origins, then those plus their long axes), the
+        axes' gaze coordinates ``p`` (right, up, forward; two 3-lists), ``C`` ``(2, 2, 3)`` and
+        ``1 / rho^2`` (two floats; 0 where the axis is along the gaze, where the angle is
+        undefined and its gradient is taken as 0)."""
+        d = self.kin.data
+        points = np.empty((4, 3))
+        points[:2] = d.xpos[self._bodies]
+        axis = d.xmat[self._bodies, 2::3]
+        points[2:] = points[:2] + axis
+        proj = (axis @ self.gaze).tolist()
         inv, coef = [], []
         for pr, pu, _ in proj:
             rho2 = pr * pr + pu * pu
             s = 1.0 / rho2 if rho2 > 1e-12 else 0.0
             inv.append(s)
             coef.append(((-pu * s, pr * s, 0.0), (0.0, 0.0, 1.0)))
-        return axis, proj, np.array(coef), inv
-
-
-def _spin(axes) -> np.ndarray:
-    """``-[a]_x`` ``(k, 3, 3)`` for each 3-vector ``a`` in ``axes``: ``omega -> omega x a``."""
-    return np.array([((0.0, a2, -a1), (-a2, 0.0, a0), (a1, -a0, 0.0)) for a0, a1, a2 in axes])
-
-
-def _cross(a, b) -> tuple[float, float, float]:
-    """``a x b`` for 3-vectors as float sequences (``np.cross`` is slow on single vectors)."""
-    a0, a1, a2 = a
-    b0, b1, b2 = b
-    return (a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0)
+        return points, proj, np.array(coef), inv
 
 
 @dataclass(frozen=True)
