@@ -38,6 +38,10 @@ on the two ends alone; a tenth of a pixel of disparity is 2 mm of depth at 1.1 m
 tracked point is then a few mm to 3 cm off in depth (largest where the teacher's forearm borders
 an end in one view), against 2-3 mm when it is upright.
 
+Speed: the loops over the outline in steps 3-4 are compiled (numba; compiled on a process's
+first call or loaded from numba's on-disk cache), where NumPy's per-call overhead on these small
+arrays had been most of the time; the rest is OpenCV.
+
 Frames in which an object is not found are gaps; :func:`fill_gaps` interpolates short ones and
 reports long ones.
 """
@@ -49,6 +53,7 @@ from typing import NamedTuple
 
 import cv2
 import mujoco
+import numba
 import numpy as np
 
 from imitate.artifacts import load_npz, save_npz
@@ -399,6 +404,12 @@ class StereoTracker:
         self.config = config
         self._boxes: dict[tuple[str, int], tuple[int, int, int, int]] = {}
         self._directions: dict[tuple[str, int], np.ndarray] = {}
+        self._profiles = {  # name: (heights (m,), radii (m,)) [m], for the compiled axis fit
+            obj.name: tuple(
+                np.ascontiguousarray(np.asarray(obj.profile, float)[:, i]) for i in (1, 0)
+            )
+            for obj in config.objects
+        }
 
     def update(self, left: np.ndarray, right: np.ndarray) -> dict[str, Measurement | None]:
         """Measure every object in one stereo pair of RGB ``(height, width, 3)`` uint8 images.
@@ -542,24 +553,35 @@ class StereoTracker:
             direction = -direction
         contours, _ = cv2.findContours(found.mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
         outline = np.concatenate(contours)[:, 0, :] + offset  # (n, 2) (col, row)
-        occluded = None
+        occluded = _NO_OCCLUDER
         if cfg.occluder is not None:
             occluded = cv2.dilate(cfg.occluder.mask(found.hsv), np.ones((3, 3), np.uint8)) > 0
+        heights, radii = self._profiles[obj.name]
         origin, free = centroid, 0
         px_per_m = self.cameras[view].intrinsics[0, 0] / depth
         for _ in range(2):  # the second pass splits the sides along the refined axis
-            fit = _fit_axis_line(outline, origin, direction, obj, px_per_m, occluded, offset, cfg)
-            if fit is None:
+            fit = _fit_axis_line(
+                outline,
+                origin,
+                direction,
+                heights,
+                radii,
+                px_per_m,
+                occluded,
+                offset,
+                cfg.end_zone,
+                cfg.min_edges,
+            )
+            if fit[2] == 0:
                 break
             origin, direction, free = fit
-        along = (outline - origin) @ direction
         self._directions[key] = direction
         return ViewMeasurement(
             area=found.area,
             centroid=centroid,
             origin=origin,
             direction=direction,
-            extent=_extremes(along),
+            extent=_extremes(outline, origin, direction),
             box=found.box,
             free_edges=free,
         )
@@ -573,15 +595,32 @@ def _moments(found: _Silhouette) -> tuple[np.ndarray, np.ndarray]:
     return centroid, np.array([np.cos(theta), np.sin(theta)])
 
 
-def _extremes(along: np.ndarray) -> np.ndarray:
-    """Sub-pixel extremes ``(2,)`` of outline coordinates ``along`` an axis [px].
+@numba.njit(cache=True)
+def _extremes(outline: np.ndarray, origin: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """Sub-pixel extremes ``(2,)`` of the ``outline (n, 2)`` along the line ``origin (2,)``,
+    ``direction (2,)`` [px, from ``origin``].
 
     The mean over the outline pixels within one pixel of each extreme: an end edge spans
     several pixels, and their mean moves smoothly with the edge where the single extreme pixel
     jumps by whole pixels (one pixel of disparity is 2 cm of depth at 1.1 m).
     """
+    n = outline.shape[0]
+    along = np.empty(n)
+    for i in range(n):
+        along[i] = (outline[i, 0] - origin[0]) * direction[0] + (
+            outline[i, 1] - origin[1]
+        ) * direction[1]
     low, high = along.min(), along.max()
-    return np.array([along[along < low + 1.0].mean(), along[along > high - 1.0].mean()])
+    sum_low = sum_high = 0.0
+    n_low = n_high = 0
+    for a in along:
+        if a < low + 1.0:
+            sum_low += a
+            n_low += 1
+        if a > high - 1.0:
+            sum_high += a
+            n_high += 1
+    return np.array([sum_low / n_low, sum_high / n_high])
 
 
 def keep_threshold(areas: np.ndarray, config: PerceptionConfig) -> float:
@@ -589,67 +628,89 @@ def keep_threshold(areas: np.ndarray, config: PerceptionConfig) -> float:
     return max(config.keep_fraction * float(areas.max()), 1.0)
 
 
-def _fit_axis_line(outline, origin, direction, obj, px_per_m, occluded, offset, cfg):
+@numba.njit(cache=True)
+def _fit_axis_line(
+    outline, origin, direction, heights, radii, px_per_m, occluded, offset, end_zone, min_edges
+):
     """Least-squares axis line through the free side edges, one apparent radius inside them.
 
+    Compiled (numba): a loop over the outline, where NumPy's per-call overhead on these small
+    arrays was most of the tracker's time.
+
     Args:
-        outline: ``(n, 2)`` outer contour pixels ``(col, row)`` of the silhouette.
+        outline: ``(n, 2)`` float outer contour pixels ``(col, row)`` of the silhouette.
         origin: ``(2,)`` a point of the current axis estimate [px].
         direction: ``(2,)`` its unit direction, bottom to top.
-        obj: the object (its radius profile).
+        heights: ``(m,)`` the object's profile heights, increasing from 0 [m].
+        radii: ``(m,)`` its radius at those heights [m].
         px_per_m: image scale at the object's depth [px/m].
-        occluded: boolean occluder mask of the searched window, or ``None``.
+        occluded: ``(h, w)`` bool occluder mask of the searched window; ``(0, 0)`` for none
+            (every edge is then the object's own).
         offset: ``(2,)`` ``(col0, row0)`` of that window in the image.
-        cfg: tracker settings.
+        end_zone: fraction of the length at either end whose edges are not used.
+        min_edges: fewest free edges for a fit.
 
     Returns:
-        ``(origin (2,), direction (2,), number of edge pixels used)``, or ``None`` with fewer
-        than ``cfg.min_edges``.
+        ``(origin (2,), direction (2,), number of edge pixels used)``; the number is 0 (and the
+        line the given one) with fewer than ``min_edges`` edges or a degenerate fit.
     """
     perp = np.array([-direction[1], direction[0]])
-    rel = outline - origin
-    s_all, x_all = rel @ direction, rel @ perp
+    count = outline.shape[0]
+    s_all, x_all = np.empty(count), np.empty(count)
+    for i in range(count):
+        rx, ry = outline[i, 0] - origin[0], outline[i, 1] - origin[1]
+        s_all[i] = rx * direction[0] + ry * direction[1]
+        x_all[i] = rx * perp[0] + ry * perp[1]
     low, high = s_all.min(), s_all.max()
     # Slices one pixel thick across the axis; each has two edges, its extremes across it.
-    slot = (s_all - low).astype(int)
-    n = int(slot.max()) + 1
+    n = int(high - low) + 1
     lo, hi = np.full(n, np.inf), np.full(n, -np.inf)
-    np.minimum.at(lo, slot, x_all)
-    np.maximum.at(hi, slot, x_all)
-    filled = np.isfinite(lo)
-    centre = (low + np.arange(n) + 0.5)[filled]
-    s = np.concatenate([centre, centre])
-    x = np.concatenate([lo[filled], hi[filled]])
-    side = np.repeat([-1.0, 1.0], len(centre))
-    height = (s - low) / max(high - low, 1e-9) * obj.height
-    rho = obj.radius(height) * px_per_m
-    free = (height > cfg.end_zone * obj.height) & (height < (1 - cfg.end_zone) * obj.height)
-    free &= side * x > 0  # a slice narrower than the axis estimate has no usable edge there
-    if occluded is not None:
-        # An edge whose outside neighbour is an occluder is where something covers the object,
-        # not the object's own side.
-        edge = origin + np.outer(s, direction) + np.outer(x + 1.5 * side, perp)
-        probe = np.round(edge - offset).astype(int)
-        inside = (probe[:, 0] >= 0) & (probe[:, 0] < occluded.shape[1])
-        inside &= (probe[:, 1] >= 0) & (probe[:, 1] < occluded.shape[0])
-        hit = np.zeros(len(s), dtype=bool)
-        hit[inside] = occluded[probe[inside, 1], probe[inside, 0]]
-        free &= ~hit
-    if free.sum() < cfg.min_edges:
-        return None
-    axis_x = x[free] - side[free] * rho[free]
-    # Least squares x = x0 + slope * s, by its normal equations.
-    at = s[free]
-    n, sum_s, sum_x = len(at), at.sum(), axis_x.sum()
-    det = n * (at @ at) - sum_s**2
+    for i in range(count):
+        k = int(s_all[i] - low)
+        lo[k] = min(lo[k], x_all[i])
+        hi[k] = max(hi[k], x_all[i])
+    obj_height = heights[-1]
+    span = max(high - low, 1e-9)
+    # Sums of the normal equations of x = x0 + slope * s over the free edges.
+    used, sum_s, sum_x, sum_ss, sum_sx = 0, 0.0, 0.0, 0.0, 0.0
+    for side in (-1.0, 1.0):
+        for k in range(n):
+            if not np.isfinite(lo[k]):
+                continue
+            s = low + k + 0.5
+            x = lo[k] if side < 0 else hi[k]
+            height = (s - low) / span * obj_height
+            if not (end_zone * obj_height < height < (1 - end_zone) * obj_height):
+                continue
+            if not side * x > 0:  # a slice narrower than the axis estimate has no usable edge
+                continue
+            if occluded.shape[0] > 0:
+                # An edge whose outside neighbour is an occluder is where something covers the
+                # object, not the object's own side.
+                out = x + 1.5 * side
+                col = int(np.rint(origin[0] + s * direction[0] + out * perp[0] - offset[0]))
+                row = int(np.rint(origin[1] + s * direction[1] + out * perp[1] - offset[1]))
+                if 0 <= col < occluded.shape[1] and 0 <= row < occluded.shape[0]:
+                    if occluded[row, col]:
+                        continue
+            axis_x = x - side * np.interp(height, heights, radii) * px_per_m
+            used += 1
+            sum_s += s
+            sum_x += axis_x
+            sum_ss += s * s
+            sum_sx += s * axis_x
+    if used < min_edges:
+        return origin, direction, 0
+    det = used * sum_ss - sum_s**2
     if not det > 0:
-        return None
-    slope = (n * (at @ axis_x) - sum_s * sum_x) / det
-    x0 = (sum_x - slope * sum_s) / n
+        return origin, direction, 0
+    slope = (used * sum_sx - sum_s * sum_x) / det
+    x0 = (sum_x - slope * sum_s) / used
     new_direction = (direction + slope * perp) / np.hypot(1.0, slope)
-    return origin + x0 * perp, new_direction, int(free.sum())
+    return origin + x0 * perp, new_direction, used
 
 
+_NO_OCCLUDER = np.zeros((0, 0), dtype=bool)  # occluded mask when no occluder is set
 _RIM_POINTS = 24
 _RIM_PHASES = np.linspace(0.0, 2 * np.pi, _RIM_POINTS, endpoint=False)
 _RIM_COS, _RIM_SIN = np.cos(_RIM_PHASES)[:, None], np.sin(_RIM_PHASES)[:, None]
