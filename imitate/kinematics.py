@@ -83,9 +83,15 @@ class Kinematics:
         for obj, (hand, _, _) in self._held.items():
             self._owner[obj] = hand
         self.pairs = CollisionPairs.between(model, geoms) if geoms is not None else None
+        if self.pairs is not None:
+            self._pair_geoms = (self.pairs.geom1.tolist(), self.pairs.geom2.tolist())
+            # Centre distance beyond which the bounding spheres are apart.
+            self._reach = model.geom_rbound[self.pairs.geom1] + model.geom_rbound[self.pairs.geom2]
+            self._fromto = np.zeros((len(self.pairs), 6))
         # Views kept once: MjData attribute access builds a new array each time.
         d = self.data
         self._qpos, self._qvel, self._xpos, self._xquat = d.qpos, d.qvel, d.xpos, d.xquat
+        self._geom_xpos = d.geom_xpos
         self._offset = np.zeros(3)
         self._jacp = np.zeros((4, 3, model.nv))
         self._jacr = np.zeros((3, model.nv))
@@ -109,13 +115,14 @@ class Kinematics:
             held[obj] = (hand, m.eq_data[e, 3:6].copy(), m.eq_data[e, 6:10].copy())
         return held
 
-    def update(self, q: np.ndarray) -> None:
+    def update(self, q: np.ndarray, held: bool = True) -> None:
         """Sets the joint angles ``q`` ``(n,)`` [rad] and updates all body and geom poses (no
-        physics)."""
+        physics); ``held=False`` leaves the held objects where they were (enough for Jacobians
+        of points given in the world frame)."""
         m, d, qpos = self.model, self.data, self._qpos
         qpos[self.qpos_adr] = q
         mujoco.mj_kinematics(m, d)
-        if self._held:
+        if held and self._held:
             for obj, (hand, rel_pos, rel_quat) in self._held.items():
                 adr = m.jnt_qposadr[m.body_jntadr[obj]]
                 hand_quat = self._xquat[hand]
@@ -192,20 +199,24 @@ class Kinematics:
         if self.pairs is None:
             raise ImitateError("distances need the Kinematics to be built with geoms")
         m, d = self.model, self.data
-        g1, g2 = self.pairs.geom1, self.pairs.geom2
-        centre = np.linalg.norm(d.geom_xpos[g1] - d.geom_xpos[g2], axis=1)
-        near = np.flatnonzero(centre - m.geom_rbound[g1] - m.geom_rbound[g2] < distmax)
-        dist = np.empty(len(near))
-        fromto = np.zeros((len(near), 6))
-        for k, p in enumerate(near):
-            dist[k] = mujoco.mj_geomDistance(m, d, int(g1[p]), int(g2[p]), distmax, fromto[k])
-        keep = dist < distmax
-        near, dist, fromto = near[keep], dist[keep], fromto[keep]
-        jac = np.zeros((len(near), self.n))
+        g1, g2 = self._pair_geoms
+        gap = self._geom_xpos[self.pairs.geom1] - self._geom_xpos[self.pairs.geom2]
+        reach = self._reach + distmax
+        near = np.flatnonzero(np.einsum("ij,ij->i", gap, gap) < reach * reach).tolist()
+        kept, dist = [], []
+        fromto = self._fromto
+        for p in near:
+            k = len(kept)
+            value = mujoco.mj_geomDistance(m, d, g1[p], g2[p], distmax, fromto[k])
+            if value < distmax:
+                kept.append(p)
+                dist.append(value)
+        fromto = fromto[: len(kept)].copy()
+        jac = np.zeros((len(kept), self.n))
         if jacobian:
-            for k, p in enumerate(near):
-                jac[k] = self._distance_gradient(int(g1[p]), int(g2[p]), dist[k], fromto[k])
-        return Distances(near, dist, fromto, jac)
+            for k, p in enumerate(kept):
+                jac[k] = self._distance_gradient(g1[p], g2[p], dist[k], fromto[k])
+        return Distances(np.array(kept, dtype=int), np.array(dist), fromto, jac)
 
     def _distance_gradient(self, g1: int, g2: int, dist: float, fromto: np.ndarray) -> np.ndarray:
         """``dd/dq`` ``(n,)`` = ``n^T (J(p2) - J(p1))``; ``n`` flips when penetrating."""

@@ -22,12 +22,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg.lapack import dposv
 
 from imitate.errors import ImitateError
 from imitate.kinematics import Distances, Kinematics
 
 __all__ = [
-    "ControlConfig", "JointLimitCost", "Rollout", "TaskMap", "backward", "reach", "rollout",
+    "ControlConfig", "JointLimitCost", "Rollout", "TaskFrame", "TaskMap", "backward", "reach",
+    "rollout",
 ]
 
 
@@ -74,6 +76,11 @@ class JointLimitCost:
         grad = self.scale * excess
         return 0.5 * np.sum(grad * excess, axis=-1), grad, self.scale * (excess != 0.0)
 
+    def gradient(self, q: np.ndarray) -> np.ndarray:
+        """``dH/dq`` ``(n,)`` alone, for ``q`` ``(n,)`` (the rollout's inner loop)."""
+        low, high = np.minimum(q - self.low_border, 0.0), np.maximum(q - self.high_border, 0.0)
+        return self.scale * (low + high)
+
 
 class TaskMap:
     r"""Eq. 1 on the robot: ``x = (p_b - p_g, phi_b, phi_g)`` and ``J = dx/dq`` ``(7, n)``.
@@ -117,59 +124,75 @@ class TaskMap:
     def __call__(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(x (7,), J (7, n))`` at the kinematics' last update; angles on the branch nearest to
         ``angle_ref`` ``(2,)`` [rad]."""
-        points, proj, coef, _ = self._axes()
-        jac = self.kin.point_jacobians(self._points_of, points)
-        x = (points[0] - points[1]).tolist()
-        for (pr, pu, pf), ref in zip(proj, angle_ref.tolist(), strict=True):
-            angle = math.atan2(pu, pr)
-            x += (angle + 2.0 * math.pi * round((ref - angle) / (2.0 * math.pi)), pf)
-        J = np.empty((7, self.kin.n))
-        J[:3] = jac[0] - jac[1]
-        J[3:] = (coef @ self._gaze_t @ (jac[2:] - jac[:2])).reshape(4, -1)
-        J *= self._mask
-        return np.array(x), J
+        x, J, _ = self.evaluate(angle_ref)
+        return x, J
 
-    def rates(self, qdot: np.ndarray) -> np.ndarray:
-        """``D_b J`` ``(k, 7, n)``: derivatives of ``J`` at the kinematics' last update along
-        each joint direction ``b`` in ``qdot`` ``(k, n)`` [rad]."""
-        points, proj, coef, inv = self._axes()
-        jac = self.kin.point_jacobians(self._points_of, points)
-        axis_jac = jac[2:] - jac[:2]  # (2, 3, n)
-        coef_gaze = coef @ self._gaze_t
-        out = np.empty((len(qdot), 7, self.kin.n))
-        for k, b in enumerate(qdot):
-            rate = self.kin.point_jacobian_rates(self._points_of, points, b)
-            coef_dot = []
-            for (pr, pu, _), (dr, du, _), s in zip(
-                proj, (axis_jac @ b @ self.gaze).tolist(), inv, strict=True
-            ):
-                ds = -2.0 * (pr * dr + pu * du) * s * s
-                coef_dot.append(((-du * s - pu * ds, dr * s + pr * ds, 0.0), (0.0,) * 3))
-            out[k, :3] = rate[0] - rate[1]
-            out[k, 3:] = (
-                np.array(coef_dot) @ self._gaze_t @ axis_jac + coef_gaze @ (rate[2:] - rate[:2])
-            ).reshape(4, -1)
-        out *= self._mask
-        return out
-
-    def _axes(self):
-        """Points ``(4, 3)`` (bottle and glass origins, then those plus their long axes), the
-        axes' gaze coordinates ``p`` (right, up, forward; two 3-lists), ``C`` ``(2, 2, 3)`` and
-        ``1 / rho^2`` (two floats; 0 where the axis is along the gaze, where the angle is
-        undefined and its gradient is taken as 0)."""
+    def evaluate(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, TaskFrame]:
+        """As :meth:`__call__`, and the :class:`TaskFrame` that :meth:`rates` needs."""
         d = self.kin.data
         points = np.empty((4, 3))
         points[:2] = d.xpos[self._bodies]
         axis = d.xmat[self._bodies, 2::3]
         points[2:] = points[:2] + axis
         proj = (axis @ self.gaze).tolist()
+        x = (points[0] - points[1]).tolist()
         inv, coef = [], []
-        for pr, pu, _ in proj:
+        for (pr, pu, pf), ref in zip(proj, angle_ref.tolist(), strict=True):
+            angle = math.atan2(pu, pr)
+            x += (angle + 2.0 * math.pi * round((ref - angle) / (2.0 * math.pi)), pf)
             rho2 = pr * pr + pu * pu
             s = 1.0 / rho2 if rho2 > 1e-12 else 0.0
             inv.append(s)
             coef.append(((-pu * s, pr * s, 0.0), (0.0, 0.0, 1.0)))
-        return points, proj, np.array(coef), inv
+        jac = self.kin.point_jacobians(self._points_of, points)
+        axis_jac = jac[2:] - jac[:2]
+        coef_gaze = np.array(coef) @ self._gaze_t
+        J = np.empty((7, self.kin.n))
+        J[:3] = jac[0] - jac[1]
+        J[3:] = (coef_gaze @ axis_jac).reshape(4, -1)
+        J *= self._mask
+        return np.array(x), J, TaskFrame(points, proj, inv, coef_gaze, axis_jac)
+
+    def rates(self, qdot: np.ndarray, frame: TaskFrame) -> np.ndarray:
+        """``D_b J`` ``(k, 7, n)``: derivatives of ``J`` along each joint direction ``b`` in
+        ``qdot`` ``(k, n)`` [rad], at the posture of ``frame`` (from :meth:`evaluate`), which the
+        kinematics must be updated to (held objects may be left out)."""
+        out = np.empty((len(qdot), 7, self.kin.n))
+        for k, b in enumerate(qdot):
+            rate = self.kin.point_jacobian_rates(self._points_of, frame.points, b)
+            coef_dot = []
+            for (pr, pu, _), (dr, du, _), s in zip(
+                frame.proj, (frame.axis_jac @ b @ self.gaze).tolist(), frame.inv, strict=True
+            ):
+                ds = -2.0 * (pr * dr + pu * du) * s * s
+                coef_dot.append(((-du * s - pu * ds, dr * s + pr * ds, 0.0), (0.0,) * 3))
+            out[k, :3] = rate[0] - rate[1]
+            out[k, 3:] = (
+                np.array(coef_dot) @ self._gaze_t @ frame.axis_jac
+                + frame.coef_gaze @ (rate[2:] - rate[:2])
+            ).reshape(4, -1)
+        out *= self._mask
+        return out
+
+
+@dataclass(frozen=True)
+class TaskFrame:
+    """What :meth:`TaskMap.rates` reuses from :meth:`TaskMap.evaluate` at one posture.
+
+    Attributes:
+        points: ``(4, 3)`` bottle and glass origins, then those plus their long axes ``a`` [m].
+        proj: The axes' gaze coordinates ``p`` (right, up, forward), two 3-lists.
+        inv: ``1 / rho^2`` per object (0 where the axis is along the gaze: the angle is
+            undefined there and its gradient is taken as 0).
+        coef_gaze: ``C R_gaze^T`` ``(2, 2, 3)``.
+        axis_jac: ``da/dq`` ``(2, 3, n)``, fixed joints' columns included.
+    """
+
+    points: np.ndarray
+    proj: list
+    inv: list
+    coef_gaze: np.ndarray
+    axis_jac: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -183,6 +206,7 @@ class Rollout:
         pinv: ``(T, n, m)`` their weighted damped pseudo-inverses ``J^#``.
         limit_hessian: ``(T, n)`` diagonal Hessians of ``H`` at ``q_0 .. q_{T-1}``.
         solved: ``(T, m)`` ``(J W^-1 J^T + lambda I)^-1 (x_{t+1} - phi(q_t))``.
+        frames: ``T`` :class:`TaskFrame` at ``q_0 .. q_{T-1}``.
         distances: ``T + 1`` :class:`Distances` (with gradients) of the pairs closer than the
             rollout's ``distmax``; empty if it was 0.
         clipped: Number of joint-angle clips to the joint ranges.
@@ -194,6 +218,7 @@ class Rollout:
     pinv: np.ndarray
     limit_hessian: np.ndarray
     solved: np.ndarray
+    frames: tuple[TaskFrame, ...]
     distances: tuple[Distances, ...]
     clipped: int
 
@@ -224,31 +249,41 @@ def rollout(
     x = np.empty((T + 1, m))
     jac = np.empty((T, m, n))
     pinv = np.empty((T, n, m))
-    hess = np.empty((T, n))
     solved = np.empty((T, m))
-    distances = []
+    unclipped = np.empty((T, n))
+    frames, distances = [], []
     q[0] = q0
-    clipped = 0
-    eye = config.damping * np.eye(m)
+    damped = config.damping * np.eye(m)
+    rhs = np.empty((m, n + 1))
     angle_ref = target[:, [3, 5]]
     for t in range(T + 1):
         kin.update(q[t])
-        x[t], J = task(angle_ref[t])
+        x[t], J, frame = task.evaluate(angle_ref[t])
         if distmax > 0:
             distances.append(kin.distances(distmax, jacobian=True))
         if t == T:
             break
         JW = J * winv
-        sol = np.linalg.solve(JW @ J.T + eye, np.column_stack((JW, target[t + 1] - x[t])))
+        rhs[:, :n] = JW
+        rhs[:, n] = target[t + 1] - x[t]
+        sol = _solve_spd(JW @ J.T + damped, rhs)
         Jp, solved[t] = sol[:, :n].T, sol[:, n]
-        _, grad, hess[t] = limits(q[t])
-        g = winv * grad
+        g = winv * limits.gradient(q[t])
         step = JW.T @ solved[t] - config.nullspace_gain * (g - Jp @ (J @ g))
-        nxt = q[t] + step
-        q[t + 1] = np.clip(nxt, kin.lower, kin.upper)
-        clipped += int(np.any(q[t + 1] != nxt))
+        unclipped[t] = q[t] + step
+        q[t + 1] = np.minimum(np.maximum(unclipped[t], kin.lower), kin.upper)
         jac[t], pinv[t] = J, Jp
-    return Rollout(q, x, jac, pinv, hess, solved, tuple(distances), clipped)
+        frames.append(frame)
+    hess = limits(q[:T])[2]
+    clipped = int(np.count_nonzero(np.any(q[1:] != unclipped, axis=1)))
+    return Rollout(q, x, jac, pinv, hess, solved, tuple(frames), tuple(distances), clipped)
+
+
+def _solve_spd(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``matrix^-1 rhs`` for a symmetric positive definite ``matrix`` (LAPACK ``dposv``, a tenth
+    of ``np.linalg.solve``'s overhead on these small systems); LU if Cholesky fails (NaN)."""
+    _, sol, info = dposv(matrix, rhs)
+    return sol if info == 0 else np.linalg.solve(matrix, rhs)
 
 
 def backward(
@@ -292,8 +327,9 @@ def backward(
         p = lam @ Jp
         dx[t + 1] += p
         ln = lam - p @ J
-        kin.update(result.q[t])
-        along = task.rates(np.stack((winv * lam - winv * (J.T @ p), winv * (J.T @ u))))
+        kin.update(result.q[t], held=False)
+        directions = np.array((winv * lam - winv * (J.T @ p), winv * (J.T @ u)))
+        along = task.rates(directions, result.frames[t])
         curvature = u @ along[0] - p @ along[1]
         lam = gq[t] + ln - alpha * (ln * winv) * result.limit_hessian[t] + curvature
     return dx
