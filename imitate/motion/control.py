@@ -134,10 +134,10 @@ class TaskMap:
         points[:2] = d.xpos[self._bodies]
         axis = d.xmat[self._bodies, 2::3]
         points[2:] = points[:2] + axis
-        proj = (axis @ self.gaze).tolist()
+        proj = axis @ self.gaze
         x = (points[0] - points[1]).tolist()
         inv, coef = [], []
-        for (pr, pu, pf), ref in zip(proj, angle_ref.tolist(), strict=True):
+        for (pr, pu, pf), ref in zip(proj.tolist(), angle_ref.tolist(), strict=True):
             angle = math.atan2(pu, pr)
             x += (angle + 2.0 * math.pi * round((ref - angle) / (2.0 * math.pi)), pf)
             rho2 = pr * pr + pu * pu
@@ -151,26 +151,26 @@ class TaskMap:
         J[:3] = jac[0] - jac[1]
         J[3:] = (coef_gaze @ axis_jac).reshape(4, -1)
         J *= self._mask
-        return np.array(x), J, TaskFrame(points, proj, inv, coef_gaze, axis_jac)
+        return np.array(x), J, TaskFrame(points, proj, np.array(inv), coef_gaze, axis_jac)
 
     def rates(self, qdot: np.ndarray, frame: TaskFrame) -> np.ndarray:
         """``D_b J`` ``(k, 7, n)``: derivatives of ``J`` along each joint direction ``b`` in
         ``qdot`` ``(k, n)`` [rad], at the posture of ``frame`` (from :meth:`evaluate`), which the
         kinematics must be updated to (held objects may be left out)."""
-        out = np.empty((len(qdot), 7, self.kin.n))
+        rate = np.empty((len(qdot), 4, 3, self.kin.n))
         for k, b in enumerate(qdot):
-            rate = self.kin.point_jacobian_rates(self._points_of, frame.points, b)
-            coef_dot = []
-            for (pr, pu, _), (dr, du, _), s in zip(
-                frame.proj, (frame.axis_jac @ b @ self.gaze).tolist(), frame.inv, strict=True
-            ):
-                ds = -2.0 * (pr * dr + pu * du) * s * s
-                coef_dot.append(((-du * s - pu * ds, dr * s + pr * ds, 0.0), (0.0,) * 3))
-            out[k, :3] = rate[0] - rate[1]
-            out[k, 3:] = (
-                np.array(coef_dot) @ self._gaze_t @ frame.axis_jac
-                + frame.coef_gaze @ (rate[2:] - rate[:2])
-            ).reshape(4, -1)
+            rate[k] = self.kin.point_jacobian_rates(self._points_of, frame.points, b)
+        # C' (only its angle row moves): d(-p_u s, p_r s) with s = 1 / rho^2, p' = R^T A b.
+        dproj = self._gaze_t @ (frame.axis_jac @ qdot.T)  # (2, 3, k)
+        (pr, pu), s = frame.proj[:, :2, None].transpose(1, 0, 2), frame.inv[:, None]
+        ds = -2.0 * (pr * dproj[:, 0] + pu * dproj[:, 1]) * s * s  # (2, k)
+        r, u, _ = self.gaze.T
+        coef_r, coef_u = -dproj[:, 1] * s - pu * ds, dproj[:, 0] * s + pr * ds  # (2, k)
+        row_dot = coef_r[..., None] * r + coef_u[..., None] * u  # (2, k, 3)
+        out = np.empty((len(qdot), 7, self.kin.n))
+        out[:, :3] = rate[:, 0] - rate[:, 1]
+        out[:, 3:] = (frame.coef_gaze @ (rate[:, 2:] - rate[:, :2])).reshape(len(qdot), 4, -1)
+        out[:, 3::2] += (row_dot @ frame.axis_jac).transpose(1, 0, 2)
         out *= self._mask
         return out
 
@@ -181,16 +181,16 @@ class TaskFrame:
 
     Attributes:
         points: ``(4, 3)`` bottle and glass origins, then those plus their long axes ``a`` [m].
-        proj: The axes' gaze coordinates ``p`` (right, up, forward), two 3-lists.
-        inv: ``1 / rho^2`` per object (0 where the axis is along the gaze: the angle is
+        proj: ``(2, 3)`` the axes' gaze coordinates ``p`` (right, up, forward).
+        inv: ``(2,)`` ``1 / rho^2`` per object (0 where the axis is along the gaze: the angle is
             undefined there and its gradient is taken as 0).
         coef_gaze: ``C R_gaze^T`` ``(2, 2, 3)``.
         axis_jac: ``da/dq`` ``(2, 3, n)``, fixed joints' columns included.
     """
 
     points: np.ndarray
-    proj: list
-    inv: list
+    proj: np.ndarray
+    inv: np.ndarray
     coef_gaze: np.ndarray
     axis_jac: np.ndarray
 
