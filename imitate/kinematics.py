@@ -92,7 +92,12 @@ class Kinematics:
         d = self.data
         self._qpos, self._qvel, self._xpos, self._xquat = d.qpos, d.qvel, d.xpos, d.xquat
         self._geom_xpos = d.geom_xpos
-        self._offset = np.zeros(3)
+        # Per held object: hand, weld pose, and views of its free joint's position, quaternion.
+        self._poses = []
+        for obj, (hand, rel_pos, rel_quat) in self._held.items():
+            adr = model.jnt_qposadr[model.body_jntadr[obj]]
+            pos, quat = d.qpos[adr : adr + 3], d.qpos[adr + 3 : adr + 7]
+            self._poses.append((hand, rel_pos, rel_quat, pos, quat))
         self._jacp = np.zeros((4, 3, model.nv))
         self._jacr = np.zeros((3, model.nv))
 
@@ -119,16 +124,15 @@ class Kinematics:
         """Sets the joint angles ``q`` ``(n,)`` [rad] and updates all body and geom poses (no
         physics); ``held=False`` leaves the held objects where they were (enough for Jacobians
         of points given in the world frame)."""
-        m, d, qpos = self.model, self.data, self._qpos
-        qpos[self.qpos_adr] = q
+        m, d = self.model, self.data
+        self._qpos[self.qpos_adr] = q
         mujoco.mj_kinematics(m, d)
-        if held and self._held:
-            for obj, (hand, rel_pos, rel_quat) in self._held.items():
-                adr = m.jnt_qposadr[m.body_jntadr[obj]]
+        if held and self._poses:
+            for hand, rel_pos, rel_quat, pos, quat in self._poses:
                 hand_quat = self._xquat[hand]
-                mujoco.mju_rotVecQuat(self._offset, rel_pos, hand_quat)
-                qpos[adr : adr + 3] = self._xpos[hand] + self._offset
-                mujoco.mju_mulQuat(qpos[adr + 3 : adr + 7], hand_quat, rel_quat)
+                mujoco.mju_rotVecQuat(pos, rel_pos, hand_quat)
+                np.add(pos, self._xpos[hand], out=pos)
+                mujoco.mju_mulQuat(quat, hand_quat, rel_quat)
             mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
 

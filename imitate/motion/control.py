@@ -120,6 +120,7 @@ class TaskMap:
         self._points_of = (self.bottle, self.glass, self.bottle, self.glass)
         self._gaze_t = np.ascontiguousarray(self.gaze.T)
         self._mask = self.driven.astype(float)
+        self._xpos, self._xmat = kin.data.xpos, kin.data.xmat  # views, kept once
 
     def __call__(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(x (7,), J (7, n))`` at the kinematics' last update; angles on the branch nearest to
@@ -129,10 +130,9 @@ class TaskMap:
 
     def evaluate(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, TaskFrame]:
         """As :meth:`__call__`, and the :class:`TaskFrame` that :meth:`rates` needs."""
-        d = self.kin.data
         points = np.empty((4, 3))
-        points[:2] = d.xpos[self._bodies]
-        axis = d.xmat[self._bodies, 2::3]
+        points[:2] = self._xpos[self._bodies]
+        axis = self._xmat[self._bodies, 2::3]
         points[2:] = points[:2] + axis
         proj = axis @ self.gaze
         x = (points[0] - points[1]).tolist()
