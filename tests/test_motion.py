@@ -83,6 +83,26 @@ def test_task_map_matches_taskspace_and_finite_differences(task):
     np.testing.assert_allclose(J, fd, atol=1e-6)
 
 
+def test_task_jacobian_rates_match_finite_differences(task):
+    """``TaskMap.rates`` (mj_jacDot), used by the gradient, is the derivative of ``J`` along
+    each direction, also after a robot-only update."""
+    kin = task.kin
+    rng = np.random.default_rng(3)
+    q = humanoid.rest_pose() + rng.uniform(-0.3, 0.3, kin.n)
+    directions = rng.normal(size=(2, kin.n)) * task.driven
+    kin.update(q)
+    _, _, frame = task.evaluate(np.zeros(2))
+    kin.update(q + 0.1)
+    kin.update(q, held=False)
+    rates = task.rates(directions, frame)
+    for b, rate in zip(directions, rates, strict=True):
+        kin.update(q + 1e-6 * b)
+        _, jp = task(np.zeros(2))
+        kin.update(q - 1e-6 * b)
+        _, jm = task(np.zeros(2))
+        np.testing.assert_allclose(rate, (jp - jm) / 2e-6, atol=1e-6)
+
+
 def test_distance_gradient_matches_finite_differences(task):
     kin = task.kin
     rng = np.random.default_rng(2)
