@@ -22,7 +22,11 @@ Then per object, from the two views (cameras from MuJoCo's parameters, :func:`mu
    centre (for a bottle lying across the view the extremes are the rims' nearest points, 2-4 cm
    in front of the axis). With the current 3D estimate the model predicts, per view, how far the
    extreme lies beyond the projected rim centre; shifting the observed extremes back by that and
-   re-triangulating converges in a few iterations.
+   re-triangulating converges in a few iterations. While the axis lies across the view (near
+   the epipolar plane, so the two axis lines do not fix its tilt in depth) the correction has
+   two self-consistent results, the axis tilted towards or away from the eyes; it is run from
+   the triangulated extremes and from those with the axis mirrored in the plane normal to the
+   line of sight, and the result that better fits both views' extremes and axis lines is kept.
 6. **Tracked point**: the middle of the two rim centres, i.e. the centre of the object's axis at
    half its height (bottle 0.1175 m, glass 0.05 m above the bottom), which is what the ground
    truth uses. **Axis**: the unit vector bottom to top. **Angle** around the gaze vector:
@@ -36,11 +40,14 @@ of an object shifts the centroid differently in the two views, which shows up as
 Limits: when an object's axis lies across the view (the bottle while it pours), its depth rests
 on the two ends alone; a tenth of a pixel of disparity is 2 mm of depth at 1.1 m, so the bottle's
 tracked point is then a few mm to 3 cm off in depth (largest where the teacher's forearm borders
-an end in one view), against 2-3 mm when it is upright.
+an end in one view), against 2-3 mm when it is upright. The two results of step 5 can also
+both fit the views exactly: on exact synthetic extremes, a bottle lying across the view tilted
+about 20 degrees towards the eyes converges to a wrong tilt from both starts (6 cm off at the
+ends).
 
-Speed: the loops over the outline in steps 3-4 are compiled (numba; compiled on a process's
-first call or loaded from numba's on-disk cache), where NumPy's per-call overhead on these small
-arrays had been most of the time; the rest is OpenCV.
+Speed: the loops over the outline in steps 3-4 and the correction of step 5 are compiled
+(numba; compiled on a process's first call or loaded from numba's on-disk cache), where NumPy's
+per-call overhead on these small arrays had been most of the time; the rest is OpenCV.
 
 Frames in which an object is not found are gaps; :func:`fill_gaps` interpolates short ones and
 reports long ones.
@@ -401,6 +408,13 @@ class StereoTracker:
                 f"{right.width}x{right.height}"
             )
         self.cameras = (left, right)
+        self._eyes = 0.5 * (left.position + right.position)  # between the optical centres [m]
+        # (intrinsics (2, 3, 3) [px], rotations (2, 3, 3), positions (2, 3) [m]), for
+        # the compiled rim correction.
+        self._camera_arrays = tuple(
+            np.ascontiguousarray([getattr(cam, name) for cam in self.cameras], dtype=float)
+            for name in ("intrinsics", "rotation", "position")
+        )
         self.config = config
         self._boxes: dict[tuple[str, int], tuple[int, int, int, int]] = {}
         self._directions: dict[tuple[str, int], np.ndarray] = {}
@@ -510,27 +524,17 @@ class StereoTracker:
             self._view(obj, view, found[view], moments[view], depths[view])
             for view in range(len(found))
         )
-        ends = triangulate(left, right, views[0].ends, views[1].ends)
-        radii = obj.radius(np.array([0.0, obj.height]))
-        for _ in range(self.config.refine_iterations):
-            axis = ends[1] - ends[0]
-            if not np.linalg.norm(axis) > 0:
-                return None
-            rims = np.concatenate(
-                [ends, _rim(ends[0], axis, radii[0]), _rim(ends[1], axis, radii[1])]
-            )
-            shifted = []
-            for cam, view in zip(self.cameras, views, strict=True):
-                # How far beyond its projected centre each rim's extreme point lies.
-                along = (cam.project(rims) - view.origin) @ view.direction
-                beyond = np.array(
-                    [
-                        along[2 : 2 + _RIM_POINTS].min() - along[0],
-                        along[2 + _RIM_POINTS :].max() - along[1],
-                    ]
-                )
-                shifted.append(view.origin + np.outer(view.extent - beyond, view.direction))
-            ends = triangulate(left, right, shifted[0], shifted[1])
+        raw = triangulate(left, right, views[0].ends, views[1].ends)
+        ends = _correct_ends(
+            raw,
+            self._eyes,
+            obj.radius(np.array([0.0, obj.height])),
+            *self._camera_arrays,
+            np.array([view.origin for view in views]),
+            np.array([view.direction for view in views]),
+            np.array([view.extent for view in views]),
+            self.config.refine_iterations,
+        )
         length = np.linalg.norm(ends[1] - ends[0])
         if not 0.5 * obj.height < length < 1.5 * obj.height:
             return None  # the two views do not agree on one object of this size
@@ -713,20 +717,153 @@ def _fit_axis_line(
 _NO_OCCLUDER = np.zeros((0, 0), dtype=bool)  # occluded mask when no occluder is set
 _RIM_POINTS = 24
 _RIM_PHASES = np.linspace(0.0, 2 * np.pi, _RIM_POINTS, endpoint=False)
-_RIM_COS, _RIM_SIN = np.cos(_RIM_PHASES)[:, None], np.sin(_RIM_PHASES)[:, None]
+_RIM_COS, _RIM_SIN = np.cos(_RIM_PHASES), np.sin(_RIM_PHASES)
 
 
-def _rim(centre: np.ndarray, axis: np.ndarray, radius: float) -> np.ndarray:
-    """``(_RIM_POINTS, 3)`` points of the circle of ``radius`` [m] around ``axis`` at ``centre``."""
-    a = axis / np.linalg.norm(axis)
-    # u: a unit vector perpendicular to a (a x e for the basis vector e least aligned with a).
+@numba.njit(cache=True, error_model="numpy")
+def _project(intrinsics, rotation, position, point) -> tuple[float, float]:
+    """Pixel ``(col, row)`` of world ``point (3,)`` [m]; as :meth:`PinholeCamera.project`."""
+    rel = point - position
+    cam = rotation @ rel
+    pix = intrinsics @ cam
+    return pix[0] / pix[2], pix[1] / pix[2]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _triangulate_pair(intrinsics, rotations, positions, pl, pr) -> np.ndarray:
+    """World point ``(3,)`` [m] of pixels ``pl (2,)`` (camera 0) and ``pr (2,)`` (camera 1);
+    as :func:`triangulate`, with cameras given as in :func:`_correct_ends`."""
+    rays = np.empty((2, 3))
+    for c, pix in enumerate((pl, pr)):
+        k, r = intrinsics[c], rotations[c]
+        x = (pix[0] - k[0, 2]) / k[0, 0]
+        y = (pix[1] - k[1, 2]) / k[1, 1]
+        rays[c] = x * r[0] + y * r[1] + r[2]
+    d1, d2 = rays[0], rays[1]
+    w0 = positions[0] - positions[1]
+    a, b, c = d1 @ d1, d1 @ d2, d2 @ d2
+    d, e = d1 @ w0, d2 @ w0
+    denom = a * c - b * b
+    t1, t2 = (b * e - c * d) / denom, (a * e - b * d) / denom
+    return 0.5 * (positions[0] + t1 * d1 + positions[1] + t2 * d2)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _rim_fit(ends, radii, intrinsics, rotations, positions, origins, directions, extents):
+    """How the rims of ``ends`` appear in the two views, against the views' measurements.
+
+    Per view, the extreme points along the view's axis line of the two rims (circles of
+    ``_RIM_POINTS`` points) are predicted, and the observed extremes shifted back by how far
+    those lie beyond the projected rim centres.
+
+    Args:
+        ends: ``(2, 3)`` bottom and top centres [m].
+        radii: ``(2,)`` bottom and top rim radii [m].
+        intrinsics, rotations, positions: the cameras, as in :func:`_correct_ends`.
+        origins, directions, extents: ``(2, 2)`` per view (left, right), as in
+            :class:`ViewMeasurement`.
+
+    Returns:
+        ``(shifted (2, 2, 2) [px] (view, end, (col, row)), misfit [px^2])``: the shifted
+        extremes, and the summed squares of the predicted extremes' offsets from the observed
+        ones along the lines and of the projected centres' distances from the lines (inf for
+        a degenerate axis).
+    """
+    axis = ends[1] - ends[0]
+    a = axis / np.sqrt(axis @ axis)
+    # u: a unit vector perpendicular to a (a x e for the basis vector e least aligned with a);
+    # v = a x u.
     if abs(a[0]) < 0.9:
         u = np.array([0.0, a[2], -a[1]])
     else:
         u = np.array([-a[2], 0.0, a[0]])
-    u /= np.linalg.norm(u)
+    u /= np.sqrt(u @ u)
     v = np.array([a[1] * u[2] - a[2] * u[1], a[2] * u[0] - a[0] * u[2], a[0] * u[1] - a[1] * u[0]])
-    return centre + radius * (_RIM_COS * u + _RIM_SIN * v)
+    shifted = np.empty((2, 2, 2))
+    misfit = 0.0
+    for c in range(2):
+        k, r, p = intrinsics[c], rotations[c], positions[c]
+        o, d = origins[c], directions[c]
+        for j in range(2):
+            col, row = _project(k, r, p, ends[j])
+            along = (col - o[0]) * d[0] + (row - o[1]) * d[1]
+            across = -(col - o[0]) * d[1] + (row - o[1]) * d[0]
+            # The rim's extreme point: lowest along the line for the bottom, highest for the top.
+            extreme = np.inf if j == 0 else -np.inf
+            for q in range(_RIM_POINTS):
+                pc, pr = _project(k, r, p, ends[j] + radii[j] * (_RIM_COS[q] * u + _RIM_SIN[q] * v))
+                s = (pc - o[0]) * d[0] + (pr - o[1]) * d[1]
+                extreme = min(extreme, s) if j == 0 else max(extreme, s)
+            misfit += (extreme - extents[c, j]) ** 2 + across**2
+            shifted[c, j] = o + (extents[c, j] - (extreme - along)) * d
+    return shifted, misfit if misfit < np.inf else np.inf  # NaN: a degenerate axis
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _refine(
+    ends, radii, intrinsics, rotations, positions, origins, directions, extents, iterations
+):
+    """Rim-extreme correction of the ends (module step 5), from ``ends``.
+
+    Per iteration, the observed extremes shifted back by the rims' predicted offsets
+    (:func:`_rim_fit`) are re-triangulated.
+
+    Args:
+        ends: ``(2, 3)`` start bottom and top centres [m].
+        radii, intrinsics, rotations, positions, origins, directions, extents: as in
+            :func:`_rim_fit`.
+        iterations: corrections applied.
+
+    Returns:
+        ``(ends (2, 3) [m], misfit [px^2])``: the corrected ends and their misfit to the views
+        (:func:`_rim_fit`).
+    """
+    args = (radii, intrinsics, rotations, positions, origins, directions, extents)
+    ends = ends.copy()
+    for _ in range(iterations):
+        shifted, _misfit = _rim_fit(ends, *args)
+        for j in range(2):
+            ends[j] = _triangulate_pair(
+                intrinsics, rotations, positions, shifted[0, j], shifted[1, j]
+            )
+    return ends, _rim_fit(ends, *args)[1]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _correct_ends(
+    raw, eyes, radii, intrinsics, rotations, positions, origins, directions, extents, iterations
+):
+    """Ends ``(2, 3)`` [m] corrected for the rims' extremes, from the triangulated extremes.
+
+    The correction has two fixed points, the axis tilted towards or away from the eyes by
+    about the same angle (a bottle lying across the view); it starts from ``raw`` and from
+    ``raw`` with its axis mirrored in the plane normal to the line of sight, and keeps the
+    result whose predicted extremes and centres fit both views better.
+
+    Args:
+        raw: ``(2, 3)`` triangulated bottom and top extremes [m].
+        eyes: ``(3,)`` the point between the optical centres [m].
+        radii: ``(2,)`` bottom and top rim radii [m].
+        intrinsics: ``(2, 3, 3)`` left and right ``K`` [px].
+        rotations: ``(2, 3, 3)`` left and right world-to-camera rotations.
+        positions: ``(2, 3)`` left and right optical centres [m].
+        origins: ``(2, 2)`` per view a point of the axis line [px].
+        directions: ``(2, 2)`` per view the line's unit direction, bottom to top.
+        extents: ``(2, 2)`` per view the extremes along the line from its origin [px].
+        iterations: corrections per start.
+
+    Returns:
+        ``(2, 3)`` bottom and top centres [m]; NaN for a degenerate axis.
+    """
+    mid, axis = 0.5 * (raw[0] + raw[1]), raw[1] - raw[0]
+    sight = (mid - eyes) / np.sqrt((mid - eyes) @ (mid - eyes))
+    axis = axis - 2 * (axis @ sight) * sight
+    mirrored = np.empty((2, 3))
+    mirrored[0], mirrored[1] = mid - 0.5 * axis, mid + 0.5 * axis
+    args = (radii, intrinsics, rotations, positions, origins, directions, extents, iterations)
+    ends, misfit = _refine(raw, *args)
+    other, other_misfit = _refine(mirrored, *args)
+    return other if other_misfit < misfit else ends
 
 
 def _grow(box, fraction, minimum, width, height) -> tuple[int, int, int, int]:

@@ -14,6 +14,7 @@ from imitate.perception import (
     ObjectModel,
     PerceptionConfig,
     StereoTracker,
+    _correct_ends,
     axis_angle,
     fill_gaps,
     gaze_frame,
@@ -94,6 +95,47 @@ def test_triangulation_inverts_projection(marker_views):
     points = np.random.default_rng(0).uniform([0.5, -0.4, 0.7], [1.5, 0.4, 1.4], (50, 3))
     back = triangulate(left, right, left.project(points), right.project(points))
     assert np.abs(back - points).max() < 1e-9
+
+
+@pytest.mark.parametrize("tilt", [90.0, -10.0])  # degrees from lying across the view
+def test_rim_correction_recovers_the_ends_from_exact_extremes(marker_views, tilt):
+    """The compiled rim correction (module step 5) on exact synthetic rim extremes of the
+    bottle, upright and lying across the view tilted away from the eyes."""
+    _, cameras = marker_views
+    tracker = StereoTracker(*cameras, observation.perception_config())
+    bottle = tracker.config.objects[0]
+    radii = bottle.radius(np.array([0.0, bottle.height]))
+    eyes = 0.5 * (cameras[0].position + cameras[1].position)
+    middle = np.array([0.62, 0.0, 1.05])  # [m]
+    sight = (middle - eyes) / np.linalg.norm(middle - eyes)
+    across = np.cross(sight, [0.0, 0.0, 1.0])
+    across /= np.linalg.norm(across)
+    towards = np.cross(across, sight) if tilt == 90.0 else sight  # up, or along the sight
+    axis = np.cos(np.radians(tilt)) * across + np.sin(np.radians(tilt)) * towards
+    ends = middle + np.outer([-0.5, 0.5], axis * bottle.height)
+    u = np.cross(axis, sight)
+    u /= np.linalg.norm(u)
+    v = np.cross(axis, u)
+    phases = np.linspace(0.0, 2 * np.pi, 3600, endpoint=False)[:, None]
+    circle = np.cos(phases) * u + np.sin(phases) * v
+    origins, directions, extents = [], [], []
+    for cam in cameras:
+        centres = cam.project(ends)
+        direction = (centres[1] - centres[0]) / np.linalg.norm(centres[1] - centres[0])
+        along = [
+            (cam.project(ends[j] + radii[j] * circle) - centres[0]) @ direction for j in (0, 1)
+        ]
+        origins.append(centres[0])
+        directions.append(direction)
+        extents.append([along[0].min(), along[1].max()])
+    origins, directions, extents = map(np.array, (origins, directions, extents))
+    extremes = origins[:, None] + extents[:, :, None] * directions[:, None]
+    raw = triangulate(*cameras, extremes[0], extremes[1])
+    corrected = _correct_ends(
+        raw, eyes, radii, *tracker._camera_arrays, origins, directions, extents, 4
+    )
+    assert np.abs(raw - ends).max() > 0.005  # the extremes are not the rim centres
+    assert np.abs(corrected - ends).max() < 1e-3
 
 
 def test_gaze_frame_is_the_left_camera_and_right_handed(marker_views):
