@@ -109,6 +109,10 @@ def build_parser() -> argparse.ArgumentParser:
                 group.add_argument(flag, dest=dest, type=kind, help=knob_help,
                                    metavar=kind.__name__.upper())
             if stage == "learn":
+                group.add_argument("--bic", choices=("full", "fast"),
+                                   help="choose the number of components by the full BIC (EM "
+                                   "for every K) or the paper's fast K-means heuristic "
+                                   "(default full)")
                 group.add_argument("--oracle", action=argparse.BooleanOptionalAction,
                                    help="learn from ground-truth poses instead of perception "
                                    "(default --no-oracle)")
@@ -127,7 +131,7 @@ def config_for(args: argparse.Namespace, run_dir: Path):
 
     stages = STAGE_ORDER if args.command == "run" else (args.command,)
     owned = {dest for stage in stages for _, dest, _, _ in KNOBS[stage]}
-    owned |= {"oracle"} if "learn" in stages else set()
+    owned |= {"oracle", "bic"} if "learn" in stages else set()
     given = {k: v for k, v in vars(args).items() if k in owned and v is not None}
     if "obstacle" in vars(args):  # given, possibly as "none"
         given["obstacle"] = args.obstacle
@@ -176,7 +180,7 @@ def summary(report: dict, stages: tuple[str, ...], run_dir: Path) -> str:
     headline = {
         "demos": ("detected", "expected"),
         "perception": ("pos_err_mm_median", "pos_err_mm_p95", "angle_err_deg_median"),
-        "learning": ("n_components", "n_components_full_bic"),
+        "learning": ("bic", "n_components", "n_components_fast_bic", "n_components_full_bic"),
         "optimization": ("min_distance_m", "pour_phase_err_m", "pour_phase_err_deg"),
         "replay": ("pour_fraction", "spilled", "min_distance_m", "success"),
     }

@@ -63,6 +63,7 @@ from models import humanoid, objects
 __all__ = ["STAGES", "RunConfig", "run", "run_stage"]
 
 STAGES = ("observe", "learn", "optimize", "replay", "figures")
+BIC_METHODS = ("full", "fast")
 _HEIGHTS = {objects.BOTTLE: objects.BOTTLE_SHAPE.height, objects.GLASS: objects.GLASS_SHAPE.height}
 _FIGURES = (
     "observation", "fig4_gmm_dtw", "fig5_bic", "gmr", "fig8_snapshots", "fig9_collision_sweep",
@@ -83,6 +84,9 @@ class RunConfig:
         smoothing: Savitzky-Golay window over the tracked positions and axes before learning
             [s], 0..1 (0: none; the segmentation's window by default).
         k_max: Largest number of GMM components of the BIC sweep, 1..50.
+        bic: How the number of components is chosen: ``"full"`` (EM for every K; the default:
+            on tracked demonstrations the paper's ``"fast"`` K-means heuristic tends to choose
+            fewer components, and too few attractors smooth the movement away) or ``"fast"``.
         collision_weight: Weight of the collision cost of the optimiser, >= 0.
         sweep: Collision weights of the Fig. 9 sweep, as fractions of ``collision_weight``.
         max_iter: Optimiser iteration limit, >= 1.
@@ -102,6 +106,7 @@ class RunConfig:
     oracle: bool = False
     smoothing: float = StillnessConfig.smoothing
     k_max: int = 30
+    bic: str = "full"
     collision_weight: float = PlanConfig.collision_weight
     sweep: tuple[float, ...] = (0.0, 0.1, 1.0)
     max_iter: int = PlanConfig.max_iter
@@ -140,6 +145,8 @@ class RunConfig:
             raise ImitateError(
                 f"collision_weight={self.collision_weight!r} not accepted: a finite value >= 0"
             )
+        if self.bic not in BIC_METHODS:
+            raise ImitateError(f"bic={self.bic!r} not accepted: one of {BIC_METHODS}")
         if not self.sweep or min(self.sweep) < 0:
             raise ImitateError(f"sweep={self.sweep!r} not accepted: fractions >= 0")
         self.scene()  # validates the grasps and the obstacle
@@ -149,7 +156,7 @@ class RunConfig:
         """Small images, 3 demonstrations, short optimisation: the whole run in well under
         a minute (for tests)."""
         settings = dict(
-            n_demos=3, width=320, height=240, fps=15.0, k_max=10, max_iter=30, particles=30,
+            n_demos=3, width=320, height=240, fps=20.0, k_max=10, max_iter=30, particles=30,
             video_width=320, video_height=240, video_fps=10.0, teacher_speedup=3.0,
         )
         return cls(**{**settings, **overrides})
@@ -204,7 +211,7 @@ def observe(run_dir: Path, config: RunConfig) -> dict:
 
 
 def learn(run_dir: Path, config: RunConfig) -> dict:
-    """Task space, DTW, GMM (components by the fast BIC), GMR; the full BIC for comparison."""
+    """Task space, DTW, GMM (components by BIC), GMR; the other BIC method for comparison."""
     if config.oracle:
         observations = load_observations(run_dir / "observations.npz")
         demos, gaze, rate = _true_demos(observations), observations.tracks.gaze, config.fps
@@ -219,24 +226,29 @@ def learn(run_dir: Path, config: RunConfig) -> dict:
             for d in segments
         ]
     k_max = min(config.k_max, *(len(d) for d in demos))
-    settings = LearningConfig(k_max=k_max, seed=config.seed)
+    settings = LearningConfig(k_max=k_max, bic_method=config.bic, seed=config.seed)
     start = time.perf_counter()
     model = learn_model(demos, rate=rate, config=settings)
     seconds = time.perf_counter() - start
-    k_full, full_curve = select_components(model.data, settings.k_max, "full", config.seed)
+    other = "fast" if config.bic == "full" else "full"
+    k_other, other_curve = select_components(model.data, k_max, other, config.seed)
+    curves = {config.bic: model.bic_curve, other: other_curve}
+    chosen = {config.bic: model.gmm.n_components, other: int(k_other)}
     raw = learn_model(
         demos, rate=rate,
         config=dataclasses.replace(settings, n_components=model.gmm.n_components, use_dtw=False),
     )
     save_npz(run_dir / "model.npz", {
         **_model_arrays(model, ""), **_model_arrays(raw, "raw_"), "gaze": gaze, "rate": rate,
-        "bic_full": full_curve, "aligned": model.alignment.aligned,
+        "bic_fast": curves["fast"], "bic_full": curves["full"], "aligned": model.alignment.aligned,
     })
     return {
         "learning": {
             "source": "ground truth (oracle)" if config.oracle else "perception",
+            "bic": config.bic,
             "n_components": model.gmm.n_components,
-            "n_components_full_bic": int(k_full),
+            "n_components_fast_bic": chosen["fast"],
+            "n_components_full_bic": chosen["full"],
             "seconds": seconds,
             "bridged_samples": bridged,
         }
@@ -321,7 +333,7 @@ def figures(run_dir: Path, config: RunConfig) -> dict:
         "observation": lambda: plots.plot_observation(observations, boundaries),
         "fig4_gmm_dtw": lambda: plots.plot_gmm_with_and_without_dtw(raw, model),
         "fig5_bic": lambda: plots.plot_bic_curves(
-            {"fast (K-means only)": model.bic_curve, "full (EM)": arrays["bic_full"]}
+            {"fast (K-means only)": arrays["bic_fast"], "full (EM)": arrays["bic_full"]}
         ),
         "gmr": lambda: plots.plot_gmr(model, list(arrays["aligned"])),
         "fig8_snapshots": lambda: plots.plot_snapshots(*_snapshots(config, states)),
@@ -492,7 +504,8 @@ def _model_arrays(model: LearnedModel, prefix: str) -> dict[str, np.ndarray]:
 def _load_model(path: Path) -> tuple[LearnedModel, LearnedModel, dict[str, np.ndarray]]:
     """The learned model (with DTW), the one without DTW (Fig. 4) and all arrays."""
     names = ("data", "weights", "means", "covariances", "bic_curve", "times", "mean", "covariance")
-    arrays = load_npz(path, required=names + tuple("raw_" + n for n in names) + ("bic_full",))
+    required = names + tuple("raw_" + n for n in names) + ("bic_fast", "bic_full")
+    arrays = load_npz(path, required=required)
 
     def model(prefix: str) -> LearnedModel:
         a = {name: arrays[prefix + name] for name in names}

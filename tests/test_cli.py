@@ -48,8 +48,10 @@ def test_quick_run_report(quick_run):
     assert r["perception"]["pos_err_mm_median"] < 10.0
     assert r["perception"]["pos_err_mm_p95"] < 30.0
     assert r["perception"]["angle_err_deg_median"] < 3.0
-    k, k_full = r["learning"]["n_components"], r["learning"]["n_components_full_bic"]
-    assert 2 <= k <= RunConfig.quick().k_max and 1 <= k_full <= RunConfig.quick().k_max
+    learning, k_max = r["learning"], RunConfig.quick().k_max
+    assert learning["n_components"] == learning[f"n_components_{learning['bic']}_bic"]
+    assert 2 <= learning["n_components"] <= k_max
+    assert 1 <= learning["n_components_fast_bic"] <= k_max
     opt = r["optimization"]
     assert opt["iterations"] >= 1 and np.isfinite(opt["min_distance_m"])
     assert opt["min_distance_m"] > 0.0, opt["message"]
@@ -126,6 +128,7 @@ def test_corrupt_artifact_names_file_and_stage(quick_run, tmp_path, capsys):
         (["run", "--obstacle", "sphere"], "box:X,Y,Z:SX,SY,SZ"),
         (["run", "--bottle-grasp", "2"], "bottle grasp height 2.0 m not accepted"),
         (["run", "--demos", "two"], "invalid int value"),
+        (["run", "--bic", "slow"], "invalid choice: 'slow'"),
     ],
 )
 def test_bad_flag_values_are_refused(argv, expected, tmp_path, capsys):
