@@ -60,7 +60,7 @@ from imitate.segment import StillnessConfig, load_demos, save_demos, segment
 from imitate.taskspace import task_space
 from models import humanoid, objects
 
-__all__ = ["STAGES", "RunConfig", "run", "run_stage"]
+__all__ = ["STAGES", "RunConfig", "load_config", "run_stage"]
 
 STAGES = ("observe", "learn", "optimize", "replay", "figures")
 BIC_METHODS = ("full", "fast")
@@ -172,10 +172,12 @@ class RunConfig:
         return scene.SceneConfig(**{**settings, **overrides})
 
     def to_json(self) -> dict[str, Any]:
+        """The settings as JSON-ready values (the obstacle as a dict)."""
         return dataclasses.asdict(self)
 
     @classmethod
     def from_json(cls, values: dict[str, Any]) -> RunConfig:
+        """Settings read back from ``config.json``; unknown names are refused."""
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(values) - names)
         if unknown:
@@ -390,14 +392,6 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig) -> dict:
     report["timings"] = {**timings, stage: seconds}
     report["artifacts"] = _artifacts(run_dir)
     save_json(run_dir / "report.json", report)
-    return report
-
-
-def run(run_dir: Path, config: RunConfig, stages: tuple[str, ...] = STAGES) -> dict:
-    """Run ``stages`` in order; returns the final report."""
-    report = {}
-    for stage in stages:
-        report = run_stage(stage, run_dir, config)
     return report
 
 

@@ -139,6 +139,13 @@ def test_bad_flag_values_are_refused(argv, expected, tmp_path, capsys):
     assert not (tmp_path / "config.json").exists()
 
 
+def test_cli_knows_every_stage_in_order():
+    from imitate.cli import STAGE_ORDER
+    from imitate.pipeline import STAGES
+
+    assert STAGE_ORDER == STAGES
+
+
 def test_config_round_trips_through_json():
     from envs.scene import Obstacle
 
