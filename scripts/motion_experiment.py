@@ -9,8 +9,6 @@ Usage: ``python scripts/motion_experiment.py [--weights 0 300 3000] [--physics] 
 from __future__ import annotations
 
 import argparse
-import os
-import tempfile
 import time
 from pathlib import Path
 
@@ -19,15 +17,11 @@ import numpy as np
 from envs.pouring import PouringEnv
 from envs.replay import oracle_model, planning_task, replay
 from envs.scene import GRASP_RANGE, Obstacle, SceneConfig
+from imitate import plots
 from imitate.motion import PlanConfig, plan
+from imitate.pipeline import pour_phase
 from models import humanoid, objects
 from models.scene import TABLE_HEIGHT
-
-
-def pour_phase(mean: np.ndarray) -> np.ndarray:
-    """Steps where the bottle is tilted beyond 80 % of its largest tilt from the start."""
-    tilt = np.abs(mean[:, 3] - mean[0, 3])
-    return tilt >= 0.8 * tilt.max()
 
 
 def run_plan(task, learned, weight: float, max_iter: int):
@@ -39,12 +33,6 @@ def run_plan(task, learned, weight: float, max_iter: int):
         humanoid.rest_pose(), config, np.sqrt(g.covariances_[:, 0, 0]), g.weights_,
     )
     return result, time.perf_counter() - start
-
-
-def _save(fig, path: Path) -> None:
-    with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".png", delete=False) as tmp:
-        fig.savefig(tmp.name, dpi=120)
-    os.replace(tmp.name, path)
 
 
 def main() -> None:
@@ -123,33 +111,12 @@ def main() -> None:
 
 
 def _figures(plans, out: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     base = next(iter(plans.values()))
-    dim = 2  # dz, the paper's Fig. 9 dimension (relative position along z)
-    fig, ax = plt.subplots(figsize=(7, 4))
-    sd = np.sqrt(base.variance[:, dim])
-    ax.fill_between(base.times, base.mean[:, dim] - sd, base.mean[:, dim] + sd, color="0.85",
-                    label="GMR mean +- sigma")
-    ax.plot(base.times, base.mean[:, dim], "k--", lw=1)
-    for weight, p in plans.items():
-        ax.plot(p.times, p.x[:, dim], label=f"collision weight {weight:g}")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("bottle - glass, z [m]")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    _save(fig, out / "fig9.png")
-    fig, ax = plt.subplots(figsize=(7, 4))
-    for weight, p in plans.items():
-        ax.semilogy(p.costs["total"], label=f"total, collision weight {weight:g}")
-    ax.set_xlabel("iteration")
-    ax.set_ylabel("cost")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    _save(fig, out / "costs.png")
+    sweep = {weight: p.x for weight, p in plans.items()}
+    plots.save(plots.plot_collision_sweep(base.times, base.mean, base.variance, sweep),
+               out / "fig9.png")
+    plots.save(plots.plot_costs({weight: p.costs["total"] for weight, p in plans.items()}),
+               out / "costs.png")
 
 
 if __name__ == "__main__":
