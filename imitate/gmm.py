@@ -150,6 +150,44 @@ def _assign_all(
 
 
 @numba.njit(cache=True)
+def _nearest_two(
+    x_i: np.ndarray, centers: np.ndarray, order: np.ndarray, keys: np.ndarray
+) -> tuple[int, float, float]:
+    """Nearest centre of one sample with the exact nearest and second-nearest distances.
+
+    ``order`` lists the centres by their first coordinate, ``keys`` holds those coordinates in
+    that order. The first-coordinate gap ``|x_0 - c_0|`` is a lower bound of the distance, so
+    the centres are visited outward from the sample's first coordinate and the search stops
+    once the gap on both sides reaches the second-nearest distance. On time-stacked data (time
+    first) that is a few centres instead of all.
+    """
+    k = keys.shape[0]
+    t = x_i[0]
+    right = np.searchsorted(keys, t)
+    left = right - 1
+    best, second, arg = np.inf, np.inf, 0
+    while left >= 0 or right < k:
+        gap_left = t - keys[left] if left >= 0 else np.inf
+        gap_right = keys[right] - t if right < k else np.inf
+        if gap_left <= gap_right:
+            if gap_left >= second:
+                break
+            c = order[left]
+            left -= 1
+        else:
+            if gap_right >= second:
+                break
+            c = order[right]
+            right += 1
+        dist = _distance(x_i, centers[c])
+        if dist < best or (dist == best and c < arg):
+            best, second, arg = dist, best, c
+        elif dist < second:
+            second = dist
+    return arg, best, second
+
+
+@numba.njit(cache=True)
 def _add_center(
     x: np.ndarray, centers: np.ndarray, labels: np.ndarray, upper: np.ndarray, lower: np.ndarray
 ) -> None:
@@ -247,6 +285,8 @@ def _lloyd(
                 fastest, max_moved, second_moved = c, moved[c], max(max_moved, 0.0)
             elif moved[c] > second_moved:
                 second_moved = moved[c]
+        order = np.argsort(centers[:, 0])
+        keys = centers[order, 0]
         changed = 0
         for i in range(n):
             own = labels[i]
@@ -258,13 +298,7 @@ def _lloyd(
             upper[i] = _distance(x[i], centers[own])
             if upper[i] <= bound:
                 continue
-            best, second, arg = np.inf, np.inf, 0
-            for c in range(k):
-                dist = _distance(x[i], centers[c])
-                if dist < best:
-                    best, second, arg = dist, best, c
-                elif dist < second:
-                    second = dist
+            arg, best, second = _nearest_two(x[i], centers, order, keys)
             labels[i], upper[i], lower[i] = arg, best, second
             if arg != own:
                 changed += 1
