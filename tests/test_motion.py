@@ -200,3 +200,19 @@ def test_bad_input_raises(task, learned):
         PlanConfig(optimizer="sgd")
     with pytest.raises(ImitateError, match="plan needs"):
         plan(task, learned.times, learned.mean[:, :3], learned.variance, [1.0], np.zeros(18))
+
+
+def test_task_curvature_is_the_contraction_of_the_rates(task):
+    """``TaskMap.curvature`` (the backward pass's) equals ``a^T D_b J + c^T D_d J`` from
+    :meth:`TaskMap.rates`."""
+    kin = task.kin
+    rng = np.random.default_rng(4)
+    q = humanoid.rest_pose() + rng.uniform(-0.3, 0.3, kin.n)
+    b, d = rng.normal(size=(2, kin.n)) * task.driven
+    a, c = rng.normal(size=(2, task.m))
+    kin.update(q)
+    _, _, frame = task.evaluate(np.zeros(2))
+    rates = task.rates(np.array((b, d)), frame)
+    np.testing.assert_allclose(
+        task.curvature(a, b, c, d, frame), a @ rates[0] + c @ rates[1], rtol=1e-10, atol=1e-12
+    )

@@ -121,6 +121,15 @@ class TaskMap:
         self._gaze_t = np.ascontiguousarray(self.gaze.T)
         self._mask = self.driven.astype(float)
         self._xpos, self._xmat = kin.data.xpos, kin.data.xmat  # views, kept once
+        self._ru = np.ascontiguousarray(self.gaze[:, :2].T)  # (2, 3) gaze right, up
+        self._right, self._up = self._ru.tolist()
+        # evaluate's (7, 12) map from the four points' Jacobians to J, constant rows filled.
+        self._mix = np.zeros((7, 12))
+        self._mix[:3, :3], self._mix[:3, 3:6] = np.eye(3), -np.eye(3)
+        forward = self.gaze[:, 2]
+        self._mix[4, 6:9], self._mix[4, :3] = forward, -forward
+        self._mix[6, 9:12], self._mix[6, 3:6] = forward, -forward
+        self._rate = np.empty((2, 12, kin.n))  # curvature's buffer
 
     def __call__(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(x (7,), J (7, n))`` at the kinematics' last update; angles on the branch nearest to
@@ -136,30 +145,33 @@ class TaskMap:
         points[2:] = points[:2] + axis
         proj = axis @ self.gaze
         x = (points[0] - points[1]).tolist()
-        inv, coef = [], []
-        for (pr, pu, pf), ref in zip(proj.tolist(), angle_ref.tolist(), strict=True):
+        inv = []
+        mix = self._mix.copy()
+        right, up = self._right, self._up
+        objects = zip(proj.tolist(), angle_ref.tolist(), strict=True)
+        for o, ((pr, pu, pf), ref) in enumerate(objects):
             angle = math.atan2(pu, pr)
             x += (angle + 2.0 * math.pi * round((ref - angle) / (2.0 * math.pi)), pf)
             rho2 = pr * pr + pu * pu
             s = 1.0 / rho2 if rho2 > 1e-12 else 0.0
             inv.append(s)
-            coef.append(((-pu * s, pr * s, 0.0), (0.0, 0.0, 1.0)))
+            row = [-pu * s * ri + pr * s * ui for ri, ui in zip(right, up, strict=True)]
+            mix[3 + 2 * o, 6 + 3 * o : 9 + 3 * o] = row
+            mix[3 + 2 * o, 3 * o : 3 + 3 * o] = [-v for v in row]
         jac = self.kin.point_jacobians(self._points_of, points)
-        axis_jac = jac[2:] - jac[:2]
-        coef_gaze = np.array(coef) @ self._gaze_t
-        J = np.empty((7, self.kin.n))
-        J[:3] = jac[0] - jac[1]
-        J[3:] = (coef_gaze @ axis_jac).reshape(4, -1)
+        J = mix @ jac.reshape(12, -1)
         J *= self._mask
-        return np.array(x), J, TaskFrame(points, proj, np.array(inv), coef_gaze, axis_jac)
+        frame = TaskFrame(points, proj, np.array(inv), mix, jac[2:] - jac[:2])
+        return np.array(x), J, frame
 
     def rates(self, qdot: np.ndarray, frame: TaskFrame) -> np.ndarray:
         """``D_b J`` ``(k, 7, n)``: derivatives of ``J`` along each joint direction ``b`` in
         ``qdot`` ``(k, n)`` [rad], at the posture of ``frame`` (from :meth:`evaluate`), which the
         kinematics must be updated to (held objects may be left out)."""
-        rate = np.empty((len(qdot), 4, 3, self.kin.n))
+        n = self.kin.n
+        rate = np.empty((len(qdot), 12, n))
         for k, b in enumerate(qdot):
-            rate[k] = self.kin.point_jacobian_rates(self._points_of, frame.points, b)
+            rate[k] = self.kin.point_jacobian_rates(self._points_of, frame.points, b).reshape(12, n)
         # C' (only its angle row moves): d(-p_u s, p_r s) with s = 1 / rho^2, p' = R^T A b.
         dproj = self._gaze_t @ (frame.axis_jac @ qdot.T)  # (2, 3, k)
         (pr, pu), s = frame.proj[:, :2, None].transpose(1, 0, 2), frame.inv[:, None]
@@ -167,10 +179,38 @@ class TaskMap:
         r, u, _ = self.gaze.T
         coef_r, coef_u = -dproj[:, 1] * s - pu * ds, dproj[:, 0] * s + pr * ds  # (2, k)
         row_dot = coef_r[..., None] * r + coef_u[..., None] * u  # (2, k, 3)
-        out = np.empty((len(qdot), 7, self.kin.n))
-        out[:, :3] = rate[:, 0] - rate[:, 1]
-        out[:, 3:] = (frame.coef_gaze @ (rate[:, 2:] - rate[:, :2])).reshape(len(qdot), 4, -1)
+        out = frame.mix @ rate
         out[:, 3::2] += (row_dot @ frame.axis_jac).transpose(1, 0, 2)
+        out *= self._mask
+        return out
+
+    def curvature(
+        self, a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray, frame: TaskFrame
+    ) -> np.ndarray:
+        """``a^T D_b J + c^T D_d J`` ``(n,)`` for task vectors ``a, c`` ``(7,)`` and joint
+        directions ``b, d`` ``(n,)`` [rad]: two contractions of :meth:`rates` without forming
+        ``D J`` (one weighted sum of the points' ``mj_jacDot`` and one of the axis Jacobians for
+        the ``C'`` term). Same preconditions as :meth:`rates`."""
+        kin, rate = self.kin, self._rate
+        rate[0] = kin.point_jacobian_rates(self._points_of, frame.points, b).reshape(12, -1)
+        rate[1] = kin.point_jacobian_rates(self._points_of, frame.points, d).reshape(12, -1)
+        left = np.array((a, c))
+        out = (left @ frame.mix).ravel() @ rate.reshape(24, -1)
+        # C' term of the angle rows 3 and 5, as in :meth:`rates`, weighted by a and c.
+        axis_jac = frame.axis_jac.reshape(6, -1)
+        dproj = (self._ru @ (axis_jac @ np.array((b, d)).T).reshape(2, 3, 2)).tolist()
+        weights = left[:, 3::2].T.tolist()  # (2 objects, 2 directions)
+        coef = []
+        for (pr, pu, _), s, (dpr, dpu), w in zip(
+            frame.proj.tolist(), frame.inv.tolist(), dproj, weights, strict=True
+        ):
+            cr = cu = 0.0
+            for dr, du, wk in zip(dpr, dpu, w, strict=True):
+                ds = -2.0 * (pr * dr + pu * du) * s * s
+                cr += wk * (-du * s - pu * ds)
+                cu += wk * (dr * s + pr * ds)
+            coef.append((cr, cu))
+        out += (np.array(coef) @ self._ru).ravel() @ axis_jac
         out *= self._mask
         return out
 
@@ -184,14 +224,15 @@ class TaskFrame:
         proj: ``(2, 3)`` the axes' gaze coordinates ``p`` (right, up, forward).
         inv: ``(2,)`` ``1 / rho^2`` per object (0 where the axis is along the gaze: the angle is
             undefined there and its gradient is taken as 0).
-        coef_gaze: ``C R_gaze^T`` ``(2, 2, 3)``.
+        mix: ``(7, 12)`` ``J`` as a linear map of the stacked point Jacobians ``(4 * 3, n)``
+            (rows 3: hold ``C R_gaze^T`` on ``A``).
         axis_jac: ``da/dq`` ``(2, 3, n)``, fixed joints' columns included.
     """
 
     points: np.ndarray
     proj: np.ndarray
     inv: np.ndarray
-    coef_gaze: np.ndarray
+    mix: np.ndarray
     axis_jac: np.ndarray
 
 
@@ -328,9 +369,9 @@ def backward(
         dx[t + 1] += p
         ln = lam - p @ J
         kin.update(result.q[t], held=False)
-        directions = np.array((winv * lam - winv * (J.T @ p), winv * (J.T @ u)))
-        along = task.rates(directions, result.frames[t])
-        curvature = u @ along[0] - p @ along[1]
+        curvature = task.curvature(
+            u, winv * lam - winv * (J.T @ p), -p, winv * (J.T @ u), result.frames[t]
+        )
         lam = gq[t] + ln - alpha * (ln * winv) * result.limit_hessian[t] + curvature
     return dx
 
