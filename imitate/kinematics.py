@@ -82,12 +82,14 @@ class Kinematics:
         self._owner = np.arange(model.nbody)  # body whose Jacobian moves each body
         for obj, (hand, _, _) in self._held.items():
             self._owner[obj] = hand
+        self._owners = self._owner.tolist()  # for the inner loops
         self.pairs = CollisionPairs.between(model, geoms) if geoms is not None else None
         if self.pairs is not None:
             self._pair_geoms = (self.pairs.geom1.tolist(), self.pairs.geom2.tolist())
             # Centre distance beyond which the bounding spheres are apart.
             self._reach = model.geom_rbound[self.pairs.geom1] + model.geom_rbound[self.pairs.geom2]
             self._fromto = np.zeros((len(self.pairs), 6))
+            self._reach_for = (None, None)  # (distmax, squared reach + distmax (k,)), cached
         # Views kept once: MjData attribute access builds a new array each time.
         d = self.data
         self._qpos, self._qvel, self._xpos, self._xquat = d.qpos, d.qvel, d.xpos, d.xquat
@@ -160,10 +162,10 @@ class Kinematics:
     def point_jacobians(self, bodies: Sequence[int], points: np.ndarray) -> np.ndarray:
         """Translational Jacobians ``(k, 3, n)`` [m/rad] of ``k <= 4`` points ``(k, 3)`` [m]
         fixed to ``bodies`` (ids; held objects move with their hands)."""
-        m, d, jacp = self.model, self.data, self._jacp
+        m, d, jacp, owner = self.model, self.data, self._jacp, self._owners
         for k, (b, p) in enumerate(zip(bodies, points, strict=True)):
-            mujoco.mj_jac(m, d, jacp[k], None, p, self._owner[b])
-        return jacp[: len(bodies), :, self.dof_adr]
+            mujoco.mj_jac(m, d, jacp[k], None, p, owner[b])
+        return jacp[: len(bodies)].take(self.dof_adr, axis=2)
 
     def point_jacobian_rates(
         self, bodies: Sequence[int], points: np.ndarray, qdot: np.ndarray
@@ -171,12 +173,12 @@ class Kinematics:
         """Derivatives ``(k, 3, n)`` [m/rad^2] of :meth:`point_jacobians` along the joint
         velocity ``qdot`` ``(n,)`` [rad/s] (``mj_comVel``, ``mj_jacDot``), the points moving
         with their bodies."""
-        m, d, jacp = self.model, self.data, self._jacp
+        m, d, jacp, owner = self.model, self.data, self._jacp, self._owners
         self._qvel[self.dof_adr] = qdot
         mujoco.mj_comVel(m, d)
         for k, (b, p) in enumerate(zip(bodies, points, strict=True)):
-            mujoco.mj_jacDot(m, d, jacp[k], None, p, self._owner[b])
-        return jacp[: len(bodies), :, self.dof_adr]
+            mujoco.mj_jacDot(m, d, jacp[k], None, p, owner[b])
+        return jacp[: len(bodies)].take(self.dof_adr, axis=2)
 
     def object_kinematics(self, body: str) -> ObjectKinematics:
         """Position (body frame origin), unit long axis (body ``z``) and Jacobians of ``body``."""
@@ -204,14 +206,15 @@ class Kinematics:
             raise ImitateError("distances need the Kinematics to be built with geoms")
         m, d = self.model, self.data
         g1, g2 = self._pair_geoms
-        gap = self._geom_xpos[self.pairs.geom1] - self._geom_xpos[self.pairs.geom2]
-        reach = self._reach + distmax
-        near = np.flatnonzero(np.einsum("ij,ij->i", gap, gap) < reach * reach).tolist()
+        if distmax != self._reach_for[0]:
+            self._reach_for = distmax, np.square(self._reach + distmax)
+        gap = self._geom_xpos.take(self.pairs.geom1, axis=0)
+        gap -= self._geom_xpos.take(self.pairs.geom2, axis=0)
+        near = np.flatnonzero(np.einsum("ij,ij->i", gap, gap) < self._reach_for[1]).tolist()
         kept, dist = [], []
-        fromto = self._fromto
+        fromto, geom_distance = self._fromto, mujoco.mj_geomDistance
         for p in near:
-            k = len(kept)
-            value = mujoco.mj_geomDistance(m, d, g1[p], g2[p], distmax, fromto[k])
+            value = geom_distance(m, d, g1[p], g2[p], distmax, fromto[len(kept)])
             if value < distmax:
                 kept.append(p)
                 dist.append(value)

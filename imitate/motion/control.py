@@ -116,7 +116,7 @@ class TaskMap:
         if unknown:
             raise ImitateError(f"fixed_joints {unknown} unknown; accepted: {list(kin.joints)}")
         self.driven = np.array([j not in fixed_joints for j in kin.joints])
-        self._bodies = [self.bottle, self.glass]
+        self._bodies = np.array([self.bottle, self.glass])
         self._points_of = (self.bottle, self.glass, self.bottle, self.glass)
         self._gaze_t = np.ascontiguousarray(self.gaze.T)
         self._mask = self.driven.astype(float)
@@ -140,8 +140,8 @@ class TaskMap:
     def evaluate(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, TaskFrame]:
         """As :meth:`__call__`, and the :class:`TaskFrame` that :meth:`rates` needs."""
         points = np.empty((4, 3))
-        points[:2] = self._xpos[self._bodies]
-        axis = self._xmat[self._bodies, 2::3]
+        self._xpos.take(self._bodies, axis=0, out=points[:2])
+        axis = self._xmat.take(self._bodies, axis=0)[:, 2::3]
         points[2:] = points[:2] + axis
         proj = axis @ self.gaze
         x = (points[0] - points[1]).tolist()
@@ -306,13 +306,16 @@ def rollout(
             break
         JW = J * winv
         rhs[:, :n] = JW
-        rhs[:, n] = target[t + 1] - x[t]
+        np.subtract(target[t + 1], x[t], out=rhs[:, n])
         sol = _solve_spd(JW @ J.T + damped, rhs)
         Jp, solved[t] = sol[:, :n].T, sol[:, n]
-        g = winv * limits.gradient(q[t])
-        step = JW.T @ solved[t] - config.nullspace_gain * (g - Jp @ (J @ g))
-        unclipped[t] = q[t] + step
-        q[t + 1] = np.minimum(np.maximum(unclipped[t], kin.lower), kin.upper)
+        step = JW.T @ solved[t]
+        g = limits.gradient(q[t])
+        if g.any():  # outside the free zone: the null-space joint-limit step
+            g *= winv
+            step -= config.nullspace_gain * (g - Jp @ (J @ g))
+        np.add(q[t], step, out=unclipped[t])
+        np.minimum(np.maximum(unclipped[t], kin.lower, out=q[t + 1]), kin.upper, out=q[t + 1])
         jac[t], pinv[t] = J, Jp
         frames.append(frame)
     hess = limits(q[:T])[2]

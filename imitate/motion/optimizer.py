@@ -177,6 +177,7 @@ class Problem:
             "path_length": (config.path_length_weight, PathLength(dt)),
         }
         self.n_evaluations = 0
+        self.last: tuple[np.ndarray, Rollout] | None = None  # of the last evaluate
 
     def rollout(self, a: np.ndarray) -> tuple[np.ndarray, Rollout]:
         """Target trajectory ``(T + 1, m)`` and RMR rollout of attractors ``a`` ``(K, m)``."""
@@ -194,6 +195,7 @@ class Problem:
     ) -> tuple[float, dict[str, float], np.ndarray | None]:
         """``(Phi, {term: weighted value}, dPhi/da (K, m) or None)`` over ``terms`` (all)."""
         target, result = self.rollout(a)
+        self.last = target, result
         names = tuple(self.terms) if terms is None else terms
         values = {}
         gq = np.zeros_like(result.q)
@@ -281,11 +283,11 @@ def plan(
     a0 = dynamics.fit(mu, problem.x_start, weights)
 
     history: list[tuple[float, dict[str, float]]] = []
-    best = {"a": a0, "cost": np.inf}
+    best = {"a": a0, "cost": np.inf, "rollout": None}
 
     def record(a, total, values):
         if np.isfinite(total) and total < best["cost"]:
-            best.update(a=a.copy(), cost=total)
+            best.update(a=a.copy(), cost=total, rollout=problem.last)
         history.append((total, values))
 
     converged = False
@@ -306,7 +308,7 @@ def plan(
         converged = bool(result.success)
 
     a = best["a"]
-    target, final = problem.rollout(a)
+    target, final = best["rollout"] or problem.rollout(a)
     min_d, closest = _min_distance(kin, final.q)
     names = tuple(problem.terms) + ("total",)
     costs = {
