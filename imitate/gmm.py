@@ -273,11 +273,19 @@ def _lloyd(
             shift += squared
         if shift <= tol:
             break
-        for c in range(k):
+        order = np.argsort(centers[:, 0])
+        keys = centers[order, 0]
+        for rank in range(k):  # nearest other centre, outward in the first coordinate
+            c = order[rank]
             gap = np.inf
-            for other in range(k):
-                if other != c:
-                    gap = min(gap, _distance(centers[c], centers[other]))
+            for other in range(rank + 1, k):
+                if keys[other] - keys[rank] >= gap:
+                    break
+                gap = min(gap, _distance(centers[c], centers[order[other]]))
+            for other in range(rank - 1, -1, -1):
+                if keys[rank] - keys[other] >= gap:
+                    break
+                gap = min(gap, _distance(centers[c], centers[order[other]]))
             half_gap[c] = 0.5 * gap
         fastest, max_moved, second_moved = 0, -1.0, 0.0
         for c in range(k):
@@ -285,8 +293,6 @@ def _lloyd(
                 fastest, max_moved, second_moved = c, moved[c], max(max_moved, 0.0)
             elif moved[c] > second_moved:
                 second_moved = moved[c]
-        order = np.argsort(centers[:, 0])
-        keys = centers[order, 0]
         changed = 0
         for i in range(n):
             own = labels[i]
