@@ -15,9 +15,8 @@ import numpy as np
 import imitate  # noqa: F401  (selects the headless GL backend before MuJoCo is imported)
 from envs.observation import ObservationConfig, observe
 from envs.teacher import TeacherConfig
-from imitate.artifacts import write_atomic
 from imitate.perception import save_observations
-from imitate.plots import plot_observation
+from imitate.plots import plot_observation, save
 from imitate.segment import StillnessConfig, save_demos, segment
 
 
@@ -42,8 +41,7 @@ def main(argv=None) -> None:
     save_observations(args.out / "observations.npz", observations)
     save_demos(args.out / "demos.npz", demos, observations.tracks)
     boundaries = np.array([(d.start, d.end) for d in demos])
-    fig = plot_observation(observations, boundaries)
-    write_atomic(args.out / "figures" / "observation.png", lambda tmp: fig.savefig(tmp, dpi=110))
+    save(plot_observation(observations, boundaries), args.out / "figures" / "observation.png")
     tracks, truth = observations.tracks, observations.truth
     print(
         f"{timing['pairs']} stereo pairs {args.width}x{args.height}: rendering "

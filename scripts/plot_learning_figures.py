@@ -16,7 +16,7 @@ import numpy as np
 from imitate.gmm import select_components
 from imitate.gmr import gmr
 from imitate.learning import LearningConfig, learn
-from imitate.plots import plot_bic_curves, plot_gmm_with_and_without_dtw, plot_gmr
+from imitate.plots import plot_bic_curves, plot_gmm_with_and_without_dtw, plot_gmr, save
 from imitate.synthetic import SyntheticConfig, pouring_demos
 from imitate.taskspace import TASK_DIMS
 
@@ -33,14 +33,12 @@ def main() -> None:
     aligned = learn(sd.demos, rate=sd.rate, config=LearningConfig(k_max=args.k_max))
     k = aligned.gmm.n_components
     raw = learn(sd.demos, rate=sd.rate, config=LearningConfig(n_components=k, use_dtw=False))
-    plot_gmm_with_and_without_dtw(raw, aligned, dim=3).savefig(args.out / "fig4_gmm_dtw.png",
-                                                                dpi=120)
+    save(plot_gmm_with_and_without_dtw(raw, aligned, dim=3), args.out / "fig4_gmm_dtw.png")
 
     k_full, full = select_components(aligned.data, args.k_max, "full")
-    plot_bic_curves({"fast (K-means only)": aligned.bic_curve, "full (EM)": full}).savefig(
-        args.out / "fig5_bic.png", dpi=120
-    )
-    plot_gmr(aligned).savefig(args.out / "gmr.png", dpi=120)
+    curves = {"fast (K-means only)": aligned.bic_curve, "full (EM)": full}
+    save(plot_bic_curves(curves), args.out / "fig5_bic.png")
+    save(plot_gmr(aligned), args.out / "gmr.png")
     print(f"K chosen: fast {k}, full {k_full}")
 
     start, end = sd.pour_windows[aligned.alignment.reference]
