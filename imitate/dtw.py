@@ -13,8 +13,9 @@ ties are broken in its order (diagonal, then ``(i, j-1)``, then ``(i-1, j)``).
 
 Speed: the table is filled row by row in a small compiled loop (numba), which computes each row
 of local distances with the same summation order as ``scipy.spatial.distance.cdist`` (used by
-dtw-python), keeps only two rows of accumulated costs and records the chosen step of every cell
-(one byte each); the path is read back from those steps, exactly as dtw-python does. The first
+dtw-python), keeps only two rows of accumulated costs, fills each row in a vectorised pass (the
+diagonal and up steps) and a serial one (the left step), and records the chosen step of every
+cell (one byte each); the path is read back from those steps, exactly as dtw-python does. The first
 call of a process compiles the loops (about 2 s) or loads them from numba's on-disk cache
 (about 0.5 s).
 """
@@ -119,7 +120,10 @@ def _accumulate(a: np.ndarray, bt: np.ndarray) -> tuple[float, np.ndarray]:
     """Eq. 2 for already scaled series ``a`` (n, d) and ``bt`` (d, m, i.e. ``b`` transposed).
 
     Every cell takes the cheapest of its three predecessors; as in dtw-python, the candidates
-    ``acc + v`` are compared and the first in the order diagonal, left, up wins ties.
+    ``acc + v`` are compared and the first in the order diagonal, left, up wins ties. A row is
+    filled in two passes: the diagonal and up candidates depend only on the previous row (an
+    independent loop the compiler vectorises), then the left candidate runs along the row, the
+    only serial dependency. The costs and choices are those of the three-way comparison.
 
     Returns:
         ``(distance, steps)``: eq. 2's ``dtw(n-1, m-1)`` and the step code chosen at every cell,
@@ -132,26 +136,26 @@ def _accumulate(a: np.ndarray, bt: np.ndarray) -> tuple[float, np.ndarray]:
     steps = np.empty((n, m), dtype=np.int8)
     for i in range(n):
         _local_cost_row(a[i], bt, v)
+        row = steps[i]
         if i == 0:
             cur[0] = v[0]
-            steps[0, 0] = _START
+            row[0] = _START
             for j in range(1, m):
                 cur[j] = cur[j - 1] + v[j]
-                steps[0, j] = _LEFT
+                row[j] = _LEFT
         else:
             cur[0] = prev[0] + v[0]
-            steps[i, 0] = _UP
-            for j in range(1, m):
-                # Checked in reverse order with <=, so that the earlier step wins a tie.
-                best, step = prev[j] + v[j], _UP
-                candidate = cur[j - 1] + v[j]
-                if candidate <= best:
-                    best, step = candidate, _LEFT
-                candidate = prev[j - 1] + v[j]
-                if candidate <= best:
-                    best, step = candidate, _DIAGONAL
-                cur[j] = best
-                steps[i, j] = step
+            row[0] = _UP
+            for j in range(1, m):  # diagonal or up; the diagonal wins a tie
+                diagonal, up = prev[j - 1] + v[j], prev[j] + v[j]
+                if diagonal <= up:
+                    cur[j], row[j] = diagonal, _DIAGONAL
+                else:
+                    cur[j], row[j] = up, _UP
+            for j in range(1, m):  # left; it wins a tie against up, not against the diagonal
+                left = cur[j - 1] + v[j]
+                if left < cur[j] or (left == cur[j] and row[j] == _UP):
+                    cur[j], row[j] = left, _LEFT
         prev, cur = cur, prev
     return prev[m - 1], steps
 
