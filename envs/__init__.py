@@ -1,12 +1,5 @@
-"""Gymnasium environments of the pouring task; importing registers ``imitate/Pouring-v0``."""
+"""The simulation, installed as ``imitate.envs``: scene assembly, physics, rendering, the teacher's
+motion and the Gymnasium environment ``imitate/Pouring-v0`` (registered by ``import imitate``).
 
-import gymnasium as gym
-
-import imitate  # noqa: F401  (selects the headless GL backend before MuJoCo is imported)
-
-ENV_ID = "imitate/Pouring-v0"
-
-if ENV_ID not in gym.registry:
-    gym.register(id=ENV_ID, entry_point="envs.pouring:PouringEnv", max_episode_steps=500)
-
-__all__ = ["ENV_ID"]
+Nothing here imports the learner, the tracker or the planner: they build on this package.
+"""

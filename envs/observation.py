@@ -1,9 +1,10 @@
 """The robot watches the teacher: stereo frames from its head cameras, tracked into observations.
 
-:func:`observe` scripts a recording session (:mod:`envs.teacher`), renders it from the robot's
-two head cameras at camera rate, runs the stereo tracker (:mod:`imitate.perception`) on every
-pair and keeps the ground truth beside the tracks for evaluation. The robot stands in its rest
-pose with its head turned towards the teacher's hands; the objects are held by the teacher.
+:func:`observe` scripts a recording session (:mod:`imitate.envs.teacher_motion`), renders it
+from the robot's two head cameras at camera rate, runs the stereo tracker
+(:mod:`imitate.perception`) on every pair and keeps the ground truth beside the tracks for
+evaluation. The robot stands in its rest pose with its head turned towards the teacher's hands;
+the objects are held by the teacher.
 """
 
 from __future__ import annotations
@@ -15,10 +16,12 @@ from dataclasses import dataclass, field
 import cv2
 import mujoco
 import numpy as np
+from imitate.envs import teacher_motion
+from imitate.envs.assembly import SceneConfig, build_model, hold
+from imitate.envs.rendering import make_renderer
+from imitate.models import humanoid, objects
 from scipy.spatial.transform import Rotation
 
-from envs import teacher as teacher_motion
-from envs.scene import SceneConfig, build_model, hold
 from imitate.errors import ImitateError
 from imitate.perception import (
     ColourRange,
@@ -32,8 +35,6 @@ from imitate.perception import (
     mujoco_camera,
     tracks_from_ends,
 )
-from imitate.rendering import make_renderer
-from models import humanoid, objects
 
 SHAPES = {objects.BOTTLE: objects.BOTTLE_SHAPE, objects.GLASS: objects.GLASS_SHAPE}
 

@@ -31,7 +31,7 @@ container), ``is_success`` (>= 90 % in the glass) and ``min_distance`` [m].
 | camera | ``"overview"`` | camera for ``render()``: overview, left_eye or right_eye |
 | width, height | 640, 480 | image size of ``render()`` and of the stereo images [px] |
 | particles | 60 | liquid spheres in the bottle, 0..120 |
-| obstacles | () | ``envs.scene.Obstacle``s (or their keyword dicts) on the table |
+| obstacles | () | ``imitate.envs.assembly.Obstacle``s (or their keyword dicts) on the table |
 | teacher | True | include the teacher mannequin |
 | frame_skip | 10 | physics steps (2 ms each) per env step |
 | reset_noise_scale | 0.01 | half-width of the uniform noise on the initial joint angles [rad] |
@@ -39,7 +39,7 @@ container), ``is_success`` (>= 90 % in the glass) and ``min_distance`` [m].
 
 ## Reset options
 ``bottle_grasp`` and ``glass_grasp``: where the hand holds each object, height above its bottom
-[m] (ranges in ``envs.scene.GRASP_RANGE``).
+[m] (ranges in ``imitate.envs.assembly.GRASP_RANGE``).
 """
 
 from __future__ import annotations
@@ -49,15 +49,15 @@ from typing import Any
 import gymnasium as gym
 import mujoco
 import numpy as np
+from imitate.envs import assembly
+from imitate.envs.collision import CollisionPairs, signed_distances
+from imitate.envs.rendering import make_renderer
+from imitate.envs.teacher_motion import pose_arm, shoulder_position
+from imitate.models import humanoid, objects
+from imitate.models import scene as scene_names
+from imitate.models import teacher as teacher_names
 
-from envs import scene
-from envs.teacher import pose_arm, shoulder_position
-from imitate.collision import CollisionPairs, signed_distances
 from imitate.errors import ImitateError
-from imitate.rendering import make_renderer
-from models import humanoid, objects
-from models import scene as scene_names
-from models import teacher as teacher_names
 
 OBS_TYPES = ("state", "stereo")
 RESET_OPTIONS = ("bottle_grasp", "glass_grasp")
@@ -77,7 +77,7 @@ class PouringEnv(gym.Env):
         width: int = 640,
         height: int = 480,
         particles: int = 60,
-        obstacles: tuple[scene.Obstacle | dict, ...] = (),
+        obstacles: tuple[assembly.Obstacle | dict, ...] = (),
         teacher: bool = True,
         frame_skip: int = 10,
         reset_noise_scale: float = 0.01,
@@ -103,9 +103,11 @@ class PouringEnv(gym.Env):
         self._reset_noise_scale = reset_noise_scale
         self._pour_weight, self._collision_weight = pour_weight, collision_weight
 
-        obstacles = tuple(scene.Obstacle(**o) if isinstance(o, dict) else o for o in obstacles)
-        self.config = scene.SceneConfig(teacher=teacher, particles=particles, obstacles=obstacles)
-        self.model = scene.build_model(self.config)
+        obstacles = tuple(assembly.Obstacle(**o) if isinstance(o, dict) else o for o in obstacles)
+        self.config = assembly.SceneConfig(
+            teacher=teacher, particles=particles, obstacles=obstacles
+        )
+        self.model = assembly.build_model(self.config)
         self.data = mujoco.MjData(self.model)
         self.dt = self.model.opt.timestep * frame_skip
         self._joint_qpos = np.array([self.model.joint(j).qposadr[0] for j in humanoid.JOINTS])
@@ -117,7 +119,7 @@ class PouringEnv(gym.Env):
             [self.model.body(f"{objects.PARTICLE_PREFIX}{i}").id for i in range(particles)],
             dtype=int,
         )
-        self._pairs = CollisionPairs.between(self.model, scene.clearance_geoms(self.model))
+        self._pairs = CollisionPairs.between(self.model, assembly.clearance_geoms(self.model))
         self._renderer: mujoco.Renderer | None = None
         self._pour_fraction = 0.0
 
@@ -146,7 +148,7 @@ class PouringEnv(gym.Env):
             raise ImitateError(f"reset options {unknown} unknown; accepted: {list(RESET_OPTIONS)}")
         for obj in (objects.BOTTLE, objects.GLASS):
             height = options.get(f"{obj}_grasp", getattr(self.config, f"{obj}_grasp"))
-            scene.set_grasp(self.model, "robot", obj, float(height))
+            assembly.set_grasp(self.model, "robot", obj, float(height))
 
         mujoco.mj_resetData(self.model, self.data)
         noise = self.np_random.uniform(-1, 1, len(humanoid.JOINTS)) * self._reset_noise_scale
@@ -156,8 +158,8 @@ class PouringEnv(gym.Env):
         self.data.ctrl[:] = q0
         if self.config.teacher:
             self._pose_teacher_at_rest()
-        scene.hold(self.model, self.data, "robot")
-        scene.fill_bottle(self.model, self.data, self.np_random)
+        assembly.hold(self.model, self.data, "robot")
+        assembly.fill_bottle(self.model, self.data, self.np_random)
         mujoco.mj_forward(self.model, self.data)
         self._pour_fraction = self._particle_fractions()[0]
         return self._get_obs(), self._get_info(self._min_distance())

@@ -1,8 +1,8 @@
 """The run's video: the teacher demonstrating, then the robot pouring, from the overview camera.
 
 Frames are rendered from kinematic states only (no physics here): the teacher's scripted object
-poses (:mod:`envs.teacher`) and the states a replay recorded (:class:`StateRecorder`). Shadows
-are off by default: with Mesa on a CPU they cost about three times the render time.
+poses (:mod:`imitate.envs.teacher_motion`) and the states a replay recorded
+(:class:`StateRecorder`). Shadows are off by default: on a CPU (Mesa) they are costly.
 """
 
 from __future__ import annotations
@@ -14,20 +14,20 @@ import cv2
 import imageio.v2 as imageio
 import mujoco
 import numpy as np
+from imitate.envs import teacher_motion
+from imitate.envs.assembly import SceneConfig, build_model
+from imitate.envs.observation import ObservationConfig, watching_scene
+from imitate.envs.pouring import PouringEnv
+from imitate.envs.rendering import make_renderer
+from imitate.models import scene as scene_names
 
-from envs import teacher as teacher_motion
-from envs.observation import ObservationConfig, watching_scene
-from envs.pouring import PouringEnv
-from envs.scene import SceneConfig, build_model
 from imitate.artifacts import write_atomic
-from imitate.rendering import make_renderer
-from models import scene as scene_names
 
 CLOSE_UP_LOOKAT = (0.25, 0.0, 0.9)  # between the robot's hands at the start [m]
 
 
 class StateRecorder:
-    """``on_step`` hook for :func:`envs.replay.replay`: keeps the kinematic state every
+    """``on_step`` hook for :func:`imitate.replay.replay`: keeps the kinematic state every
     ``every`` env steps (``qpos`` and the teacher's mocap poses), enough to render it again."""
 
     def __init__(self, every: int = 1):

@@ -79,7 +79,7 @@ def obstacle(text: str):
             f"{text!r} not accepted: box:X,Y,Z:SX,SY,SZ or cylinder:X,Y,Z:R,H [m] or none, e.g. "
             "box:0.55,0.0,0.70:0.03,0.03,0.05"
         ) from None
-    from envs.scene import Obstacle
+    from imitate.envs.assembly import Obstacle
 
     try:
         return Obstacle(**values)

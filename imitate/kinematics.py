@@ -11,7 +11,7 @@ velocity are ``mj_jacDot``.
 Jacobians are restricted to the ``joints`` columns, shape ``(3, n)``, world frame (MuJoCo's
 convention: translational ``dp/dq``; rotational maps joint velocities to angular velocity).
 Signed distances come from ``mj_geomDistance`` between the pairs of
-:class:`imitate.collision.CollisionPairs`; a bounding-sphere test skips far pairs first.
+:class:`imitate.envs.collision.CollisionPairs`; a bounding-sphere test skips far pairs first.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from imitate.collision import CollisionPairs
+from imitate.envs.collision import CollisionPairs
 from imitate.errors import ImitateError
 from imitate.taskspace import ObjectKinematics
 

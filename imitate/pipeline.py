@@ -32,14 +32,14 @@ import numpy as np
 from scipy.signal import savgol_filter
 from tqdm import tqdm
 
-from envs import scene
-from envs.observation import ObservationConfig
-from envs.observation import observe as watch
-from envs.pouring import PouringEnv
-from envs.replay import planning_task
-from envs.replay import replay as replay_plan
-from envs.teacher import TeacherConfig, script_demonstrations
-from envs.video import (
+from imitate import plots
+from imitate.artifacts import load_json, load_npz, save_json, save_npz
+from imitate.envs import assembly
+from imitate.envs.observation import ObservationConfig
+from imitate.envs.observation import observe as watch
+from imitate.envs.pouring import PouringEnv
+from imitate.envs.teacher_motion import TeacherConfig, script_demonstrations
+from imitate.envs.video import (
     StateRecorder,
     captioned,
     close_up,
@@ -47,18 +47,18 @@ from envs.video import (
     teacher_frames,
     write_video,
 )
-from imitate import plots
-from imitate.artifacts import load_json, load_npz, save_json, save_npz
 from imitate.errors import ImitateError
 from imitate.gmm import GMM, select_components
 from imitate.learning import LearnedModel, LearningConfig
 from imitate.learning import learn as learn_model
+from imitate.models import humanoid, objects
 from imitate.motion import Plan, PlanConfig, TaskMap
 from imitate.motion import plan as optimise
 from imitate.perception import Observations, load_observations, save_observations
+from imitate.replay import planning_task
+from imitate.replay import replay as replay_plan
 from imitate.segment import StillnessConfig, load_demos, save_demos, segment
 from imitate.taskspace import task_space
-from models import humanoid, objects
 
 __all__ = ["STAGES", "RunConfig", "load_config", "run_stage"]
 
@@ -110,9 +110,9 @@ class RunConfig:
     collision_weight: float = PlanConfig.collision_weight
     sweep: tuple[float, ...] = (0.0, 0.1, 1.0)
     max_iter: int = PlanConfig.max_iter
-    obstacle: scene.Obstacle | None = None
-    bottle_grasp: float = scene.SceneConfig.bottle_grasp
-    glass_grasp: float = scene.SceneConfig.glass_grasp
+    obstacle: assembly.Obstacle | None = None
+    bottle_grasp: float = assembly.SceneConfig.bottle_grasp
+    glass_grasp: float = assembly.SceneConfig.glass_grasp
     particles: int = 60
     video_width: int = 640
     video_height: int = 480
@@ -122,7 +122,7 @@ class RunConfig:
     def __post_init__(self):
         if isinstance(self.obstacle, dict):  # from config.json
             values = {k: tuple(v) if isinstance(v, list) else v for k, v in self.obstacle.items()}
-            object.__setattr__(self, "obstacle", scene.Obstacle(**values))
+            object.__setattr__(self, "obstacle", assembly.Obstacle(**values))
         object.__setattr__(self, "sweep", tuple(float(s) for s in self.sweep))
         for name, low, high in (
             ("n_demos", 2, 20),
@@ -132,7 +132,7 @@ class RunConfig:
             ("smoothing", 0, 1),
             ("k_max", 1, 50),
             ("max_iter", 1, 10_000),
-            ("particles", 1, scene.MAX_PARTICLES),
+            ("particles", 1, assembly.MAX_PARTICLES),
             ("video_width", 64, 1920),
             ("video_height", 48, 1080),
             ("video_fps", 1, 60),
@@ -161,7 +161,7 @@ class RunConfig:
         )
         return cls(**{**settings, **overrides})
 
-    def scene(self, **overrides) -> scene.SceneConfig:
+    def scene(self, **overrides) -> assembly.SceneConfig:
         """The robot's scene (objects in its hands)."""
         settings = dict(
             particles=self.particles,
@@ -169,7 +169,7 @@ class RunConfig:
             bottle_grasp=self.bottle_grasp,
             glass_grasp=self.glass_grasp,
         )
-        return scene.SceneConfig(**{**settings, **overrides})
+        return assembly.SceneConfig(**{**settings, **overrides})
 
     def to_json(self) -> dict[str, Any]:
         """The settings as JSON-ready values (the obstacle as a dict)."""

@@ -1,4 +1,4 @@
-"""Element names and dimensions of ``scene.xml`` and of what ``envs.scene`` adds to it."""
+"""Element names and dimensions of ``scene.xml`` and of what ``imitate.envs.assembly`` adds."""
 
 from __future__ import annotations
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 BODY = "teacher"
 SIDES = ("left", "right")
-# Mocap bodies per arm, shoulder to hand; the arm segments are posed by envs/teacher.py.
+# Mocap bodies per arm, shoulder to hand; the arm segments are posed by envs/teacher_motion.py.
 UPPER_ARM = {side: f"teacher_{side}_upper_arm" for side in SIDES}
 FOREARM = {side: f"teacher_{side}_forearm" for side in SIDES}
 HAND = {side: f"teacher_{side}_hand" for side in SIDES}

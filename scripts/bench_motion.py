@@ -10,11 +10,11 @@ import argparse
 import time
 
 import numpy as np
+from imitate.models import humanoid
 
-from envs.replay import oracle_model, planning_task
 from imitate.motion import PlanConfig, plan
 from imitate.motion.control import backward, rollout
-from models import humanoid
+from imitate.replay import oracle_model, planning_task
 
 
 def main() -> None:

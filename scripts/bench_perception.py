@@ -23,10 +23,16 @@ from pathlib import Path
 import cv2
 import mujoco
 import numpy as np
+from imitate.envs.observation import (
+    ObservationConfig,
+    frames,
+    ground_truth,
+    perception_config,
+    session,
+)
+from imitate.envs.teacher_motion import TeacherConfig
 
 import imitate  # noqa: F401  (selects the headless GL backend before MuJoCo is imported)
-from envs.observation import ObservationConfig, frames, ground_truth, perception_config, session
-from envs.teacher import TeacherConfig
 from imitate.perception import (
     Observations,
     StereoTracker,

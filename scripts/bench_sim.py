@@ -15,11 +15,10 @@ import platform
 import time
 
 import mujoco
-
-from envs.observation import ObservationConfig, frames, session
-from envs.pouring import PouringEnv
-from imitate.rendering import make_renderer
-from models import humanoid
+from imitate.envs.observation import ObservationConfig, frames, session
+from imitate.envs.pouring import PouringEnv
+from imitate.envs.rendering import make_renderer
+from imitate.models import humanoid
 
 
 def physics_rate(particles: int, seconds: float) -> tuple[float, float]:

@@ -13,15 +13,15 @@ import time
 from pathlib import Path
 
 import numpy as np
+from imitate.envs.assembly import GRASP_RANGE, Obstacle, SceneConfig
+from imitate.envs.pouring import PouringEnv
+from imitate.models import humanoid, objects
+from imitate.models.scene import TABLE_HEIGHT
 
-from envs.pouring import PouringEnv
-from envs.replay import oracle_model, planning_task, replay
-from envs.scene import GRASP_RANGE, Obstacle, SceneConfig
 from imitate import plots
 from imitate.motion import PlanConfig, plan
 from imitate.pipeline import pour_phase
-from models import humanoid, objects
-from models.scene import TABLE_HEIGHT
+from imitate.replay import oracle_model, planning_task, replay
 
 
 def run_plan(task, learned, weight: float, max_iter: int):

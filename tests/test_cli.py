@@ -147,7 +147,7 @@ def test_cli_knows_every_stage_in_order():
 
 
 def test_config_round_trips_through_json():
-    from envs.scene import Obstacle
+    from imitate.envs.assembly import Obstacle
 
     config = RunConfig.quick(obstacle=Obstacle("box", (0.55, 0.0, 0.70), (0.03, 0.03, 0.05)))
     assert RunConfig.from_json(json.loads(json.dumps(config.to_json()))) == config

@@ -8,10 +8,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
+from imitate.envs.assembly import Obstacle
+from imitate.envs.pouring import PouringEnv
 
-import envs
-from envs.pouring import PouringEnv
-from envs.scene import Obstacle
+import imitate
 from imitate.errors import ImitateError
 
 SMALL = {"width": 96, "height": 72, "particles": 20}
@@ -19,7 +19,7 @@ SMALL = {"width": 96, "height": 72, "particles": 20}
 
 @pytest.fixture(scope="module")
 def env():
-    env = gym.make(envs.ENV_ID, render_mode="rgb_array", **SMALL)
+    env = gym.make(imitate.ENV_ID, render_mode="rgb_array", **SMALL)
     yield env
     env.close()
 
@@ -142,7 +142,7 @@ def test_too_large_render_size():
 
 
 def test_unusable_mujoco_gl():
-    code = "import envs"
+    code = "import imitate"
     result = subprocess.run(
         [sys.executable, "-c", code],
         check=False,

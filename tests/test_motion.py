@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from imitate.models import humanoid
 
-from envs.replay import oracle_model, planning_task
 from imitate.errors import ImitateError
 from imitate.learning import LearningConfig
 from imitate.motion import (
@@ -21,8 +21,8 @@ from imitate.motion import (
     similarity_weights,
 )
 from imitate.motion.optimizer import _TOLERANCE
+from imitate.replay import oracle_model, planning_task
 from imitate.taskspace import task_state
-from models import humanoid
 
 DT = 0.1  # coarse steps keep the finite-difference sweeps fast
 

@@ -3,11 +3,13 @@
 import mujoco
 import numpy as np
 import pytest
+from imitate.envs import observation
+from imitate.envs.assembly import SceneConfig, build_spec
+from imitate.envs.rendering import make_renderer
+from imitate.envs.teacher_motion import TeacherConfig
+from imitate.models import humanoid
 
 import imitate  # noqa: F401  (selects the headless GL backend)
-from envs import observation
-from envs.scene import SceneConfig, build_spec
-from envs.teacher import TeacherConfig
 from imitate.errors import ImitateError
 from imitate.perception import (
     ColourRange,
@@ -23,8 +25,6 @@ from imitate.perception import (
     tracks_from_ends,
     triangulate,
 )
-from imitate.rendering import make_renderer
-from models import humanoid
 
 RED = ColourRange((170, 120, 40), (8, 255, 255))  # wraps around hue 0
 MARKERS = np.array([[0.62, 0.05, 1.10], [0.70, -0.12, 1.02], [0.55, 0.10, 0.98]])  # [m]

@@ -3,10 +3,9 @@
 import mujoco
 import numpy as np
 import pytest
-
-from envs import scene, teacher
-from envs.pouring import PouringEnv, _inside
-from models import objects
+from imitate.envs import assembly, teacher_motion
+from imitate.envs.pouring import PouringEnv, _inside
+from imitate.models import objects
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +55,7 @@ def test_particles_stay_in_upright_bottle(env):
 
 
 def _teacher_holding(particles):
-    model = scene.build_model(scene.SceneConfig(particles=particles, holder="teacher"))
+    model = assembly.build_model(assembly.SceneConfig(particles=particles, holder="teacher"))
     data = mujoco.MjData(model)
     return model, data
 
@@ -72,14 +71,14 @@ def test_particles_leave_bottle_tilted_120_degrees():
     bottle_at = np.array([1.0, -0.1, 1.0])
 
     def pose(angle):
-        hand_pos, hand_quat = teacher.hand_pose_for_object(
+        hand_pos, hand_quat = teacher_motion.hand_pose_for_object(
             model, objects.BOTTLE, bottle_at, _tilted(angle)
         )
-        teacher.pose_arm(model, data, "left", hand_pos, hand_quat)
+        teacher_motion.pose_arm(model, data, "left", hand_pos, hand_quat)
 
     pose(0.0)
-    scene.hold(model, data, "teacher")
-    scene.fill_bottle(model, data)
+    assembly.hold(model, data, "teacher")
+    assembly.fill_bottle(model, data)
     steps = 400
     for k in range(steps):  # tilt to 120 degrees in 0.8 s, then hold for 1 s
         pose(np.radians(120) * min(1.0, k / (0.8 / model.opt.timestep)))

@@ -3,28 +3,28 @@
 import mujoco
 import numpy as np
 import pytest
+from imitate.envs import assembly
+from imitate.models import humanoid, objects
+from imitate.models import scene as names
+from imitate.models import teacher as teacher_names
 
-from envs import scene
 from imitate.errors import ImitateError
-from models import humanoid, objects
-from models import scene as names
-from models import teacher as teacher_names
 
 
 @pytest.fixture(scope="module")
 def model():
-    return scene.build_model(scene.SceneConfig(particles=5, obstacles=(_box(),)))
+    return assembly.build_model(assembly.SceneConfig(particles=5, obstacles=(_box(),)))
 
 
 def _box(pos=(0.6, 0.2, 0.72)):
-    return scene.Obstacle("box", pos, (0.05, 0.05, 0.07))
+    return assembly.Obstacle("box", pos, (0.05, 0.05, 0.07))
 
 
 def _data_at_rest(model):
     data = mujoco.MjData(model)
     for joint, angle in zip(humanoid.JOINTS, humanoid.rest_pose(), strict=True):
         data.qpos[model.joint(joint).qposadr[0]] = angle
-    scene.hold(model, data, "robot")
+    assembly.hold(model, data, "robot")
     mujoco.mj_forward(model, data)
     return data
 
@@ -82,8 +82,8 @@ def test_object_colours_distinct_from_scene():
         h, _, s = colorsys.rgb_to_hls(*rgba[:3])
         return 360 * h, s
 
-    model = scene.build_model(scene.SceneConfig(particles=1))
-    targets = {obj: hue_sat(shape.rgba) for obj, shape in scene.SHAPES.items()}
+    model = assembly.build_model(assembly.SceneConfig(particles=1))
+    targets = {obj: hue_sat(shape.rgba) for obj, shape in assembly.SHAPES.items()}
     for g in range(model.ngeom):
         name = model.geom(g).name
         if name.startswith((objects.BOTTLE, objects.GLASS)) or model.geom_rgba[g][3] == 0:
@@ -95,17 +95,17 @@ def test_object_colours_distinct_from_scene():
 
 
 def test_variants():
-    bare = scene.build_model(scene.SceneConfig(teacher=False, particles=0))
-    assert bare.nmocap == 0 and scene.particle_count(bare) == 0
-    full = scene.build_model(
-        scene.SceneConfig(particles=7, obstacles=(_box(), _box((0.9, -0.3, 0.72))))
+    bare = assembly.build_model(assembly.SceneConfig(teacher=False, particles=0))
+    assert bare.nmocap == 0 and assembly.particle_count(bare) == 0
+    full = assembly.build_model(
+        assembly.SceneConfig(particles=7, obstacles=(_box(), _box((0.9, -0.3, 0.72))))
     )
-    assert full.nmocap == 3 * len(teacher_names.SIDES) and scene.particle_count(full) == 7
+    assert full.nmocap == 3 * len(teacher_names.SIDES) and assembly.particle_count(full) == 7
     assert full.geom(f"{names.OBSTACLE_PREFIX}1").size[0] == pytest.approx(0.05)
 
 
 def test_weld_holds_object_at_grasp():
-    model = scene.build_model(scene.SceneConfig(particles=0, bottle_grasp=0.12))
+    model = assembly.build_model(assembly.SceneConfig(particles=0, bottle_grasp=0.12))
     data = _data_at_rest(model)
     grip = data.site(humanoid.RIGHT_GRIP).xpos
     bottom = data.body(objects.BOTTLE).xpos
@@ -125,7 +125,7 @@ def test_weld_holds_object_at_grasp():
 )
 def test_bad_scene_config(kwargs, match):
     with pytest.raises(ImitateError, match=match):
-        scene.SceneConfig(**kwargs)
+        assembly.SceneConfig(**kwargs)
 
 
 @pytest.mark.parametrize(
@@ -140,4 +140,4 @@ def test_bad_scene_config(kwargs, match):
 )
 def test_bad_obstacle(shape, pos, size, match):
     with pytest.raises(ImitateError, match=match):
-        scene.Obstacle(shape, pos, size)
+        assembly.Obstacle(shape, pos, size)

@@ -14,27 +14,27 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from envs import scene
-from envs.pouring import PouringEnv
-from envs.teacher import TeacherConfig, script_demonstrations
+from imitate.envs import assembly
+from imitate.envs.pouring import PouringEnv
+from imitate.envs.teacher_motion import TeacherConfig, script_demonstrations
 from imitate.kinematics import Kinematics
 from imitate.learning import LearnedModel, LearningConfig, learn
+from imitate.models import humanoid, objects
 from imitate.motion import Plan, TaskMap
 from imitate.motion.control import ControlConfig
 from imitate.taskspace import task_space
-from models import humanoid, objects
 
 GAZE_CAMERA = humanoid.LEFT_EYE
 
 
 def planning_task(
-    config: scene.SceneConfig | None = None, control: ControlConfig | None = None
+    config: assembly.SceneConfig | None = None, control: ControlConfig | None = None
 ) -> TaskMap:
     """Task map on a particle-free copy of the scene (default: ``PouringEnv``'s), objects held
     by the robot, the gaze frame fixed at the rest pose's left-eye camera."""
-    config, control = config or scene.SceneConfig(), control or ControlConfig()
-    model = scene.build_model(replace(config, particles=0, holder="robot"))
-    kin = Kinematics(model, humanoid.JOINTS, scene.clearance_geoms(model))
+    config, control = config or assembly.SceneConfig(), control or ControlConfig()
+    model = assembly.build_model(replace(config, particles=0, holder="robot"))
+    kin = Kinematics(model, humanoid.JOINTS, assembly.clearance_geoms(model))
     kin.update(humanoid.rest_pose())
     _, R = kin.camera_pose(GAZE_CAMERA)
     gaze = np.column_stack((R[:, 0], R[:, 1], -R[:, 2]))  # MuJoCo cameras look along -z

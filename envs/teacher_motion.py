@@ -21,12 +21,12 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from imitate.envs.assembly import GRASPS
+from imitate.models import objects, scene, teacher
 from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
 from scipy.spatial.transform import Rotation
 
-from envs.scene import GRASPS
 from imitate.errors import ImitateError
-from models import objects, scene, teacher
 
 _YAW = np.pi  # the mannequin faces the robot (-x)
 
@@ -45,7 +45,7 @@ def hand_pose_for_object(
 ) -> tuple[np.ndarray, np.ndarray]:
     """World pose of the teacher's hand that holds ``obj`` at ``(obj_pos, obj_quat)``.
 
-    Inverts the weld's grasp pose (set by ``envs.scene.set_grasp``).
+    Inverts the weld's grasp pose (set by ``imitate.envs.assembly.set_grasp``).
 
     Returns:
         ``(pos (3,) [m], quat (4,) wxyz)`` of the hand body.

@@ -69,7 +69,7 @@ def make_renderer(
     can do without them, a video for people looks better with them.
 
     The model's off-screen buffer (``model.vis.global_.offheight/offwidth``) must be at least
-    as large; ``envs.scene`` sets it.
+    as large; ``imitate.envs.assembly`` sets it.
 
     Raises:
         ImitateError: the size is not positive or exceeds the off-screen buffer, or no OpenGL

@@ -11,9 +11,9 @@ from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
+from imitate.models import humanoid, model_path, objects, scene, teacher
 
 from imitate.errors import ImitateError
-from models import humanoid, model_path, objects, scene, teacher
 
 HOLDERS = ("robot", "teacher")
 OBSTACLE_SHAPES = ("box", "cylinder")
@@ -243,7 +243,7 @@ def clearance_geoms(model: mujoco.MjModel) -> list[int]:
     """Ids of the geoms that must keep clear of each other.
 
     The robot's collision capsules, the bottle's and glass's hulls, the table top and the
-    obstacles. Pairs among them are filtered by ``imitate.collision.CollisionPairs.between``.
+    obstacles. Pairs among them are filtered by ``imitate.envs.collision.CollisionPairs.between``.
     """
     root = model.body(humanoid.ROOT_BODY).id
     robot = {b for b in range(model.nbody) if model.body_rootid[b] == root}
