@@ -28,8 +28,8 @@ def flatten(value, prefix: str = "") -> dict[str, object]:
     else:
         return {prefix: value}
     flat = {}
-    for key, item in items:
-        key = str(key)
+    for raw_key, item in items:
+        key = str(raw_key)
         if key in SKIPPED_KEYS or key.endswith("_per_s"):
             continue
         flat.update(flatten(item, f"{prefix}.{key}" if prefix else key))
