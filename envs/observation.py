@@ -1,10 +1,10 @@
-"""The robot watches the teacher: stereo frames from its head cameras, tracked into observations.
+"""The robot watches the teacher: its head cameras and the stereo pairs they see.
 
-:func:`observe` scripts a recording session (:mod:`imitate.envs.teacher_motion`), renders it
-from the robot's two head cameras at camera rate, runs the stereo tracker
-(:mod:`imitate.perception`) on every pair and keeps the ground truth beside the tracks for
-evaluation. The robot stands in its rest pose with its head turned towards the teacher's hands;
-the objects are held by the teacher.
+:func:`session` scripts a recording session (:mod:`imitate.envs.teacher_motion`) in the scene
+where the robot stands in its rest pose with its head turned towards the teacher's hands, the
+objects held by the teacher; :func:`frames` renders it from the robot's two head cameras at
+camera rate. The cameras' parameters are plain arrays (:func:`camera_parameters`), and
+:func:`tracked_point` gives the objects' true tracked points, for evaluating a tracker.
 """
 
 from __future__ import annotations
@@ -13,7 +13,6 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
-import cv2
 import mujoco
 import numpy as np
 from imitate.envs import teacher_motion
@@ -23,20 +22,8 @@ from imitate.models import humanoid, objects
 from scipy.spatial.transform import Rotation
 
 from imitate.errors import ImitateError
-from imitate.perception import (
-    ColourRange,
-    GroundTruth,
-    ObjectModel,
-    Observations,
-    PerceptionConfig,
-    StereoTracker,
-    axis_angle,
-    gaze_frame,
-    mujoco_camera,
-    tracks_from_ends,
-)
 
-SHAPES = {objects.BOTTLE: objects.BOTTLE_SHAPE, objects.GLASS: objects.GLASS_SHAPE}
+EYES = (humanoid.LEFT_EYE, humanoid.RIGHT_EYE)
 
 
 @dataclass(frozen=True)
@@ -71,36 +58,6 @@ class ObservationConfig:
             )
 
 
-def colour_range(rgba, hue_tolerance: int = 12) -> ColourRange:
-    """HSV range of a uniformly coloured, shaded surface of colour ``rgba``.
-
-    Hue within ``hue_tolerance`` (OpenCV half-degrees) of the colour's, saturation from 100
-    (shading keeps it; the grey and skin of the scene stay below), any value from 30.
-    """
-    pixel = np.uint8(np.round(np.array(rgba[:3]) * 255))[None, None]
-    hue = int(cv2.cvtColor(pixel, cv2.COLOR_RGB2HSV)[0, 0, 0])
-    return ColourRange(
-        ((hue - hue_tolerance) % 180, 100, 30), ((hue + hue_tolerance) % 180, 255, 255)
-    )
-
-
-def object_models() -> tuple[ObjectModel, ...]:
-    """The bottle and glass as the robot knows them: colour range and outer radius profile."""
-    return tuple(
-        ObjectModel(
-            name=name,
-            colour=colour_range(shape.rgba),
-            profile=tuple((r + shape.wall / 2, h) for r, h in shape.profile),
-        )
-        for name, shape in SHAPES.items()
-    )
-
-
-def perception_config(**overrides) -> PerceptionConfig:
-    """The tracker's settings for this scene (``overrides`` replace any field)."""
-    return PerceptionConfig(objects=object_models(), **overrides)
-
-
 def watching_scene(config: ObservationConfig) -> tuple[mujoco.MjModel, mujoco.MjData]:
     """The scene with the teacher holding the objects and the robot at rest, looking at them."""
     model = build_model(SceneConfig(teacher=True, particles=0, holder="teacher"))
@@ -126,17 +83,50 @@ def tracked_point(obj: str, pos: np.ndarray, quat: np.ndarray) -> tuple[np.ndarr
         ``(point (n, 3) [m], axis (n, 3))``.
     """
     axis = Rotation.from_quat(quat, scalar_first=True).as_matrix()[:, :, 2]
-    return pos + axis * SHAPES[obj].height / 2, axis
+    return pos + axis * objects.SHAPES[obj].height / 2, axis
+
+
+def camera_parameters(
+    model: mujoco.MjModel, data: mujoco.MjData, camera: str, width: int, height: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pinhole parameters of MuJoCo camera ``camera`` rendering ``width x height`` images.
+
+    Uses the camera's pose in ``data`` (after kinematics) and its vertical field of view
+    ``cam_fovy``; MuJoCo's pixels are square and its optical axis passes through the image
+    centre, between the two middle pixels.
+
+    Returns:
+        ``(intrinsics (3, 3) [px], rotation (3, 3), position (3,) [m])`` in OpenCV's
+        convention (x right, y down, z forward): ``K`` (a pixel's centre is at its index
+        ``(col, row)``), the world-to-camera rotation (rows: the camera axes in world
+        coordinates) and the optical centre in the world frame.
+
+    Raises:
+        ImitateError: no camera of that name; the message lists the model's cameras.
+    """
+    cam_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, camera)
+    if cam_id < 0:
+        names = [model.camera(i).name for i in range(model.ncam)]
+        raise ImitateError(f"camera {camera!r} not in the model; its cameras: {names}")
+    focal = 0.5 * height / np.tan(np.radians(model.cam_fovy[cam_id]) / 2)
+    intrinsics = np.array(
+        [[focal, 0.0, (width - 1) / 2], [0.0, focal, (height - 1) / 2], [0.0, 0.0, 1.0]]
+    )
+    # MuJoCo's camera frame: x right, y up, looking along -z; OpenCV's: y down, z forward.
+    rotation = (data.cam_xmat[cam_id].reshape(3, 3) * np.array([1.0, -1.0, -1.0])).T
+    return intrinsics, rotation, data.cam_xpos[cam_id].copy()
 
 
 @dataclass(frozen=True, eq=False)
 class Session:
-    """A rendered recording session, frame by frame.
+    """A recording session to render, frame by frame.
 
     Attributes:
         motion: the teacher's motion.
         times: ``(n,)`` frame times [s].
-        cameras: left and right :class:`imitate.perception.PinholeCamera`.
+        cameras: the left and right eyes' :func:`camera_parameters`.
+        width: image width [px].
+        height: image height [px].
         model: the scene.
         data: its data (the robot's pose; objects and arms are set per frame).
         fast_render: shadows and reflections off (see :class:`ObservationConfig`).
@@ -144,7 +134,9 @@ class Session:
 
     motion: teacher_motion.TeacherMotion
     times: np.ndarray
-    cameras: tuple
+    cameras: tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]
+    width: int
+    height: int
     model: mujoco.MjModel
     data: mujoco.MjData
     fast_render: bool = False
@@ -155,13 +147,14 @@ def session(config: ObservationConfig = ObservationConfig()) -> Session:
     motion = teacher_motion.script_demonstrations(config.teacher)
     model, data = watching_scene(config)
     cameras = tuple(
-        mujoco_camera(model, data, eye, config.width, config.height)
-        for eye in (humanoid.LEFT_EYE, humanoid.RIGHT_EYE)
+        camera_parameters(model, data, eye, config.width, config.height) for eye in EYES
     )
     times = np.arange(0.0, motion.duration, 1.0 / config.fps)
     if config.fast_render:
         model.vis.quality.offsamples = 0  # read when the renderer's context is made
-    return Session(motion, times, cameras, model, data, config.fast_render)
+    return Session(
+        motion, times, cameras, config.width, config.height, model, data, config.fast_render
+    )
 
 
 def frames(sess: Session, timing: dict | None = None) -> Iterator[tuple[np.ndarray, np.ndarray]]:
@@ -174,10 +167,7 @@ def frames(sess: Session, timing: dict | None = None) -> Iterator[tuple[np.ndarr
     Yields:
         ``(left, right)`` RGB images ``(height, width, 3)`` uint8.
     """
-    left_cam = sess.cameras[0]
-    renderer = make_renderer(
-        sess.model, left_cam.height, left_cam.width, shadows=not sess.fast_render
-    )
+    renderer = make_renderer(sess.model, sess.height, sess.width, shadows=not sess.fast_render)
     renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = not sess.fast_render
     poses = sess.motion.poses(sess.times)
     try:
@@ -187,7 +177,7 @@ def frames(sess: Session, timing: dict | None = None) -> Iterator[tuple[np.ndarr
                 sess.model, sess.data, {obj: (p[i], q[i]) for obj, (p, q) in poses.items()}
             )
             pair = []
-            for eye in (humanoid.LEFT_EYE, humanoid.RIGHT_EYE):
+            for eye in EYES:
                 renderer.update_scene(sess.data, camera=eye)
                 pair.append(renderer.render())
             if timing is not None:
@@ -195,66 +185,3 @@ def frames(sess: Session, timing: dict | None = None) -> Iterator[tuple[np.ndarr
             yield pair[0], pair[1]
     finally:
         renderer.close()
-
-
-def ground_truth(sess: Session, names: tuple[str, ...]) -> GroundTruth:
-    """True tracked points, axes and angles of ``names`` at the session's frame times."""
-    poses = sess.motion.poses(sess.times)
-    gaze = gaze_frame(sess.cameras[0])
-    points, axes = zip(*(tracked_point(name, *poses[name]) for name in names), strict=True)
-    axis = np.array(axes)
-    return GroundTruth(
-        position=np.array(points),
-        axis=axis,
-        angle=np.unwrap(axis_angle(axis, gaze), axis=-1),
-        boundaries=sess.motion.boundaries.copy(),
-    )
-
-
-def observe(
-    config: ObservationConfig = ObservationConfig(),
-    perception: PerceptionConfig | None = None,
-    timing: dict | None = None,
-    progress: bool = False,
-) -> Observations:
-    """Render the teacher's session from the robot's eyes and track the objects.
-
-    Args:
-        config: session and cameras.
-        perception: tracker settings; :func:`perception_config` by default.
-        timing: if given, receives ``"render"`` and ``"track"`` (tracking and triangulation)
-            totals [s] and ``"pairs"``.
-        progress: show a progress bar.
-
-    Returns:
-        Tracks, camera matrices and ground truth.
-    """
-    perception = perception or perception_config()
-    sess = session(config)
-    tracker = StereoTracker(*sess.cameras, perception)
-    timing = {} if timing is None else timing
-    ends = np.full((len(perception.objects), len(sess.times), 2, 3), np.nan)
-    pairs = frames(sess, timing)
-    if progress:
-        from tqdm import tqdm
-
-        pairs = tqdm(pairs, total=len(sess.times), desc="observe", unit="pair")
-    track_time = 0.0
-    for i, (left, right) in enumerate(pairs):
-        start = time.perf_counter()
-        result = tracker.update(left, right)
-        track_time += time.perf_counter() - start
-        for k, obj in enumerate(perception.objects):
-            if result[obj.name] is not None:
-                ends[k, i] = result[obj.name].ends
-    timing["track"] = track_time
-    timing["pairs"] = len(sess.times)
-    tracks = tracks_from_ends(
-        sess.times, perception.objects, ends, gaze_frame(sess.cameras[0]), perception
-    )
-    return Observations(
-        tracks=tracks,
-        projections=np.array([cam.projection for cam in sess.cameras]),
-        image_size=(config.width, config.height),
-        truth=ground_truth(sess, tracks.objects),
-    )

@@ -36,7 +36,6 @@ from imitate import plots
 from imitate.artifacts import load_json, load_npz, save_json, save_npz
 from imitate.envs import assembly
 from imitate.envs.observation import ObservationConfig
-from imitate.envs.observation import observe as watch
 from imitate.envs.pouring import PouringEnv
 from imitate.envs.teacher_motion import TeacherConfig, script_demonstrations
 from imitate.envs.video import (
@@ -54,6 +53,7 @@ from imitate.learning import learn as learn_model
 from imitate.models import humanoid, objects
 from imitate.motion import Plan, PlanConfig, TaskMap
 from imitate.motion import plan as optimise
+from imitate.observe import observe as watch
 from imitate.perception import Observations, load_observations, save_observations
 from imitate.replay import planning_task
 from imitate.replay import replay as replay_plan

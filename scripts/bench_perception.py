@@ -17,28 +17,22 @@ import argparse
 import json
 import os
 import platform
-import time
 from pathlib import Path
 
 import cv2
 import mujoco
 import numpy as np
-from imitate.envs.observation import (
-    ObservationConfig,
-    frames,
-    ground_truth,
-    perception_config,
-    session,
-)
+from imitate.envs.observation import ObservationConfig, frames, session
 from imitate.envs.teacher_motion import TeacherConfig
 
 import imitate  # noqa: F401  (selects the headless GL backend before MuJoCo is imported)
+from imitate.observe import cameras, ground_truth
 from imitate.perception import (
     Observations,
     StereoTracker,
-    gaze_frame,
+    perception_config,
     save_observations,
-    tracks_from_ends,
+    track,
 )
 from imitate.segment import StillnessConfig, segment
 
@@ -51,32 +45,22 @@ def run_seed(seed: int, width: int, height: int, out: Path | None = None) -> dic
     config = ObservationConfig(teacher=TeacherConfig(seed=seed), width=width, height=height)
     perception = perception_config()
     sess = session(config)
+    left, right = cameras(sess)
     timing: dict = {}
     pairs = list(frames(sess, timing))
     # One untimed pair first: the compiled loops are compiled or loaded once per process.
-    StereoTracker(*sess.cameras, perception).update(*pairs[0])
-    tracker = StereoTracker(*sess.cameras, perception)
-    ends = np.full((len(perception.objects), len(pairs), 2, 3), np.nan)
-    start = time.perf_counter()
-    for i, (left, right) in enumerate(pairs):
-        result = tracker.update(left, right)
-        for k, obj in enumerate(perception.objects):
-            if result[obj.name] is not None:
-                ends[k, i] = result[obj.name].ends
-    track_time = time.perf_counter() - start
-    tracks = tracks_from_ends(
-        sess.times, perception.objects, ends, gaze_frame(sess.cameras[0]), perception
-    )
+    StereoTracker(left, right, perception).update(*pairs[0])
+    tracks = track(StereoTracker(left, right, perception), pairs, sess.times, timing)
     truth = ground_truth(sess, tracks.objects)
     if out is not None:
-        projections = np.array([cam.projection for cam in sess.cameras])
+        projections = np.array([cam.projection for cam in (left, right)])
         observations = Observations(tracks, projections, (width, height), truth)
         save_observations(out / f"observations_seed{seed}.npz", observations)
     row = {
         "seed": seed,
         "pairs": len(pairs),
         "render_pairs_per_s": len(pairs) / timing["render"],
-        "track_pairs_per_s": len(pairs) / track_time,
+        "track_pairs_per_s": len(pairs) / timing["track"],
         "long_gaps": len(tracks.long_gaps),
     }
     for k, name in enumerate(tracks.objects):

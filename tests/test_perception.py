@@ -1,30 +1,30 @@
-"""Stereo perception: camera model against MuJoCo's renderer, tracking against truth, gaps."""
+"""Stereo perception: camera model against MuJoCo's renderer, rim correction, gaps, artifact."""
 
 import mujoco
 import numpy as np
 import pytest
-from imitate.envs import observation
 from imitate.envs.assembly import SceneConfig, build_spec
+from imitate.envs.observation import EYES, camera_parameters
 from imitate.envs.rendering import make_renderer
-from imitate.envs.teacher_motion import TeacherConfig
-from imitate.models import humanoid
 
 import imitate  # noqa: F401  (selects the headless GL backend)
 from imitate.errors import ImitateError
 from imitate.perception import (
     ColourRange,
-    ObjectModel,
-    PerceptionConfig,
+    GroundTruth,
+    Observations,
+    PinholeCamera,
     StereoTracker,
-    _correct_ends,
     axis_angle,
     fill_gaps,
     gaze_frame,
-    mujoco_camera,
-    track,
+    load_observations,
+    perception_config,
+    save_observations,
     tracks_from_ends,
     triangulate,
 )
+from imitate.perception._rim import _correct_ends
 
 RED = ColourRange((170, 120, 40), (8, 255, 255))  # wraps around hue 0
 MARKERS = np.array([[0.62, 0.05, 1.10], [0.70, -0.12, 1.02], [0.55, 0.10, 0.98]])  # [m]
@@ -50,10 +50,10 @@ def marker_views():
     mujoco.mj_forward(model, data)
     renderer = make_renderer(model, 480, 640)
     images, cameras = [], []
-    for eye in (humanoid.LEFT_EYE, humanoid.RIGHT_EYE):
+    for eye in EYES:
         renderer.update_scene(data, camera=eye)
         images.append(renderer.render())
-        cameras.append(mujoco_camera(model, data, eye, 640, 480))
+        cameras.append(PinholeCamera(*camera_parameters(model, data, eye, 640, 480), 640, 480))
     renderer.close()
     return images, cameras
 
@@ -102,7 +102,7 @@ def test_rim_correction_recovers_the_ends_from_exact_extremes(marker_views, tilt
     """The compiled rim correction (module step 5) on exact synthetic rim extremes of the
     bottle, upright and lying across the view tilted away from the eyes."""
     _, cameras = marker_views
-    tracker = StereoTracker(*cameras, observation.perception_config())
+    tracker = StereoTracker(*cameras, perception_config())
     bottle = tracker.config.objects[0]
     radii = bottle.radius(np.array([0.0, bottle.height]))
     eyes = 0.5 * (cameras[0].position + cameras[1].position)
@@ -147,68 +147,6 @@ def test_gaze_frame_is_the_left_camera_and_right_handed(marker_views):
     assert axis_angle(upright, gaze) == pytest.approx(-np.pi / 2, abs=0.01)
 
 
-@pytest.fixture(scope="module")
-def rendered_session():
-    """Eight 320x240 stereo pairs spread over the first demonstration, with ground truth."""
-    config = observation.ObservationConfig(
-        teacher=TeacherConfig(n_demos=2, seed=3), width=320, height=240
-    )
-    sess = observation.session(config)
-    start, end = sess.motion.boundaries[0]
-    times = np.linspace(start - 0.3, end + 0.3, 8)
-    sess = observation.Session(
-        sess.motion, times, sess.cameras, sess.model, sess.data, sess.fast_render
-    )
-    return sess, list(observation.frames(sess))
-
-
-def test_tracking_rendered_frames_matches_ground_truth(rendered_session):
-    sess, pairs = rendered_session
-    perception = observation.perception_config()
-    tracks = track(StereoTracker(*sess.cameras, perception), pairs, sess.times)
-    truth = observation.ground_truth(sess, tracks.objects)
-    assert tracks.detected.all()
-    error = np.linalg.norm(tracks.position - truth.position, axis=-1)
-    assert np.median(error) < 0.008 and error.max() < 0.03  # [m], at 320x240
-    turn = np.abs(np.angle(np.exp(1j * (tracks.angle - truth.angle))))
-    assert np.degrees(np.median(turn)) < 2.0 and np.degrees(turn.max()) < 6.0
-
-
-def test_tracker_recovers_after_an_object_leaves_the_view(rendered_session):
-    sess, pairs = rendered_session
-    tracker = StereoTracker(*sess.cameras, observation.perception_config())
-    blank = np.full_like(pairs[0][0], 200)
-    assert all(m is not None for m in tracker.update(*pairs[0]).values())
-    assert all(m is None for m in tracker.update(blank, blank).values())
-    assert all(m is not None for m in tracker.update(*pairs[1]).values())
-
-
-def test_an_object_found_in_no_frame_is_named_with_its_colour(rendered_session):
-    sess, pairs = rendered_session
-    models = observation.object_models()
-    purple = ObjectModel(
-        "purple_cup", ColourRange((140, 100, 30), (160, 255, 255)), models[1].profile
-    )
-    config = PerceptionConfig(objects=(models[0], purple))
-    with pytest.raises(ImitateError, match=r"'purple_cup'.*h 140..160, s 100..255, v 30..255"):
-        track(StereoTracker(*sess.cameras, config), pairs[:3], sess.times[:3])
-
-
-@pytest.mark.parametrize(
-    "frame",
-    [
-        np.zeros((240, 320), np.uint8),
-        np.zeros((240, 320, 3), np.float32),
-        np.zeros((480, 640, 3), np.uint8),
-    ],
-)
-def test_frames_of_the_wrong_shape_or_dtype_are_refused(rendered_session, frame):
-    sess, pairs = rendered_session
-    tracker = StereoTracker(*sess.cameras, observation.perception_config())
-    with pytest.raises(ImitateError, match=r"left frame not accepted: .*\(240, 320, 3\).*uint8"):
-        tracker.update(frame, pairs[0][1])
-
-
 def test_short_gaps_are_interpolated_and_long_ones_reported():
     times = np.arange(20) / 10.0
     values = np.stack([times, 2 * times], axis=1)
@@ -222,21 +160,42 @@ def test_short_gaps_are_interpolated_and_long_ones_reported():
     assert np.isnan(filled[[0, 1, 10, 15]]).all() and np.isfinite(filled[[4, 7, 9, 16]]).all()
 
 
-def test_tracks_report_long_gaps_and_fill_short_ones():
-    perception = observation.perception_config(max_gap=0.1)
+def _tracks_with_gaps():
+    """Two upright objects moving along x at 30 Hz; the bottle's gap is short, the glass's long."""
+    perception = perception_config(max_gap=0.1)
     times = np.arange(30) / 30.0
     ends = np.zeros((2, 30, 2, 3))
     ends[:, :, 1, 2] = 0.2  # upright, 0.2 m long
     ends[:, :, :, 0] = times[:, None]  # moving along x
     ends[0, 10:12] = np.nan  # 3/30 s between valid samples: interpolated
     ends[1, 20:27] = np.nan  # too long
-    tracks = tracks_from_ends(times, perception.objects, ends, np.eye(3), perception)
+    return tracks_from_ends(times, perception.objects, ends, np.eye(3), perception)
+
+
+def test_tracks_report_long_gaps_and_fill_short_ones():
+    tracks = _tracks_with_gaps()
+    times = tracks.times
     assert [(g.obj, g.interpolated) for g in tracks.gaps] == [("bottle", True), ("glass", False)]
     assert tracks.long_gaps[0].start == pytest.approx(20 / 30) and tracks.long_gaps[
         0
     ].end == pytest.approx(26 / 30)
     assert np.allclose(tracks.position[0, 10:12, 0], times[10:12])
     assert np.isnan(tracks.position[1, 20:27]).all()
+
+
+def test_observations_round_trip(tmp_path):
+    tracks = _tracks_with_gaps()
+    truth = GroundTruth(tracks.position, tracks.axis, tracks.angle, np.array([[0.1, 0.9]]))
+    saved = Observations(tracks, np.arange(24.0).reshape(2, 3, 4), (320, 240), truth)
+    save_observations(tmp_path / "observations.npz", saved)
+    loaded = load_observations(tmp_path / "observations.npz")
+    assert loaded.tracks.objects == tracks.objects and loaded.tracks.gaps == tracks.gaps
+    for name in ("times", "position", "axis", "angle", "detected", "gaze"):
+        assert np.array_equal(getattr(loaded.tracks, name), getattr(tracks, name), equal_nan=True)
+    assert np.array_equal(loaded.projections, saved.projections)
+    assert loaded.image_size == (320, 240)
+    for name in ("position", "axis", "angle", "boundaries"):
+        assert np.array_equal(getattr(loaded.truth, name), getattr(truth, name), equal_nan=True)
 
 
 @pytest.mark.parametrize(

@@ -1,0 +1,56 @@
+"""The robot's stereo perception: it tracks the bottle and glass in its head cameras' images.
+
+:mod:`~imitate.perception.camera` (pinhole model, triangulation, gaze frame),
+:mod:`~imitate.perception.colour` (what the robot knows of the objects: colours and shapes),
+:mod:`~imitate.perception.tracker` (the stereo tracker; its docstring describes the method),
+:mod:`~imitate.perception.tracks` (tracks over a sequence, gaps, ``observations.npz``).
+Nothing here knows the simulation: images and camera parameters come in as arrays
+(:mod:`imitate.observe` wires it to the simulated session).
+"""
+
+from imitate.perception.camera import PinholeCamera, axis_angle, gaze_frame, triangulate
+from imitate.perception.colour import SKIN, ColourRange, ObjectModel, colour_range, object_models
+from imitate.perception.tracker import (
+    Measurement,
+    PerceptionConfig,
+    StereoTracker,
+    ViewMeasurement,
+    perception_config,
+)
+from imitate.perception.tracks import (
+    Gap,
+    GroundTruth,
+    Observations,
+    Tracks,
+    fill_gaps,
+    load_observations,
+    save_observations,
+    track,
+    tracks_from_ends,
+)
+
+__all__ = [
+    "SKIN",
+    "ColourRange",
+    "Gap",
+    "GroundTruth",
+    "Measurement",
+    "ObjectModel",
+    "Observations",
+    "PerceptionConfig",
+    "PinholeCamera",
+    "StereoTracker",
+    "Tracks",
+    "ViewMeasurement",
+    "axis_angle",
+    "colour_range",
+    "fill_gaps",
+    "gaze_frame",
+    "load_observations",
+    "object_models",
+    "perception_config",
+    "save_observations",
+    "track",
+    "tracks_from_ends",
+    "triangulate",
+]

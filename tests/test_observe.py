@@ -1,0 +1,104 @@
+"""The observation stage: the robot's cameras in the simulation, the tracker on the rendered
+session against ground truth."""
+
+import dataclasses
+
+import mujoco
+import numpy as np
+import pytest
+from imitate.envs import observation
+from imitate.envs.assembly import SceneConfig, build_model
+from imitate.envs.teacher_motion import TeacherConfig
+
+import imitate  # noqa: F401  (selects the headless GL backend)
+from imitate.errors import ImitateError
+from imitate.observe import cameras, ground_truth, observe
+from imitate.perception import (
+    ColourRange,
+    ObjectModel,
+    PerceptionConfig,
+    StereoTracker,
+    object_models,
+    perception_config,
+    track,
+)
+
+
+@pytest.fixture(scope="module")
+def rendered_session():
+    """Eight 320x240 stereo pairs spread over the first demonstration, with ground truth."""
+    config = observation.ObservationConfig(
+        teacher=TeacherConfig(n_demos=2, seed=3), width=320, height=240
+    )
+    sess = observation.session(config)
+    start, end = sess.motion.boundaries[0]
+    sess = dataclasses.replace(sess, times=np.linspace(start - 0.3, end + 0.3, 8))
+    return sess, list(observation.frames(sess))
+
+
+def test_tracking_rendered_frames_matches_ground_truth(rendered_session):
+    sess, pairs = rendered_session
+    timing = {}
+    tracks = track(StereoTracker(*cameras(sess), perception_config()), pairs, sess.times, timing)
+    truth = ground_truth(sess, tracks.objects)
+    assert tracks.detected.all() and timing["track"] > 0
+    error = np.linalg.norm(tracks.position - truth.position, axis=-1)
+    assert np.median(error) < 0.008 and error.max() < 0.03  # [m], at 320x240
+    turn = np.abs(np.angle(np.exp(1j * (tracks.angle - truth.angle))))
+    assert np.degrees(np.median(turn)) < 2.0 and np.degrees(turn.max()) < 6.0
+
+
+def test_tracker_recovers_after_an_object_leaves_the_view(rendered_session):
+    sess, pairs = rendered_session
+    tracker = StereoTracker(*cameras(sess), perception_config())
+    blank = np.full_like(pairs[0][0], 200)
+    assert all(m is not None for m in tracker.update(*pairs[0]).values())
+    assert all(m is None for m in tracker.update(blank, blank).values())
+    assert all(m is not None for m in tracker.update(*pairs[1]).values())
+
+
+def test_an_object_found_in_no_frame_is_named_with_its_colour(rendered_session):
+    sess, pairs = rendered_session
+    models = object_models()
+    purple = ObjectModel(
+        "purple_cup", ColourRange((140, 100, 30), (160, 255, 255)), models[1].profile
+    )
+    config = PerceptionConfig(objects=(models[0], purple))
+    with pytest.raises(ImitateError, match=r"'purple_cup'.*h 140..160, s 100..255, v 30..255"):
+        track(StereoTracker(*cameras(sess), config), pairs[:3], sess.times[:3])
+
+
+@pytest.mark.parametrize(
+    "frame",
+    [
+        np.zeros((240, 320), np.uint8),
+        np.zeros((240, 320, 3), np.float32),
+        np.zeros((480, 640, 3), np.uint8),
+    ],
+)
+def test_frames_of_the_wrong_shape_or_dtype_are_refused(rendered_session, frame):
+    sess, pairs = rendered_session
+    tracker = StereoTracker(*cameras(sess), perception_config())
+    with pytest.raises(ImitateError, match=r"left frame not accepted: .*\(240, 320, 3\).*uint8"):
+        tracker.update(frame, pairs[0][1])
+
+
+def test_observe_tracks_the_whole_session_with_its_truth_and_timing():
+    config = observation.ObservationConfig(
+        teacher=TeacherConfig(n_demos=2, seed=1), width=160, height=120, fps=5
+    )
+    timing = {}
+    observed = observe(config, timing=timing)
+    tracks, truth = observed.tracks, observed.truth
+    n = len(tracks.times)
+    assert timing["pairs"] == n and timing["render"] > 0 and timing["track"] > 0
+    assert tracks.position.shape == truth.position.shape == (2, n, 3)
+    assert observed.projections.shape == (2, 3, 4) and observed.image_size == (160, 120)
+    assert tracks.detected.mean() > 0.5  # 160x120: the glass is small
+    assert np.nanmedian(np.linalg.norm(tracks.position - truth.position, axis=-1)) < 0.03
+
+
+def test_an_unknown_camera_is_refused_with_the_cameras_named():
+    model = build_model(SceneConfig(teacher=False, particles=0))
+    with pytest.raises(ImitateError, match=r"camera 'nose' not in the model; its cameras: \["):
+        observation.camera_parameters(model, mujoco.MjData(model), "nose", 64, 48)
