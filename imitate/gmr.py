@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from imitate.errors import ImitateError
-from imitate.gmm import GMM, _exp_flushed
+from imitate.gmm import GMM, exp_flushed
 
 __all__ = ["gmr"]
 
@@ -99,7 +99,7 @@ def gmr(
     log_beta = np.log(weights) - np.log(np.diagonal(chol, axis1=1, axis2=2)).sum(axis=1)
     log_beta = log_beta - 0.5 * (inp.size * _LOG_2PI + np.einsum("tki,tki->tk", y, y))
     log_beta -= log_beta.max(axis=1, keepdims=True)
-    beta = _exp_flushed(log_beta)
+    beta = exp_flushed(log_beta)
     beta /= beta.sum(axis=1, keepdims=True)  # eq. 19, (T, K)
 
     mean = np.einsum("tk,tko->to", beta, cond_mean)  # eq. 17

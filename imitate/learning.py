@@ -2,7 +2,7 @@
 
 Task-space demonstrations are aligned by DTW onto the medoid (:mod:`imitate.dtw`), time is
 prepended as the first dimension, the number of components is chosen by BIC
-(:func:`imitate.gmm.bic_sweep`), a GMM is trained by EM from the sweep's K-means start of that
+(:func:`imitate.bic.bic_sweep`), a GMM is trained by EM from the sweep's K-means start of that
 ``K`` (:class:`imitate.gmm.GMM`; the clustering is not repeated) and conditioned on time by GMR
 (:func:`imitate.gmr.gmr`).
 """
@@ -15,9 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from imitate.bic import DEFAULT_BIC, bic_sweep
 from imitate.dtw import Alignment, align
 from imitate.errors import ImitateError
-from imitate.gmm import GMM, bic_sweep
+from imitate.gmm import GMM
 from imitate.gmr import gmr
 
 __all__ = ["LearnedModel", "LearningConfig", "learn", "time_stacked"]
@@ -30,7 +31,8 @@ class LearningConfig:
     Attributes:
         n_components: Fixed number of GMM components; ``None`` chooses it by BIC.
         k_max: Largest number of components tried by the BIC sweep.
-        bic_method: ``"fast"`` (the paper's K-means heuristic) or ``"full"`` (EM for every K).
+        bic_method: ``"full"`` (EM for every K, the default) or ``"fast"`` (the paper's K-means
+            heuristic), see :data:`imitate.bic.BIC_METHODS`.
         use_dtw: Align the demonstrations by DTW (``False`` reproduces Fig. 4, left: each
             demonstration keeps its own time axis).
         dtw_weights: Per-dimension DTW scale factors, shape ``(n_dims,)``; ``None`` for the
@@ -45,7 +47,7 @@ class LearningConfig:
 
     n_components: int | None = None
     k_max: int = 30
-    bic_method: str = "fast"
+    bic_method: str = DEFAULT_BIC
     use_dtw: bool = True
     dtw_weights: tuple[float, ...] | None = None
     covariance: str = "paper"

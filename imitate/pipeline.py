@@ -34,6 +34,7 @@ from tqdm import tqdm
 
 from imitate import plots
 from imitate.artifacts import load_json, load_npz, save_json, save_npz
+from imitate.bic import BIC_METHODS, bic_sweep
 from imitate.envs import assembly
 from imitate.envs.observation import ObservationConfig
 from imitate.envs.pouring import PouringEnv
@@ -47,7 +48,7 @@ from imitate.envs.video import (
     write_video,
 )
 from imitate.errors import ImitateError
-from imitate.gmm import GMM, select_components
+from imitate.gmm import GMM
 from imitate.learning import LearnedModel, LearningConfig
 from imitate.learning import learn as learn_model
 from imitate.models import humanoid, objects
@@ -63,7 +64,6 @@ from imitate.taskspace import task_space
 __all__ = ["STAGES", "RunConfig", "load_config", "run_stage"]
 
 STAGES = ("observe", "learn", "optimize", "replay", "figures")
-BIC_METHODS = ("full", "fast")
 _HEIGHTS = {objects.BOTTLE: objects.BOTTLE_SHAPE.height, objects.GLASS: objects.GLASS_SHAPE.height}
 _FIGURES = (
     "observation", "fig4_gmm_dtw", "fig5_bic", "gmr", "fig8_snapshots", "fig9_collision_sweep",
@@ -233,7 +233,8 @@ def learn(run_dir: Path, config: RunConfig) -> dict:
     model = learn_model(demos, rate=rate, config=settings)
     seconds = time.perf_counter() - start
     other = "fast" if config.bic == "full" else "full"
-    k_other, other_curve = select_components(model.data, k_max, other, config.seed)
+    other_sweep = bic_sweep(model.data, k_max, other, config.seed)
+    k_other, other_curve = other_sweep.k, other_sweep.curve
     curves = {config.bic: model.bic_curve, other: other_curve}
     chosen = {config.bic: model.gmm.n_components, other: int(k_other)}
     raw = learn_model(

@@ -36,9 +36,11 @@ from sklearn.cluster import KMeans
 from sklearn.mixture import GaussianMixture
 from threadpoolctl import threadpool_limits
 
+from imitate.bic import bic_sweep
 from imitate.dtw import align, dtw
-from imitate.gmm import GMM, bic_sweep, kmeans, kmeans_parameters, select_components
+from imitate.gmm import GMM
 from imitate.gmr import gmr
+from imitate.kmeans import kmeans, kmeans_parameters
 from imitate.learning import LearningConfig, learn, time_stacked
 from imitate.synthetic import pouring_demos
 
@@ -48,10 +50,10 @@ _FIRST_CALL = """
 import time
 start = time.perf_counter()
 import numpy as np
-from imitate.learning import learn
+from imitate.learning import LearningConfig, learn
 from imitate.synthetic import pouring_demos
 sd = pouring_demos()
-learn([d[:60] for d in sd.demos[:2]], rate=sd.rate)
+learn([d[:60] for d in sd.demos[:2]], rate=sd.rate, config=LearningConfig(bic_method="fast"))
 print(time.perf_counter() - start)
 """
 
@@ -144,10 +146,10 @@ def main() -> None:
         rows.append((f"K-means K={K_GMR} (3 starts)", _time(lambda: kmeans(X, K_GMR), reps),
                      "sklearn KMeans",
                      _time(lambda: KMeans(K_GMR, n_init=3, random_state=0).fit(X), reps)))
-        fast = _time(lambda: select_components(X, K_MAX, "fast"), reps)
+        fast = _time(lambda: bic_sweep(X, K_MAX, "fast"), reps)
         rows.append((f"fast BIC sweep K=1..{K_MAX}", fast,
                      "sklearn KMeans sweep", _time(sklearn_fast_sweep, slow_reps)))
-        full = _time(lambda: select_components(X, K_MAX, "full"), 1)
+        full = _time(lambda: bic_sweep(X, K_MAX, "full"), 1)
         chains = _time(lambda: kmeans(X, K_MAX), reps)  # the K-means part of both sweeps
         rows.append((f"full BIC sweep K=1..{K_MAX}", full,
                      "sklearn GaussianMixture sweep", _time(sklearn_full_sweep, 1)))
@@ -167,7 +169,9 @@ def main() -> None:
                      _time(lambda: gmr(model9, t_query, covariance="total"), reps),
                      "gmr predict (mean only)",
                      _time(lambda: ref9.predict([0], t_query[:, None]), reps)))
-        stage = _time(lambda: learn(demos, rate=sd.rate, config=LearningConfig()), reps)
+        stage = _time(
+            lambda: learn(demos, rate=sd.rate, config=LearningConfig(bic_method="fast")), reps
+        )
         rows.append(("whole stage: align+fast BIC+EM+GMR", stage, "paper (2009 PC)", (2.0, 2.0)))
 
     print(f"imitate learning benchmark: {len(demos)} demos, lengths {[len(d) for d in demos]}, "
@@ -183,7 +187,7 @@ def main() -> None:
     print(f"full / fast BIC sweep (ours): {full[0] / fast[0]:.1f}x; "
           f"sklearn full sweep / our fast sweep: {rows[6][3][0] / fast[0]:.1f}x; "
           f"sklearn full / KMeans sweep: {rows[6][3][0] / rows[5][3][0]:.1f}x")
-    print(f"K chosen: fast {sweep.k}, full {select_components(X, K_MAX, 'full')[0]}")
+    print(f"K chosen: fast {sweep.k}, full {bic_sweep(X, K_MAX, 'full').k}")
     # What bounds full / fast: both sweeps share the K-means chains; after them the fast sweep
     # evaluates one likelihood per K, the full sweep runs EM (a likelihood pass plus the moments
     # per iteration), so full / fast stays below EM time / likelihood time however fast K-means.

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate.gmm import select_components
+from imitate.bic import bic_sweep
 from imitate.gmr import gmr
 from imitate.learning import LearningConfig, learn
 from imitate.plots import plot_bic_curves, plot_gmm_with_and_without_dtw, plot_gmr, save
@@ -30,16 +30,18 @@ def main() -> None:
     args.out.mkdir(parents=True, exist_ok=True)
 
     sd = pouring_demos(SyntheticConfig(seed=args.seed))
-    aligned = learn(sd.demos, rate=sd.rate, config=LearningConfig(k_max=args.k_max))
+    aligned = learn(
+        sd.demos, rate=sd.rate, config=LearningConfig(k_max=args.k_max, bic_method="fast")
+    )
     k = aligned.gmm.n_components
     raw = learn(sd.demos, rate=sd.rate, config=LearningConfig(n_components=k, use_dtw=False))
     save(plot_gmm_with_and_without_dtw(raw, aligned, dim=3), args.out / "fig4_gmm_dtw.png")
 
-    k_full, full = select_components(aligned.data, args.k_max, "full")
-    curves = {"fast (K-means only)": aligned.bic_curve, "full (EM)": full}
+    full = bic_sweep(aligned.data, args.k_max, "full")
+    curves = {"fast (K-means only)": aligned.bic_curve, "full (EM)": full.curve}
     save(plot_bic_curves(curves), args.out / "fig5_bic.png")
     save(plot_gmr(aligned), args.out / "gmr.png")
-    print(f"K chosen: fast {k}, full {k_full}")
+    print(f"K chosen: fast {k}, full {full.k}")
 
     start, end = sd.pour_windows[aligned.alignment.reference]
     pour = (aligned.times >= start) & (aligned.times <= end)

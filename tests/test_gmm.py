@@ -1,4 +1,4 @@
-"""GMM (eqs. 3-12): EM against scikit-learn, BIC, K-means, properties, bad input."""
+"""GMM (eqs. 3-12): EM against scikit-learn, BIC of a model, properties, bad input."""
 
 from __future__ import annotations
 
@@ -6,30 +6,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from sklearn.cluster import KMeans
 from sklearn.mixture import GaussianMixture
 
-from imitate.dtw import align
 from imitate.errors import ImitateError
-from imitate.gmm import (
-    GMM,
-    _assign_all,
-    _lloyd,
-    bic_sweep,
-    kmeans,
-    kmeans_parameters,
-    n_parameters,
-    select_components,
-)
-from imitate.learning import time_stacked
-from imitate.synthetic import pouring_demos
-
-
-@pytest.fixture(scope="module")
-def demo_data() -> np.ndarray:
-    """Aligned synthetic pouring demonstrations as (t, x) samples, shape (~2400, 8)."""
-    sd = pouring_demos()
-    return time_stacked(list(align(sd.demos).aligned), sd.rate)
+from imitate.gmm import GMM, n_parameters
+from imitate.kmeans import kmeans, kmeans_parameters
 
 
 def _sklearn_from(init, k, **kwargs) -> GaussianMixture:
@@ -83,54 +64,6 @@ def test_recovers_separated_clusters():
     assert gmm.converged_
 
 
-def test_kmeans_matches_sklearn_on_blobs():
-    rng = np.random.default_rng(3)
-    X = np.vstack([c + rng.normal(scale=0.2, size=(100, 3)) for c in rng.normal(0, 5, (5, 3))])
-    ours = kmeans(X, 5)
-    ref = KMeans(5, n_init=3, random_state=0).fit(X)
-    np.testing.assert_allclose(ours.inertia, ref.inertia_, rtol=1e-9)
-    assert len(set(zip(ours.labels.tolist(), ref.labels_.tolist(), strict=True))) == 5
-
-
-@pytest.mark.parametrize("k", [2, 7, 20])
-def test_lloyd_with_bounds_converges_like_plain_lloyd(demo_data, k):
-    # Hamerly's bounds only skip distance computations: from the same centres the converged
-    # clustering is scikit-learn's plain Lloyd result.
-    x = demo_data - demo_data.mean(axis=0)  # as scikit-learn centres it
-    init = x[np.random.default_rng(k).choice(len(x), k, replace=False)]
-    centers = init.copy()
-    labels, upper, lower = np.empty(len(x), dtype=np.intp), np.empty(len(x)), np.empty(len(x))
-    _assign_all(x, centers, labels, upper, lower)
-    inertia, _ = _lloyd(x, centers, labels, upper, lower, 1000, 0.0)
-    ref = KMeans(k, init=init, n_init=1, max_iter=1000, tol=0.0, algorithm="lloyd").fit(x)
-    np.testing.assert_array_equal(labels, ref.labels_)
-    np.testing.assert_allclose(inertia, ref.inertia_, rtol=1e-9)
-    np.testing.assert_allclose(centers, ref.cluster_centers_, rtol=1e-9, atol=1e-12)
-
-
-def test_fast_bic_is_the_bic_of_the_kmeans_start_and_never_below_full(demo_data):
-    k_max = 12
-    _, fast = select_components(demo_data, k_max, "fast")
-    _, full = select_components(demo_data, k_max, "full")
-    for k in (1, 5, 12):
-        init = GMM(k).initial_parameters(demo_data)
-        np.testing.assert_allclose(
-            fast[k - 1], GMM.from_parameters(*init).bic(demo_data), rtol=1e-9
-        )
-    # EM from the K-means start never lowers the likelihood: the full curve lies below.
-    assert np.all(full <= fast + 1e-6 * np.abs(fast))
-
-
-def test_bic_sweep_keeps_the_em_start_of_every_k(demo_data):
-    sweep = bic_sweep(demo_data, 8, "fast")
-    k, curve = select_components(demo_data, 8, "fast")
-    assert sweep.k == k
-    np.testing.assert_array_equal(sweep.curve, curve)
-    for got, want in zip(sweep.initial_parameters(demo_data),
-                         GMM(sweep.k).initial_parameters(demo_data), strict=True):
-        np.testing.assert_array_equal(got, want)
-
-
 @settings(max_examples=40, deadline=None)
 @given(
     seed=st.integers(0, 2**32 - 1),
@@ -162,12 +95,8 @@ def test_bad_input_is_rejected():
     X = np.random.default_rng(0).normal(size=(10, 2))
     with pytest.raises(ImitateError, match=r"more components \(11\) than samples \(10\)"):
         GMM(11).fit(X)
-    with pytest.raises(ImitateError, match=r"more components \(30\) than samples \(10\)"):
-        select_components(X, k_max=30)
     with pytest.raises(ImitateError, match="non-finite value .* sample 3"):
         GMM(2).fit(np.where(np.arange(20).reshape(10, 2) == 6, np.nan, X))
-    with pytest.raises(ImitateError, match="method must be one of"):
-        select_components(X, 3, method="slow")
     with pytest.raises(ImitateError, match="n_components must be an integer >= 1; got 0"):
         GMM(0)
     with pytest.raises(ImitateError, match="not fitted"):

@@ -79,7 +79,9 @@ def test_at_a_component_far_from_the_others_returns_that_component():
 
 def test_dtw_lowers_the_pouring_phase_variance_at_least_twofold():
     sd = pouring_demos()
-    aligned = learn(sd.demos, rate=sd.rate, config=LearningConfig(covariance="total"))
+    aligned = learn(
+        sd.demos, rate=sd.rate, config=LearningConfig(bic_method="fast", covariance="total")
+    )
     k = aligned.gmm.n_components  # chosen by the fast BIC; the same K without DTW
     raw = learn(
         sd.demos, rate=sd.rate,

@@ -1,0 +1,128 @@
+"""Choosing the number of GMM components by the Bayesian information criterion (paper eqs. 5-7).
+
+The paper's eq. 6 divides the log-likelihood by ``N``; combined with eq. 5's penalty ``P ln N``
+that makes the penalty dominate and always selects ``K = 1``. We use the total log-likelihood,
+the standard BIC (``BIC = -2 sum_i log p(x_i) + P ln N``, as scikit-learn's
+``GaussianMixture.bic``), with ``P`` from eq. 7 (:func:`imitate.gmm.n_parameters`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import ArrayLike
+
+from imitate._validation import check_n_components, check_samples
+from imitate.errors import ImitateError
+from imitate.gmm import GMM, _bic, _e_step, _factor, _not_positive_definite, _sorted_transposed
+from imitate.kmeans import _cluster_parameters, _kmeans_sweep, kmeans_parameters
+
+__all__ = ["BIC_METHODS", "DEFAULT_BIC", "BicSweep", "bic_sweep"]
+
+# "full": EM for every K; "fast": the paper's heuristic, the mixture taken from the K-means
+# clusters without EM (section IV-B.1).
+BIC_METHODS = ("full", "fast")
+DEFAULT_BIC = "full"
+# exp(-38) ~ 3e-17 < 2^-53 / 2: negligible next to a term exp(0) = 1 (likelihood-only sums).
+_LOG_NEGLIGIBLE = -38.0
+
+
+@numba.njit(cache=True)
+def _cluster_log_likelihood(
+    x: np.ndarray, xt: np.ndarray, labels: np.ndarray, k: int, reg_covar: float
+) -> float:
+    """``sum_i log p(x_i)`` (eq. 3) of the mixture taken from hard clusters (the fast BIC).
+
+    Terms below ``exp(-38)`` of a sample's largest term are left out: added to a sum of at least 1
+    they are below half a unit in the last place. ``x`` (N, D) are the samples, ``xt`` the same
+    sorted and transposed (see :func:`imitate.gmm._e_step`). Returns ``nan`` if a covariance is
+    singular.
+    """
+    weights, means, cov = _cluster_parameters(x, labels, k, reg_covar)
+    prec_chol = np.zeros_like(cov)
+    log_coef = np.empty(k)
+    if not _factor(weights, cov, prec_chol, log_coef):
+        return np.nan
+    return _e_step(xt, means, prec_chol, log_coef, _LOG_NEGLIGIBLE, np.empty((0, k))).sum()
+
+
+@dataclass(frozen=True)
+class BicSweep:
+    """Outcome of :func:`bic_sweep`.
+
+    Attributes:
+        k: The chosen number of components (smallest BIC).
+        curve: BIC for ``K = 1..k_max``, shape ``(k_max,)``.
+        labels: The K-means clustering of every ``K`` (the EM start), shape ``(k_max, n_samples)``.
+    """
+
+    k: int
+    curve: np.ndarray
+    labels: np.ndarray
+
+    def initial_parameters(
+        self, X: ArrayLike, reg_covar: float = 1e-6
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The K-means start of the chosen ``K``, as :meth:`GMM.initial_parameters` gives it."""
+        return kmeans_parameters(X, self.labels[self.k - 1], self.k, reg_covar)
+
+
+def bic_sweep(
+    X: ArrayLike,
+    k_max: int = 30,
+    method: str = DEFAULT_BIC,
+    seed: int = 0,
+    *,
+    reg_covar: float = 1e-6,
+    n_init: int = 3,
+    tol: float = 1e-3,
+    max_iter: int = 100,
+) -> BicSweep:
+    """BIC for ``K = 1..k_max`` and the ``K`` of the smallest one.
+
+    ``"fast"`` is the paper's heuristic (section IV-B.1): K-means only, priors, means and
+    covariances taken from the clusters, no EM. ``"full"`` trains a GMM by EM for every ``K``
+    from that same K-means start (so ``"full"`` is never below ``"fast"`` in likelihood). The
+    paper observes that the fast heuristic chooses more components than the full one (Fig. 5);
+    that is not guaranteed (see the tests).
+
+    Args:
+        X: Samples, shape ``(n_samples, n_dims)``, finite.
+        k_max: Largest ``K`` tried, ``1 <= k_max <= n_samples``.
+        method: One of :data:`BIC_METHODS`.
+        seed: Seed of the K-means starts (see :func:`imitate.kmeans.kmeans`).
+        reg_covar: Covariance regularisation, see :class:`~imitate.gmm.GMM`.
+        n_init: Number of independent K-means chains (see :func:`imitate.kmeans.kmeans`).
+        tol: EM tolerance for ``"full"``, see :class:`~imitate.gmm.GMM`.
+        max_iter: EM iteration limit for ``"full"``.
+
+    Returns:
+        The :class:`BicSweep`: the chosen ``K``, the BIC curve and the K-means clusterings, so
+        that ``GMM(sweep.k, seed=seed, n_init=n_init).fit(X)`` equals EM from
+        ``sweep.initial_parameters(X)`` without clustering again.
+
+    Raises:
+        ImitateError: On a bad method, ``k_max`` out of range or non-finite samples.
+    """
+    if method not in BIC_METHODS:
+        raise ImitateError(f"method must be one of {BIC_METHODS}; got {method!r}")
+    X = check_samples(X)
+    check_n_components(k_max, X.shape[0])
+    n_samples, n_dims = X.shape
+    labels = _kmeans_sweep(X, k_max, n_init, seed).labels
+    xt = _sorted_transposed(X)[0]
+    curve = np.empty(k_max)
+    for k in range(1, k_max + 1):
+        if method == "fast":
+            log_likelihood = _cluster_log_likelihood(X, xt, labels[k - 1], k, reg_covar)
+            if np.isnan(log_likelihood):
+                raise _not_positive_definite()
+        else:
+            model = GMM(k, reg_covar=reg_covar, tol=tol, max_iter=max_iter).fit_from(
+                X, *kmeans_parameters(X, labels[k - 1], k, reg_covar)
+            )
+            log_likelihood = float(model.score_samples(X).sum())
+        curve[k - 1] = _bic(log_likelihood, k, n_dims, n_samples)
+    return BicSweep(k=int(np.argmin(curve)) + 1, curve=curve, labels=labels)

@@ -1,0 +1,18 @@
+"""Shared fixtures."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from imitate.dtw import align
+from imitate.learning import time_stacked
+from imitate.synthetic import pouring_demos
+
+
+@pytest.fixture(scope="module")
+def demo_data() -> np.ndarray:
+    """Aligned synthetic pouring demonstrations as (t, x) samples, shape (~2400, 8)."""
+    sd = pouring_demos()
+    return time_stacked(list(align(sd.demos).aligned), sd.rate)
+
