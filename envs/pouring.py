@@ -62,6 +62,8 @@ from imitate.errors import ImitateError
 OBS_TYPES = ("state", "stereo")
 RESET_OPTIONS = ("bottle_grasp", "glass_grasp")
 SUCCESS_FRACTION = 0.9
+# How far [m] below its shoulder the teacher's hand hangs at rest (arms down, hands by the hips).
+TEACHER_HAND_DROP = 0.53
 
 
 class PouringEnv(gym.Env):
@@ -254,7 +256,7 @@ class PouringEnv(gym.Env):
     def _pose_teacher_at_rest(self) -> None:
         """Teacher's arms hanging, hands by the hips, facing the robot."""
         for side in teacher_names.SIDES:
-            hand = shoulder_position(side) + np.array([0.0, 0.0, -0.53])
+            hand = shoulder_position(side) + np.array([0.0, 0.0, -TEACHER_HAND_DROP])
             pose_arm(self.model, self.data, side, hand, np.array([0.0, 0.0, 0.0, 1.0]))
 
 

@@ -8,8 +8,9 @@ relative pose and runs ``mj_kinematics`` a second time, so no physics runs. Jaco
 a held object are ``mj_jac`` of its hand body at that point; their derivatives along a joint
 velocity are ``mj_jacDot``.
 
-Jacobians are restricted to the ``joints`` columns, shape ``(3, n)``, world frame (MuJoCo's
-convention: translational ``dp/dq``; rotational maps joint velocities to angular velocity).
+Jacobians are translational, ``dp/dq`` of points in the world frame, restricted to the
+``joints`` columns, shape ``(3, n)`` (orientations enter through points on an object's axis, see
+:class:`imitate.taskspace.TaskMap`).
 Signed distances come from ``mj_geomDistance`` between the pairs of
 :class:`imitate.envs.collision.CollisionPairs`; a bounding-sphere test skips far pairs first.
 """
@@ -24,7 +25,6 @@ import numpy as np
 
 from imitate.envs.collision import CollisionPairs
 from imitate.errors import ImitateError
-from imitate.taskspace import ObjectKinematics
 
 __all__ = ["Distances", "Kinematics"]
 
@@ -79,10 +79,10 @@ class Kinematics:
         self.dof_adr = model.jnt_dofadr[ids].copy()
         self.lower, self.upper = model.jnt_range[ids].T.copy()
         self._held = self._held_objects()
-        self._owner = np.arange(model.nbody)  # body whose Jacobian moves each body
+        owner = np.arange(model.nbody)  # body whose Jacobian moves each body
         for obj, (hand, _, _) in self._held.items():
-            self._owner[obj] = hand
-        self._owners = self._owner.tolist()  # for the inner loops
+            owner[obj] = hand
+        self._owners = owner.tolist()  # a list, for the inner loops
         self.pairs = CollisionPairs.between(model, geoms) if geoms is not None else None
         if self.pairs is not None:
             self._pair_geoms = (self.pairs.geom1.tolist(), self.pairs.geom2.tolist())
@@ -101,7 +101,6 @@ class Kinematics:
             pos, quat = d.qpos[adr : adr + 3], d.qpos[adr + 3 : adr + 7]
             self._poses.append((hand, rel_pos, rel_quat, pos, quat))
         self._jacp = np.zeros((4, 3, model.nv))
-        self._jacr = np.zeros((3, model.nv))
 
     @property
     def n(self) -> int:
@@ -138,26 +137,18 @@ class Kinematics:
             mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
 
-    def body_pose(self, body: str) -> tuple[np.ndarray, np.ndarray]:
-        """World pose of ``body`` at the last :meth:`update`: ``(pos (3,) [m], R (3, 3))``."""
-        b = self.model.body(body).id
-        return self.data.xpos[b].copy(), self.data.xmat[b].reshape(3, 3).copy()
-
     def camera_pose(self, camera: str) -> tuple[np.ndarray, np.ndarray]:
         """World pose of ``camera``: ``(pos (3,) [m], R (3, 3))``, columns its x, y, z axes."""
         mujoco.mj_camlight(self.model, self.data)
         c = self.model.camera(camera).id
         return self.data.cam_xpos[c].copy(), self.data.cam_xmat[c].reshape(3, 3).copy()
 
-    def point_jacobian(self, body: int, point: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Jacobians of a point fixed to ``body`` (id; a held object's hand is used for it).
-
-        Returns:
-            ``(jac_pos (3, n) [m/rad], jac_rot (3, n) [1])``.
-        """
-        jacp, jacr = self._jacp[0], self._jacr
-        mujoco.mj_jac(self.model, self.data, jacp, jacr, point, int(self._owner[body]))
-        return jacp[:, self.dof_adr].copy(), jacr[:, self.dof_adr].copy()
+    def point_jacobian(self, body: int, point: np.ndarray) -> np.ndarray:
+        """Translational Jacobian ``(3, n)`` [m/rad] of a point ``(3,)`` [m] fixed to ``body``
+        (id; a held object moves with its hand)."""
+        jacp = self._jacp[0]
+        mujoco.mj_jac(self.model, self.data, jacp, None, point, self._owners[int(body)])
+        return jacp[:, self.dof_adr].copy()
 
     def point_jacobians(self, bodies: Sequence[int], points: np.ndarray) -> np.ndarray:
         """Translational Jacobians ``(k, 3, n)`` [m/rad] of ``k <= 4`` points ``(k, 3)`` [m]
@@ -179,17 +170,6 @@ class Kinematics:
         for k, (b, p) in enumerate(zip(bodies, points, strict=True)):
             mujoco.mj_jacDot(m, d, jacp[k], None, p, owner[b])
         return jacp[: len(bodies)].take(self.dof_adr, axis=2)
-
-    def object_kinematics(self, body: str) -> ObjectKinematics:
-        """Position (body frame origin), unit long axis (body ``z``) and Jacobians of ``body``."""
-        b = self.model.body(body).id
-        pos = self.data.xpos[b].copy()
-        jac_pos, jac_rot = self.point_jacobian(b, pos)
-        return ObjectKinematics(pos, self.data.xmat[b].reshape(3, 3)[:, 2].copy(), jac_pos, jac_rot)
-
-    def owner(self, body: int) -> int:
-        """The body whose motion moves ``body`` (id): its hand for a held object, else itself."""
-        return int(self._owner[body])
 
     def distances(self, distmax: float, *, jacobian: bool = False) -> Distances:
         """Signed distances of the pairs closer than ``distmax`` [m] at the last :meth:`update`.
@@ -233,8 +213,8 @@ class Kinematics:
         if norm < 1e-12:
             return np.zeros(self.n)
         normal = np.sign(dist) * gap / norm if dist != 0 else gap / norm
-        j1, _ = self.point_jacobian(self.model.geom_bodyid[g1], p1)
-        j2, _ = self.point_jacobian(self.model.geom_bodyid[g2], p2)
+        j1 = self.point_jacobian(self.model.geom_bodyid[g1], p1)
+        j2 = self.point_jacobian(self.model.geom_bodyid[g2], p2)
         return normal @ (j2 - j1)
 
     def min_distance(self, distmax: float = 0.2) -> tuple[float, tuple[str, str] | None]:

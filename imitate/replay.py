@@ -20,24 +20,35 @@ from imitate.envs.teacher_motion import TeacherConfig, script_demonstrations
 from imitate.kinematics import Kinematics
 from imitate.learning import LearnedModel, LearningConfig, learn
 from imitate.models import humanoid, objects
-from imitate.motion import Plan, TaskMap
+from imitate.motion import Plan
 from imitate.motion.control import ControlConfig
-from imitate.taskspace import task_space
+from imitate.taskspace import TaskMap, task_space
 
 GAZE_CAMERA = humanoid.LEFT_EYE
 
 
 def planning_task(
-    config: assembly.SceneConfig | None = None, control: ControlConfig | None = None
+    config: assembly.SceneConfig | None = None,
+    gaze: np.ndarray | None = None,
+    control: ControlConfig | None = None,
 ) -> TaskMap:
     """Task map on a particle-free copy of the scene (default: ``PouringEnv``'s), objects held
-    by the robot, the gaze frame fixed at the rest pose's left-eye camera."""
+    by the robot, its kinematics updated to the rest pose.
+
+    Args:
+        config: The scene; ``None`` for ``PouringEnv``'s default.
+        gaze: ``R_gaze`` ``(3, 3)``, right-handed, columns right, down, forward (e.g. the gaze
+            stored with observed tracks); ``None`` for the rest pose's left-eye camera.
+        control: Its ``fixed_joints`` get zero Jacobian columns; ``None`` for the default.
+    """
     config, control = config or assembly.SceneConfig(), control or ControlConfig()
     model = assembly.build_model(replace(config, particles=0, holder="robot"))
     kin = Kinematics(model, humanoid.JOINTS, assembly.clearance_geoms(model))
     kin.update(humanoid.rest_pose())
-    _, R = kin.camera_pose(GAZE_CAMERA)
-    gaze = np.column_stack((R[:, 0], R[:, 1], -R[:, 2]))  # MuJoCo cameras look along -z
+    if gaze is None:
+        _, R = kin.camera_pose(GAZE_CAMERA)
+        # MuJoCo camera axes are right, up, backward: right, down, forward is x, -y, -z.
+        gaze = np.column_stack((R[:, 0], -R[:, 1], -R[:, 2]))
     return TaskMap(kin, objects.BOTTLE, objects.GLASS, gaze, control.fixed_joints)
 
 
@@ -96,11 +107,13 @@ def replay(
     settle: float = 1.5,
     options: dict | None = None,
     on_step: Callable[[PouringEnv], None] | None = None,
+    gaze: np.ndarray | None = None,
 ) -> ReplayResult:
     """Drives ``env`` along ``plan`` in physics: from the reset pose to the plan's start in
     ``approach`` [s] (cosine blend), the plan interpolated at the env's control rate, then
     ``settle`` [s] holding the last posture. ``on_step(env)``, if given, is called after the
-    reset and after every step (to record states for a video, say)."""
+    reset and after every step (to record states for a video, say). The task error is measured
+    in ``gaze``, which should be the plan's (``None``: :func:`planning_task`'s default)."""
     env.reset(seed=seed, options=options)
     dt = env.dt
     q_reset = env.joint_positions()
@@ -113,7 +126,7 @@ def replay(
     play = _resample(plan.times - plan.times[0], plan.q, t_play)
     targets.extend(play)
     targets.extend([plan.q[-1]] * int(round(settle / dt)))
-    task = planning_task(env.config)
+    task = planning_task(env.config, gaze)
     min_distance = np.inf
     reached = []
     info = {}

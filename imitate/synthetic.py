@@ -70,7 +70,8 @@ class SyntheticDemos:
         demos: Task-space demonstrations, each of shape ``(n_steps_i, 7)``.
         pour_windows: Start and end of the pouring phase in each demonstration's own time,
             shape ``(n_demos, 2)`` [s].
-        gaze: Gaze frame used for the orientations, shape ``(3, 3)``.
+        gaze: Gaze frame used for the orientations, shape ``(3, 3)``, columns right, down,
+            forward (:mod:`imitate.taskspace`).
         rate: Sampling rate [Hz].
     """
 

@@ -1,4 +1,4 @@
-r"""The pouring task space (paper eq. 1) for demonstrations and for the robot.
+r"""The pouring task space (paper eq. 1): the map of demonstrations and the map of the robot.
 
 ``x = (x_diff, phi_b, phi_g)`` has 7 dimensions:
 
@@ -7,79 +7,101 @@ index  name                unit   meaning
 =====  ==================  =====  ==================================================================
 0-2    ``dx, dy, dz``      m      ``p_bottle - p_glass`` in the world frame
 3      ``bottle_angle``    rad    angle of the bottle's long axis projected onto the image plane,
-                                  measured around the gaze vector (from camera right towards up)
+                                  ``atan2(a . d, a . r)`` (clockwise in the image, see below)
 4      ``bottle_gaze``     1      component of the bottle's long axis along the gaze, ``a . f``
 5      ``glass_angle``     rad    as 3, for the glass
 6      ``glass_gaze``      1      as 4, for the glass
 =====  ==================  =====  ==================================================================
 
-The gaze frame ``R_gaze`` is an orthonormal matrix whose columns are camera right ``r``, camera
-up ``u`` and gaze forward ``f`` in world coordinates (:func:`gaze_frame` builds one). For a
-physical camera this frame is left-handed (``r x u = -f``, determinant -1); a right-handed one
-(e.g. OpenCV's right, down, forward) is accepted as well. For a unit long axis ``a`` the angle is
-``atan2(a . u, a . r)``: counter-clockwise in the camera image from "right" towards "up", i.e.
-measured around the gaze vector. Over a demonstration the angles are unwrapped so they are
-continuous; on the robot side an ``angle_ref`` picks the ``2 pi`` branch nearest to it.
+Two maps compute it: :func:`task_space` maps observed object trajectories (positions and long
+axes) to demonstrations, and :class:`TaskMap` maps the robot's joint angles ``q`` through the
+objects it holds, with ``J = dx/dq`` and its derivatives for the planner. They agree: at any
+posture :class:`TaskMap`'s value is :func:`task_space` of the held objects' frames.
+
+The gaze frame, one convention everywhere: ``R_gaze`` is a right-handed orthonormal matrix
+(determinant +1) whose columns are camera right ``r``, image down ``d`` and gaze forward ``f``
+in world coordinates, i.e. OpenCV's camera axes (``perception.gaze_frame`` of a camera,
+:func:`gaze_frame` from a gaze direction; a MuJoCo camera, whose axes are right, up, backward,
+gives the columns ``x, -y, -z`` of its rotation). For a unit long axis ``a`` the angle is
+``atan2(a . d, a . r)``: measured from "right" towards "down", i.e. clockwise in the camera
+image (a positive rotation about ``f`` by the right-hand rule). An upright object seen by a
+level camera has angle ``-pi/2``; tilting its top towards the image's right brings the angle
+towards 0. Over a demonstration the angles are unwrapped so they are continuous; on the robot
+side an ``angle_ref`` picks the ``2 pi`` branch nearest to it.
 
 Singularity: when the axis is (nearly) parallel to the gaze its projection
-``rho = hypot(a . r, a . u)`` vanishes and the angle is undefined. Below ``singular_tol`` the
+``rho = hypot(a . r, a . d)`` vanishes and the angle is undefined. Below ``SINGULAR_TOL`` the
 demonstration map holds the last defined angle (the first defined one before it, 0 if none is
-defined), and the robot map returns ``angle_ref`` (when given) with a zero Jacobian row, so an
-optimiser neither chases nor is thrown by an undefined quantity; the ``a . f`` component stays
-defined and keeps its exact Jacobian.
+defined), and the robot map returns ``angle_ref`` with a zero Jacobian row, so an optimiser
+neither chases nor is thrown by an undefined quantity; the ``a . f`` component stays defined
+and keeps its exact Jacobian.
 
-Robot-side Jacobians use MuJoCo's conventions: ``jac_pos = dp/dq`` and ``jac_rot`` maps joint
-velocities to the world-frame angular velocity ``omega``, so ``da/dq[:, i] = jac_rot[:, i] x a``.
+Robot-side Jacobians use MuJoCo's conventions: ``jac_pos = dp/dq`` and the rotational Jacobian
+maps joint velocities to the world-frame angular velocity ``omega``, so ``da/dq[:, i] =
+jac_rot[:, i] x a``; :class:`TaskMap` gets ``da/dq`` as the Jacobian of the point ``o + a``
+minus that of the object's origin ``o``.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from imitate.errors import ImitateError
 
+if TYPE_CHECKING:
+    from imitate.kinematics import Kinematics
+
 __all__ = [
+    "SINGULAR_TOL",
     "TASK_DIMS",
     "TASK_UNITS",
-    "ObjectKinematics",
+    "TaskFrame",
+    "TaskMap",
     "gaze_frame",
     "object_orientation",
     "task_space",
-    "task_state",
 ]
 
 TASK_DIMS = ("dx", "dy", "dz", "bottle_angle", "bottle_gaze", "glass_angle", "glass_gaze")
 TASK_UNITS = ("m", "m", "m", "rad", "1", "rad", "1")
+# Projected length ``rho`` of a unit axis onto the image plane below which its angle is
+# undefined (the axis lies within about 1e-6 rad of the gaze).
+SINGULAR_TOL = 1e-6
+_SINGULAR_RHO2 = SINGULAR_TOL**2
 _ANGLE_COLUMNS = (3, 5)
 
 
 def _check_gaze(gaze: ArrayLike) -> np.ndarray:
-    """Validates ``R_gaze`` as an orthonormal 3x3 matrix (either handedness)."""
+    """Validates ``R_gaze`` as a right-handed orthonormal 3x3 matrix."""
     R = np.asarray(gaze, dtype=float)
     if R.shape != (3, 3) or not np.all(np.isfinite(R)):
         raise ImitateError(f"gaze must be a finite orthonormal 3x3 matrix; got shape {R.shape}")
-    if not np.allclose(R.T @ R, np.eye(3), atol=1e-6):
+    if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or not np.linalg.det(R) > 0:
         raise ImitateError(
-            "gaze must be orthonormal with columns (right, up, forward); got R^T R =\n"
-            f"{R.T @ R}"
+            "gaze must be right-handed orthonormal (determinant +1) with columns (right, down, "
+            f"forward), OpenCV's camera axes; got R^T R =\n{R.T @ R}\nand determinant "
+            f"{np.linalg.det(R):+.6f}"
         )
     return R
 
 
 def gaze_frame(forward: ArrayLike, up: ArrayLike = (0.0, 0.0, 1.0)) -> np.ndarray:
-    """Gaze frame looking along ``forward`` with the camera's up as close as possible to ``up``.
+    """Gaze frame looking along ``forward``, the image's up as close as possible to ``up``.
 
     Args:
         forward: Gaze direction in the world frame, shape ``(3,)``, non-zero.
-        up: World direction the camera's up should lean towards, shape ``(3,)``, not parallel to
+        up: World direction the image's up should lean towards, shape ``(3,)``, not parallel to
             ``forward``.
 
     Returns:
-        ``R_gaze``, shape ``(3, 3)``, columns (right, up, forward), left-handed like a camera:
-        ``right = forward x up`` normalised, camera ``up = right x forward``.
+        ``R_gaze``, shape ``(3, 3)``, columns (right, down, forward), right-handed:
+        ``right = forward x up`` normalised, ``down = forward x right``.
 
     Raises:
         ImitateError: If ``forward`` is zero or parallel to ``up``.
@@ -93,17 +115,11 @@ def gaze_frame(forward: ArrayLike, up: ArrayLike = (0.0, 0.0, 1.0)) -> np.ndarra
     if not np.linalg.norm(r) > 1e-9:
         raise ImitateError(f"up {up} must not be parallel to forward {forward}")
     r /= np.linalg.norm(r)
-    return np.column_stack((r, np.cross(r, f), f))
-
-
-def _projections(axis: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Components ``(a . r, a . u, a . f)`` of axes of shape ``(..., 3)``."""
-    c = axis @ R
-    return c[..., 0], c[..., 1], c[..., 2]
+    return np.column_stack((r, np.cross(f, r), f))
 
 
 def object_orientation(
-    axis: ArrayLike, gaze: ArrayLike, *, singular_tol: float = 1e-6
+    axis: ArrayLike, gaze: ArrayLike, *, singular_tol: float = SINGULAR_TOL
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Orientation ``phi`` of one object from its long axis, without unwrapping.
 
@@ -114,7 +130,7 @@ def object_orientation(
 
     Returns:
         ``(angle, gaze_component, defined)``, each of shape ``(...)``: the angle in
-        ``(-pi, pi]`` [rad], ``a . f`` [1] and whether the angle is defined.
+        ``[-pi, pi]`` [rad], ``a . f`` [1] and whether the angle is defined.
 
     Raises:
         ImitateError: On a zero or non-finite axis or a bad gaze frame.
@@ -126,8 +142,9 @@ def object_orientation(
         raise ImitateError(
             f"axis must be finite non-zero vectors of shape (..., 3); got shape {a.shape}"
         )
-    pr, pu, pf = _projections(a / norm[..., None], R)
-    return np.arctan2(pu, pr), pf, np.hypot(pr, pu) >= singular_tol
+    c = (a / norm[..., None]) @ R
+    pr, pd, pf = c[..., 0], c[..., 1], c[..., 2]
+    return np.arctan2(pd, pr), pf, np.hypot(pr, pd) >= singular_tol
 
 
 def _hold_undefined(angle: np.ndarray, defined: np.ndarray) -> np.ndarray:
@@ -150,7 +167,7 @@ def task_space(
     a_glass: ArrayLike,
     gaze: ArrayLike,
     *,
-    singular_tol: float = 1e-6,
+    singular_tol: float = SINGULAR_TOL,
 ) -> np.ndarray:
     """Maps object trajectories to the task space of eq. 1, angles unwrapped over time.
 
@@ -159,7 +176,7 @@ def task_space(
         a_bottle: Bottle long axes, shape ``(n_steps, 3)``, world frame, any non-zero length.
         p_glass: Glass positions, shape ``(n_steps, 3)`` [m].
         a_glass: Glass long axes, shape ``(n_steps, 3)``.
-        gaze: ``R_gaze``, shape ``(3, 3)``, orthonormal, columns (right, up, forward).
+        gaze: ``R_gaze``, shape ``(3, 3)``, right-handed, columns (right, down, forward).
         singular_tol: Projected axis length below which an angle is undefined and held.
 
     Returns:
@@ -186,102 +203,165 @@ def task_space(
     return x
 
 
-@dataclass(frozen=True)
-class ObjectKinematics:
-    """Pose and Jacobians of one held object, optionally batched over leading axes ``...``.
+class TaskMap:
+    r"""Eq. 1 on the robot: ``x = (p_b - p_g, phi_b, phi_g)`` and ``J = dx/dq`` ``(7, n)``.
 
-    Attributes:
-        position: Object position, shape ``(..., 3)`` [m], world frame.
-        axis: Unit long axis, shape ``(..., 3)``, world frame.
-        jac_pos: Translational Jacobian ``dp/dq``, shape ``(..., 3, nv)`` [m/rad or m/m].
-        jac_rot: Rotational Jacobian (world-frame angular velocity per joint velocity),
-            shape ``(..., 3, nv)``.
-    """
-
-    position: np.ndarray
-    axis: np.ndarray
-    jac_pos: np.ndarray
-    jac_rot: np.ndarray
-
-    def __post_init__(self) -> None:
-        for name in ("position", "axis", "jac_pos", "jac_rot"):
-            object.__setattr__(self, name, np.asarray(getattr(self, name), dtype=float))
-        batch = self.position.shape[:-1]
-        if self.position.shape[-1:] != (3,) or self.axis.shape != self.position.shape:
-            raise ImitateError(
-                "position and axis must both have shape (..., 3); got "
-                f"{self.position.shape} and {self.axis.shape}"
-            )
-        if self.jac_pos.ndim != len(batch) + 2 or self.jac_pos.shape[:-1] != batch + (3,):
-            raise ImitateError(
-                f"jac_pos must have shape {batch + (3,)} + (nv,); got {self.jac_pos.shape}"
-            )
-        if self.jac_rot.shape != self.jac_pos.shape:
-            raise ImitateError(
-                f"jac_rot must have the shape of jac_pos {self.jac_pos.shape}; "
-                f"got {self.jac_rot.shape}"
-            )
-        if not np.allclose(np.linalg.norm(self.axis, axis=-1), 1.0, atol=1e-6):
-            raise ImitateError("axis must be a unit vector (|a| = 1 within 1e-6)")
-
-
-def task_state(
-    bottle: ObjectKinematics,
-    glass: ObjectKinematics,
-    gaze: ArrayLike,
-    *,
-    angle_ref: ArrayLike | None = None,
-    singular_tol: float = 1e-6,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Robot-side task-space state ``x(q)`` and Jacobian ``J = dx/dq`` (eq. 1).
+    An object's angle and gaze-forward component depend on its long axis ``a`` only:
+    ``d(angle, forward) = C R_gaze^T da`` with ``C = [[-p_d, p_r, 0] / rho^2, [0, 0, 1]]``
+    (``p = R_gaze^T a``, ``rho^2 = p_r^2 + p_d^2``). ``A = da/dq`` ``(3, n)`` is the Jacobian of
+    the point ``o + a`` minus that of the origin ``o``, so every row of ``J`` and of its
+    derivative along ``b`` (:meth:`rates`: ``C' R_gaze^T A + C R_gaze^T A'``) comes from
+    ``mj_jac`` and ``mj_jacDot`` of the four points ``o_b, o_g, o_b + a_b, o_g + a_g``. The
+    objects' frames give ``o`` (origin) and ``a`` (``z`` axis), as for :func:`task_space`. It
+    runs in the planner's inner loop, hence the plain-float arithmetic.
 
     Args:
-        bottle: Bottle kinematics, batch shape ``(...)``.
-        glass: Glass kinematics, same batch shape and ``nv``.
-        gaze: ``R_gaze``, shape ``(3, 3)``.
-        angle_ref: Reference angles ``(bottle_angle, glass_angle)``, shape ``(..., 2)`` [rad]:
-            each angle is returned on the ``2 pi`` branch nearest to it (e.g. the GMR mean or the
-            previous step); ``None`` returns angles in ``(-pi, pi]``.
-        singular_tol: Projected axis length below which an angle is undefined (see module).
-
-    Returns:
-        ``(x, J)`` of shapes ``(..., 7)`` and ``(..., 7, nv)``.
+        kin: The kinematics (its held objects give the bottle and glass poses).
+        bottle, glass: Body names of the two objects.
+        gaze: ``R_gaze`` ``(3, 3)``, right-handed, columns right, down, forward, fixed in the
+            world (see the module docstring).
+        fixed_joints: Joints whose Jacobian columns are zeroed.
 
     Raises:
-        ImitateError: On inconsistent shapes, a non-unit axis or a bad gaze frame.
+        ImitateError: On a bad gaze frame or an unknown joint.
     """
-    R = _check_gaze(gaze)
-    if bottle.jac_pos.shape != glass.jac_pos.shape:
-        raise ImitateError(
-            f"bottle and glass Jacobians must have the same shape; got {bottle.jac_pos.shape} "
-            f"and {glass.jac_pos.shape}"
-        )
-    batch = bottle.position.shape[:-1]
-    ref = None
-    if angle_ref is not None:
-        ref = np.asarray(angle_ref, dtype=float)
-        if ref.shape != batch + (2,):
-            raise ImitateError(f"angle_ref must have shape {batch + (2,)}; got {ref.shape}")
-    nv = bottle.jac_pos.shape[-1]
-    x = np.empty(batch + (7,))
-    J = np.empty(batch + (7, nv))
-    x[..., :3] = bottle.position - glass.position
-    J[..., :3, :] = bottle.jac_pos - glass.jac_pos
-    right, up, forward = R[:, 0], R[:, 1], R[:, 2]
-    for n, (obj, col) in enumerate(zip((bottle, glass), _ANGLE_COLUMNS, strict=True)):
-        a = obj.axis
-        pr, pu, pf = _projections(a, R)
-        rho2 = pr * pr + pu * pu
-        defined = rho2 >= singular_tol**2
-        angle = np.arctan2(pu, pr)
-        if ref is not None:
-            angle = np.where(defined, angle, ref[..., n])
-            angle += 2.0 * np.pi * np.round((ref[..., n] - angle) / (2.0 * np.pi))
-        # d(angle) = g . da with g = (pr u - pu r) / rho^2; g . (w x a) = w . (a x g).
-        g = (pr[..., None] * up - pu[..., None] * right) / np.where(defined, rho2, 1.0)[..., None]
-        g *= defined[..., None]
-        x[..., col] = angle
-        x[..., col + 1] = pf
-        J[..., col, :] = np.einsum("...i,...in->...n", np.cross(a, g), obj.jac_rot)
-        J[..., col + 1, :] = np.einsum("...i,...in->...n", np.cross(a, forward), obj.jac_rot)
-    return x, J
+
+    m = 7
+
+    def __init__(
+        self,
+        kin: Kinematics,
+        bottle: str,
+        glass: str,
+        gaze: ArrayLike,
+        fixed_joints: Sequence[str] = (),
+    ):
+        self.kin = kin
+        self.bottle, self.glass = kin.model.body(bottle).id, kin.model.body(glass).id
+        self.gaze = _check_gaze(gaze)
+        unknown = sorted(set(fixed_joints) - set(kin.joints))
+        if unknown:
+            raise ImitateError(f"fixed_joints {unknown} unknown; accepted: {list(kin.joints)}")
+        self.driven = np.array([j not in fixed_joints for j in kin.joints])
+        self._bodies = np.array([self.bottle, self.glass])
+        self._points_of = (self.bottle, self.glass, self.bottle, self.glass)
+        self._gaze_t = np.ascontiguousarray(self.gaze.T)
+        self._mask = self.driven.astype(float)
+        self._xpos, self._xmat = kin.data.xpos, kin.data.xmat  # views, kept once
+        self._rd = np.ascontiguousarray(self.gaze[:, :2].T)  # (2, 3) gaze right, down
+        self._right, self._down = self._rd.tolist()
+        # evaluate's (7, 12) map from the four points' Jacobians to J, constant rows filled.
+        self._mix = np.zeros((7, 12))
+        self._mix[:3, :3], self._mix[:3, 3:6] = np.eye(3), -np.eye(3)
+        forward = self.gaze[:, 2]
+        self._mix[4, 6:9], self._mix[4, :3] = forward, -forward
+        self._mix[6, 9:12], self._mix[6, 3:6] = forward, -forward
+        self._rate = np.empty((2, 12, kin.n))  # curvature's buffer
+
+    def __call__(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(x (7,), J (7, n))`` at the kinematics' last update; angles on the branch nearest to
+        ``angle_ref`` ``(2,)`` [rad] (and equal to it where undefined)."""
+        x, J, _ = self.evaluate(angle_ref)
+        return x, J
+
+    def evaluate(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, TaskFrame]:
+        """As :meth:`__call__`, and the :class:`TaskFrame` that :meth:`rates` needs."""
+        points = np.empty((4, 3))
+        self._xpos.take(self._bodies, axis=0, out=points[:2])
+        axis = self._xmat.take(self._bodies, axis=0)[:, 2::3]
+        points[2:] = points[:2] + axis
+        proj = axis @ self.gaze
+        x = (points[0] - points[1]).tolist()
+        inv = []
+        mix = self._mix.copy()
+        right, down = self._right, self._down
+        objects = zip(proj.tolist(), angle_ref.tolist(), strict=True)
+        for o, ((pr, pd, pf), ref) in enumerate(objects):
+            rho2 = pr * pr + pd * pd
+            if rho2 > _SINGULAR_RHO2:
+                angle = math.atan2(pd, pr)
+                x += (angle + 2.0 * math.pi * round((ref - angle) / (2.0 * math.pi)), pf)
+                s = 1.0 / rho2
+            else:  # undefined angle: the reference, with a zero gradient
+                x += (ref, pf)
+                s = 0.0
+            inv.append(s)
+            row = [-pd * s * ri + pr * s * di for ri, di in zip(right, down, strict=True)]
+            mix[3 + 2 * o, 6 + 3 * o : 9 + 3 * o] = row
+            mix[3 + 2 * o, 3 * o : 3 + 3 * o] = [-v for v in row]
+        jac = self.kin.point_jacobians(self._points_of, points)
+        J = mix @ jac.reshape(12, -1)
+        J *= self._mask
+        frame = TaskFrame(points, proj, np.array(inv), mix, jac[2:] - jac[:2])
+        return np.array(x), J, frame
+
+    def rates(self, qdot: np.ndarray, frame: TaskFrame) -> np.ndarray:
+        """``D_b J`` ``(k, 7, n)``: derivatives of ``J`` along each joint direction ``b`` in
+        ``qdot`` ``(k, n)`` [rad], at the posture of ``frame`` (from :meth:`evaluate`), which the
+        kinematics must be updated to (held objects may be left out)."""
+        n = self.kin.n
+        rate = np.empty((len(qdot), 12, n))
+        for k, b in enumerate(qdot):
+            rate[k] = self.kin.point_jacobian_rates(self._points_of, frame.points, b).reshape(12, n)
+        # C' (only its angle row moves): d(-p_d s, p_r s) with s = 1 / rho^2, p' = R^T A b.
+        dproj = self._gaze_t @ (frame.axis_jac @ qdot.T)  # (2, 3, k)
+        (pr, pd), s = frame.proj[:, :2, None].transpose(1, 0, 2), frame.inv[:, None]
+        ds = -2.0 * (pr * dproj[:, 0] + pd * dproj[:, 1]) * s * s  # (2, k)
+        r, d, _ = self.gaze.T
+        coef_r, coef_d = -dproj[:, 1] * s - pd * ds, dproj[:, 0] * s + pr * ds  # (2, k)
+        row_dot = coef_r[..., None] * r + coef_d[..., None] * d  # (2, k, 3)
+        out = frame.mix @ rate
+        out[:, 3::2] += (row_dot @ frame.axis_jac).transpose(1, 0, 2)
+        out *= self._mask
+        return out
+
+    def curvature(
+        self, a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray, frame: TaskFrame
+    ) -> np.ndarray:
+        """``a^T D_b J + c^T D_d J`` ``(n,)`` for task vectors ``a, c`` ``(7,)`` and joint
+        directions ``b, d`` ``(n,)`` [rad]: two contractions of :meth:`rates` without forming
+        ``D J`` (one weighted sum of the points' ``mj_jacDot`` and one of the axis Jacobians for
+        the ``C'`` term). Same preconditions as :meth:`rates`."""
+        kin, rate = self.kin, self._rate
+        rate[0] = kin.point_jacobian_rates(self._points_of, frame.points, b).reshape(12, -1)
+        rate[1] = kin.point_jacobian_rates(self._points_of, frame.points, d).reshape(12, -1)
+        left = np.array((a, c))
+        out = (left @ frame.mix).ravel() @ rate.reshape(24, -1)
+        # C' term of the angle rows 3 and 5, as in :meth:`rates`, weighted by a and c.
+        axis_jac = frame.axis_jac.reshape(6, -1)
+        dproj = (self._rd @ (axis_jac @ np.array((b, d)).T).reshape(2, 3, 2)).tolist()
+        weights = left[:, 3::2].T.tolist()  # (2 objects, 2 directions)
+        coef = []
+        for (pr, pd, _), s, (dpr, dpd), w in zip(
+            frame.proj.tolist(), frame.inv.tolist(), dproj, weights, strict=True
+        ):
+            cr = cd = 0.0
+            for dr, dd, wk in zip(dpr, dpd, w, strict=True):
+                ds = -2.0 * (pr * dr + pd * dd) * s * s
+                cr += wk * (-dd * s - pd * ds)
+                cd += wk * (dr * s + pr * ds)
+            coef.append((cr, cd))
+        out += (np.array(coef) @ self._rd).ravel() @ axis_jac
+        out *= self._mask
+        return out
+
+
+@dataclass(frozen=True)
+class TaskFrame:
+    """What :meth:`TaskMap.rates` reuses from :meth:`TaskMap.evaluate` at one posture.
+
+    Attributes:
+        points: ``(4, 3)`` bottle and glass origins, then those plus their long axes ``a`` [m].
+        proj: ``(2, 3)`` the axes' gaze coordinates ``p`` (right, down, forward).
+        inv: ``(2,)`` ``1 / rho^2`` per object (0 where the axis is along the gaze: the angle is
+            undefined there and its gradient is taken as 0).
+        mix: ``(7, 12)`` ``J`` as a linear map of the stacked point Jacobians ``(4 * 3, n)``
+            (rows 3: hold ``C R_gaze^T`` on ``A``).
+        axis_jac: ``da/dq`` ``(2, 3, n)``, fixed joints' columns included.
+    """
+
+    points: np.ndarray
+    proj: np.ndarray
+    inv: np.ndarray
+    mix: np.ndarray
+    axis_jac: np.ndarray

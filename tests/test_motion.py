@@ -1,5 +1,5 @@
-"""Motion generation: Kinematics and task-map Jacobians, attractor dynamics, gradients of every
-cost term and of the total through the RMR rollout (central finite differences), failure modes."""
+"""Motion generation: the task map on the robot, attractor dynamics, gradients of every cost
+term and of the total through the RMR rollout (central finite differences), failure modes."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ from imitate.motion import (
 )
 from imitate.motion.optimizer import _TOLERANCE
 from imitate.replay import oracle_model, planning_task
-from imitate.taskspace import task_state
+from imitate.taskspace import gaze_frame, object_orientation, task_space
 
 DT = 0.1  # coarse steps keep the finite-difference sweeps fast
 
@@ -61,16 +61,18 @@ def problem(task, learned):
 
 
 def test_task_map_matches_taskspace_and_finite_differences(task):
+    """At the robot's posture the robot map equals the demonstrations' map ``task_space`` of
+    the bottle's and glass's frames (origin, z axis) as MuJoCo places them in the hands."""
     kin = task.kin
     q = humanoid.rest_pose() + np.random.default_rng(1).uniform(-0.2, 0.2, kin.n)
     kin.update(q)
-    x, J = task(np.array([1.5, 1.5]))
-    ref_x, ref_J = task_state(
-        kin.object_kinematics("bottle"), kin.object_kinematics("glass"), task.gaze,
-        angle_ref=[1.5, 1.5],
-    )
+    frames = [
+        (kin.data.body(b).xpos[None], kin.data.body(b).xmat.reshape(3, 3)[None, :, 2])
+        for b in ("bottle", "glass")
+    ]
+    ref_x = task_space(*frames[0], *frames[1], task.gaze)[0]
+    x, J = task(ref_x[[3, 5]])
     np.testing.assert_allclose(x, ref_x, atol=1e-12)
-    np.testing.assert_allclose(J[:, task.driven], ref_J[:, task.driven], atol=1e-12)
     fd = np.zeros_like(J)
     for i in np.flatnonzero(task.driven):
         e = np.zeros(kin.n)
@@ -101,30 +103,6 @@ def test_task_jacobian_rates_match_finite_differences(task):
         kin.update(q - 1e-6 * b)
         _, jm = task(np.zeros(2))
         np.testing.assert_allclose(rate, (jp - jm) / 2e-6, atol=1e-6)
-
-
-def test_distance_gradient_matches_finite_differences(task):
-    kin = task.kin
-    rng = np.random.default_rng(2)
-    checked = 0
-    for _ in range(5):
-        q = humanoid.rest_pose() + rng.uniform(-0.3, 0.3, kin.n)
-        kin.update(q)
-        near = kin.distances(0.05, jacobian=True)
-        for k, pair in enumerate(near.pairs):
-            fd = np.zeros(kin.n)
-            for i in range(kin.n):
-                e = np.zeros(kin.n)
-                e[i] = 1e-6
-                vals = []
-                for sign in (1, -1):
-                    kin.update(q + sign * e)
-                    full = kin.distances(0.2)
-                    vals.append(full.dist[full.pairs == pair][0])
-                fd[i] = (vals[0] - vals[1]) / 2e-6
-            np.testing.assert_allclose(near.jac[k], fd, atol=1e-4)
-            checked += 1
-    assert checked > 0
 
 
 def test_attractor_trajectory_is_exact_and_linear():
@@ -180,6 +158,22 @@ def test_unconverged_and_unreachable_plans_report_instead_of_failing(task, learn
     assert np.all(np.isfinite(result.q)) and np.all(np.isfinite(result.costs["total"]))
     assert not result.converged and "not converged" in result.message
     assert "not reached" in result.message
+
+
+def test_default_gaze_is_the_rest_left_eye_right_down_forward(task):
+    """``planning_task``'s gaze: the left eye at rest in OpenCV's axes (right-handed, forward
+    along the camera's view), so an upright axis has angle -pi/2 (the eye does not roll)."""
+    kin = task.kin
+    kin.update(humanoid.rest_pose())
+    _, R = kin.camera_pose(humanoid.LEFT_EYE)
+    np.testing.assert_allclose(task.gaze, R * [1.0, -1.0, -1.0], atol=1e-15)
+    assert np.linalg.det(task.gaze) == pytest.approx(1.0)
+    angle, _, _ = object_orientation([0.0, 0.0, 1.0], task.gaze)
+    assert angle == pytest.approx(-np.pi / 2, abs=1e-9)
+    given = gaze_frame([1.0, 0.2, -0.4])
+    np.testing.assert_array_equal(planning_task(gaze=given).gaze, given)
+    with pytest.raises(ImitateError, match="right-handed"):
+        planning_task(gaze=given * [1.0, -1.0, 1.0])  # right, up, forward
 
 
 def test_singular_jacobian_is_damped(task):

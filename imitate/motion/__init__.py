@@ -1,13 +1,15 @@
 r"""Motion generation (paper section V): attractor-based whole-body movement optimisation.
 
-Notation (the paper's, and ``research/optimizer-math.md``'s):
+Notation (the paper's; each formula is stated and derived in the docstring of the module
+that implements it):
 
 ==============  =================================================================================
 ``T``           number of planning steps; trajectories have ``T + 1`` samples, step ``dt`` [s]
 ``m``           task dimensions (7, eq. 1); ``n`` planned joints (18, head columns zero)
 ``K``           attractors = GMM components; ``a`` ``(K, m)`` attractor points
 ``x_t``         target (attractor) trajectory ``x = S_x s_0 + Psi a`` (:mod:`.attractors`)
-``phi(q)``      task map; ``J`` its Jacobian ``(m, n)``; ``J#`` weighted damped pseudo-inverse
+``phi(q)``      task map (:class:`imitate.taskspace.TaskMap`); ``J`` its Jacobian ``(m, n)``
+``J#``          weighted damped pseudo-inverse of ``J``
 ``q_t``         joint angles from resolved motion rate control (:mod:`.control`)
 ``mu_t``        GMR mean; ``sigma_t`` GMR variance; ``W_t`` eq. 21 weights (:mod:`.costs`)
 ``Phi``         total cost ``sum_i w_i c_i``; its gradient by the adjoint recursion
@@ -17,9 +19,10 @@ Notation (the paper's, and ``research/optimizer-math.md``'s):
 """
 
 from imitate.motion.attractors import AttractorDynamics
-from imitate.motion.control import ControlConfig, JointLimitCost, Rollout, TaskMap, reach, rollout
+from imitate.motion.control import ControlConfig, JointLimitCost, Rollout, reach, rollout
 from imitate.motion.costs import Collision, JointLimits, PathLength, Similarity, similarity_weights
 from imitate.motion.optimizer import OPTIMIZERS, Plan, PlanConfig, Problem, plan
+from imitate.taskspace import TaskMap
 
 __all__ = [
     "OPTIMIZERS",

@@ -73,7 +73,6 @@ class AttractorDynamics:
         M = np.array([[0.0, 1.0], [-omega**2, -2.0 * omega]])
         A = expm(M * dt)
         B = np.linalg.solve(M, (A - np.eye(2)) @ np.array([0.0, omega**2]))
-        self.A, self.B = A, B
         free = np.empty((n_steps + 1, 2, 2))  # state response to s_0 = e_0, e_1
         forced = np.zeros((n_steps + 1, 2, K))
         free[0] = np.eye(2)
@@ -89,18 +88,14 @@ class AttractorDynamics:
         """Number of attractors ``K``."""
         return self.psi.shape[1]
 
-    def trajectory(self, a: np.ndarray, x0: np.ndarray, v0: np.ndarray | None = None):
-        """Task trajectory ``x_{0:T}``, shape ``(T + 1, m)``.
+    def trajectory(self, a: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        """Task trajectory ``x_{0:T}``, shape ``(T + 1, m)``, from ``x0`` ``(m,)`` at rest.
 
         Args:
             a: Attractor points, shape ``(K, m)``, sorted by time.
             x0: Start ``(m,)``.
-            v0: Start velocity ``(m,)`` [per s]; ``None`` for rest.
         """
-        x = self.free[:, :1] * x0 + self.psi @ a
-        if v0 is not None:
-            x += self.free[:, 1:] * v0
-        return x
+        return self.free[:, :1] * x0 + self.psi @ a
 
     def gradient(self, dx: np.ndarray) -> np.ndarray:
         """Gradient w.r.t. the attractors ``(K, m)`` from the gradient w.r.t. ``x_{0:T}``."""

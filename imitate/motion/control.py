@@ -10,15 +10,12 @@ with the joint metric ``W^{-1} = diag(range_i)`` (zero for joints the task must 
 head) and the joint-limit "border" cost ``H`` (zero in a free zone around each range's centre,
 quadratic outside it). ``q`` is clipped to the joint ranges, and each clip is counted.
 
-The task map ``phi`` is eq. 1 (:mod:`imitate.taskspace`) evaluated on the held objects; it is
-re-implemented here without input validation because it runs in the inner loop, and a test keeps
-it equal to :func:`imitate.taskspace.task_state`.
+The task map ``phi`` and its Jacobian are eq. 1 on the held objects,
+:class:`imitate.taskspace.TaskMap`.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,11 +23,9 @@ from scipy.linalg.lapack import dposv
 
 from imitate.errors import ImitateError
 from imitate.kinematics import Distances, Kinematics
+from imitate.taskspace import TaskFrame, TaskMap
 
-__all__ = [
-    "ControlConfig", "JointLimitCost", "Rollout", "TaskFrame", "TaskMap", "backward", "reach",
-    "rollout",
-]
+__all__ = ["ControlConfig", "JointLimitCost", "Rollout", "backward", "reach", "rollout"]
 
 
 @dataclass(frozen=True)
@@ -80,160 +75,6 @@ class JointLimitCost:
         """``dH/dq`` ``(n,)`` alone, for ``q`` ``(n,)`` (the rollout's inner loop)."""
         low, high = np.minimum(q - self.low_border, 0.0), np.maximum(q - self.high_border, 0.0)
         return self.scale * (low + high)
-
-
-class TaskMap:
-    r"""Eq. 1 on the robot: ``x = (p_b - p_g, phi_b, phi_g)`` and ``J = dx/dq`` ``(7, n)``.
-
-    An object's angle and gaze-forward component depend on its long axis ``a`` only:
-    ``d(angle, forward) = C R_gaze^T da`` with ``C = [[-p_u, p_r, 0] / rho^2, [0, 0, 1]]``
-    (``p = R_gaze^T a``, ``rho^2 = p_r^2 + p_u^2``). ``A = da/dq`` ``(3, n)`` is the Jacobian of
-    the point ``o + a`` minus that of the origin ``o``, so every row of ``J`` and of its
-    derivative along ``b`` (:meth:`rates`: ``C' R_gaze^T A + C R_gaze^T A'``) comes from
-    ``mj_jac`` and ``mj_jacDot`` of the four points ``o_b, o_g, o_b + a_b, o_g + a_g``.
-
-    Args:
-        kin: The kinematics (its held objects give the bottle and glass poses).
-        bottle, glass: Body names of the two objects.
-        gaze: ``R_gaze`` ``(3, 3)``, columns camera right, up, forward, fixed in the world.
-        fixed_joints: Joints whose Jacobian columns are zeroed.
-    """
-
-    m = 7
-
-    def __init__(
-        self,
-        kin: Kinematics,
-        bottle: str,
-        glass: str,
-        gaze: np.ndarray,
-        fixed_joints: Sequence[str] = (),
-    ):
-        self.kin = kin
-        self.bottle, self.glass = kin.model.body(bottle).id, kin.model.body(glass).id
-        self.gaze = np.asarray(gaze, dtype=float)
-        unknown = sorted(set(fixed_joints) - set(kin.joints))
-        if unknown:
-            raise ImitateError(f"fixed_joints {unknown} unknown; accepted: {list(kin.joints)}")
-        self.driven = np.array([j not in fixed_joints for j in kin.joints])
-        self._bodies = np.array([self.bottle, self.glass])
-        self._points_of = (self.bottle, self.glass, self.bottle, self.glass)
-        self._gaze_t = np.ascontiguousarray(self.gaze.T)
-        self._mask = self.driven.astype(float)
-        self._xpos, self._xmat = kin.data.xpos, kin.data.xmat  # views, kept once
-        self._ru = np.ascontiguousarray(self.gaze[:, :2].T)  # (2, 3) gaze right, up
-        self._right, self._up = self._ru.tolist()
-        # evaluate's (7, 12) map from the four points' Jacobians to J, constant rows filled.
-        self._mix = np.zeros((7, 12))
-        self._mix[:3, :3], self._mix[:3, 3:6] = np.eye(3), -np.eye(3)
-        forward = self.gaze[:, 2]
-        self._mix[4, 6:9], self._mix[4, :3] = forward, -forward
-        self._mix[6, 9:12], self._mix[6, 3:6] = forward, -forward
-        self._rate = np.empty((2, 12, kin.n))  # curvature's buffer
-
-    def __call__(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(x (7,), J (7, n))`` at the kinematics' last update; angles on the branch nearest to
-        ``angle_ref`` ``(2,)`` [rad]."""
-        x, J, _ = self.evaluate(angle_ref)
-        return x, J
-
-    def evaluate(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, TaskFrame]:
-        """As :meth:`__call__`, and the :class:`TaskFrame` that :meth:`rates` needs."""
-        points = np.empty((4, 3))
-        self._xpos.take(self._bodies, axis=0, out=points[:2])
-        axis = self._xmat.take(self._bodies, axis=0)[:, 2::3]
-        points[2:] = points[:2] + axis
-        proj = axis @ self.gaze
-        x = (points[0] - points[1]).tolist()
-        inv = []
-        mix = self._mix.copy()
-        right, up = self._right, self._up
-        objects = zip(proj.tolist(), angle_ref.tolist(), strict=True)
-        for o, ((pr, pu, pf), ref) in enumerate(objects):
-            angle = math.atan2(pu, pr)
-            x += (angle + 2.0 * math.pi * round((ref - angle) / (2.0 * math.pi)), pf)
-            rho2 = pr * pr + pu * pu
-            s = 1.0 / rho2 if rho2 > 1e-12 else 0.0
-            inv.append(s)
-            row = [-pu * s * ri + pr * s * ui for ri, ui in zip(right, up, strict=True)]
-            mix[3 + 2 * o, 6 + 3 * o : 9 + 3 * o] = row
-            mix[3 + 2 * o, 3 * o : 3 + 3 * o] = [-v for v in row]
-        jac = self.kin.point_jacobians(self._points_of, points)
-        J = mix @ jac.reshape(12, -1)
-        J *= self._mask
-        frame = TaskFrame(points, proj, np.array(inv), mix, jac[2:] - jac[:2])
-        return np.array(x), J, frame
-
-    def rates(self, qdot: np.ndarray, frame: TaskFrame) -> np.ndarray:
-        """``D_b J`` ``(k, 7, n)``: derivatives of ``J`` along each joint direction ``b`` in
-        ``qdot`` ``(k, n)`` [rad], at the posture of ``frame`` (from :meth:`evaluate`), which the
-        kinematics must be updated to (held objects may be left out)."""
-        n = self.kin.n
-        rate = np.empty((len(qdot), 12, n))
-        for k, b in enumerate(qdot):
-            rate[k] = self.kin.point_jacobian_rates(self._points_of, frame.points, b).reshape(12, n)
-        # C' (only its angle row moves): d(-p_u s, p_r s) with s = 1 / rho^2, p' = R^T A b.
-        dproj = self._gaze_t @ (frame.axis_jac @ qdot.T)  # (2, 3, k)
-        (pr, pu), s = frame.proj[:, :2, None].transpose(1, 0, 2), frame.inv[:, None]
-        ds = -2.0 * (pr * dproj[:, 0] + pu * dproj[:, 1]) * s * s  # (2, k)
-        r, u, _ = self.gaze.T
-        coef_r, coef_u = -dproj[:, 1] * s - pu * ds, dproj[:, 0] * s + pr * ds  # (2, k)
-        row_dot = coef_r[..., None] * r + coef_u[..., None] * u  # (2, k, 3)
-        out = frame.mix @ rate
-        out[:, 3::2] += (row_dot @ frame.axis_jac).transpose(1, 0, 2)
-        out *= self._mask
-        return out
-
-    def curvature(
-        self, a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray, frame: TaskFrame
-    ) -> np.ndarray:
-        """``a^T D_b J + c^T D_d J`` ``(n,)`` for task vectors ``a, c`` ``(7,)`` and joint
-        directions ``b, d`` ``(n,)`` [rad]: two contractions of :meth:`rates` without forming
-        ``D J`` (one weighted sum of the points' ``mj_jacDot`` and one of the axis Jacobians for
-        the ``C'`` term). Same preconditions as :meth:`rates`."""
-        kin, rate = self.kin, self._rate
-        rate[0] = kin.point_jacobian_rates(self._points_of, frame.points, b).reshape(12, -1)
-        rate[1] = kin.point_jacobian_rates(self._points_of, frame.points, d).reshape(12, -1)
-        left = np.array((a, c))
-        out = (left @ frame.mix).ravel() @ rate.reshape(24, -1)
-        # C' term of the angle rows 3 and 5, as in :meth:`rates`, weighted by a and c.
-        axis_jac = frame.axis_jac.reshape(6, -1)
-        dproj = (self._ru @ (axis_jac @ np.array((b, d)).T).reshape(2, 3, 2)).tolist()
-        weights = left[:, 3::2].T.tolist()  # (2 objects, 2 directions)
-        coef = []
-        for (pr, pu, _), s, (dpr, dpu), w in zip(
-            frame.proj.tolist(), frame.inv.tolist(), dproj, weights, strict=True
-        ):
-            cr = cu = 0.0
-            for dr, du, wk in zip(dpr, dpu, w, strict=True):
-                ds = -2.0 * (pr * dr + pu * du) * s * s
-                cr += wk * (-du * s - pu * ds)
-                cu += wk * (dr * s + pr * ds)
-            coef.append((cr, cu))
-        out += (np.array(coef) @ self._ru).ravel() @ axis_jac
-        out *= self._mask
-        return out
-
-
-@dataclass(frozen=True)
-class TaskFrame:
-    """What :meth:`TaskMap.rates` reuses from :meth:`TaskMap.evaluate` at one posture.
-
-    Attributes:
-        points: ``(4, 3)`` bottle and glass origins, then those plus their long axes ``a`` [m].
-        proj: ``(2, 3)`` the axes' gaze coordinates ``p`` (right, up, forward).
-        inv: ``(2,)`` ``1 / rho^2`` per object (0 where the axis is along the gaze: the angle is
-            undefined there and its gradient is taken as 0).
-        mix: ``(7, 12)`` ``J`` as a linear map of the stacked point Jacobians ``(4 * 3, n)``
-            (rows 3: hold ``C R_gaze^T`` on ``A``).
-        axis_jac: ``da/dq`` ``(2, 3, n)``, fixed joints' columns included.
-    """
-
-    points: np.ndarray
-    proj: np.ndarray
-    inv: np.ndarray
-    mix: np.ndarray
-    axis_jac: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -324,8 +165,8 @@ def rollout(
 
 
 def _solve_spd(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """``matrix^-1 rhs`` for a symmetric positive definite ``matrix`` (LAPACK ``dposv``, a tenth
-    of ``np.linalg.solve``'s overhead on these small systems); LU if Cholesky fails (NaN)."""
+    """``matrix^-1 rhs`` for a symmetric positive definite ``matrix`` (LAPACK ``dposv``, less
+    call overhead than ``np.linalg.solve`` on these small systems); LU if Cholesky fails."""
     _, sol, info = dposv(matrix, rhs)
     return sol if info == 0 else np.linalg.solve(matrix, rhs)
 

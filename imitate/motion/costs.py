@@ -50,8 +50,6 @@ class Similarity:
         dt: Step [s].
     """
 
-    name = "similarity"
-
     def __init__(self, mean: np.ndarray, weights: np.ndarray, dt: float):
         self.mean, self.weights, self.dt = mean, weights, dt
 
@@ -80,8 +78,6 @@ class Collision:
         dt: Step [s].
     """
 
-    name = "collision"
-
     def __init__(self, margin: float, epsilon: float, dt: float):
         if not margin >= 0 or not epsilon > 0:
             raise ImitateError(f"margin must be >= 0 and epsilon > 0 [m]; got {margin}, {epsilon}")
@@ -106,8 +102,6 @@ class Collision:
 class JointLimits:
     """Joint-limit proximity: ``sum_t H(q_t) dt``."""
 
-    name = "joint_limits"
-
     def __init__(self, limits: JointLimitCost, dt: float):
         self.limits, self.dt = limits, dt
 
@@ -118,8 +112,6 @@ class JointLimits:
 
 class PathLength:
     """Joint-space trajectory length ``sum_t |q_{t+1} - q_t|^2 / dt`` [rad^2/s]."""
-
-    name = "path_length"
 
     def __init__(self, dt: float):
         self.dt = dt

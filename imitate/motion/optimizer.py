@@ -17,16 +17,9 @@ from scipy.optimize import minimize
 from imitate.errors import ImitateError
 from imitate.kinematics import Kinematics
 from imitate.motion.attractors import AttractorDynamics
-from imitate.motion.control import (
-    ControlConfig,
-    JointLimitCost,
-    Rollout,
-    TaskMap,
-    backward,
-    reach,
-    rollout,
-)
+from imitate.motion.control import ControlConfig, JointLimitCost, Rollout, backward, reach, rollout
 from imitate.motion.costs import Collision, JointLimits, PathLength, Similarity, similarity_weights
+from imitate.taskspace import TaskMap
 
 __all__ = ["OPTIMIZERS", "Plan", "PlanConfig", "Problem", "plan"]
 
@@ -34,6 +27,12 @@ OPTIMIZERS = ("rprop", "lbfgs")
 # Default similarity tolerances per task dimension (eq. 1 order): the error that, held for 1 s
 # at zero variance, costs 1: 1 cm for positions, 2 deg for angles, 0.05 for gaze components.
 _TOLERANCE = (0.01, 0.01, 0.01, np.radians(2.0), 0.05, np.radians(2.0), 0.05)
+# Task position error [m] (largest over the steps and x, y, z) above which a plan's message says
+# the target was not reached.
+UNREACHED_ERROR = 0.05
+# iRprop- step factors: growth while a gradient keeps its sign, shrink on a change, and the
+# largest step as a multiple of the initial one.
+_RPROP_GROW, _RPROP_SHRINK, _RPROP_MAX = 1.2, 0.5, 50.0
 
 
 @dataclass(frozen=True)
@@ -319,7 +318,7 @@ def plan(
     if min_d < 0:
         notes.append(f"collision: {closest} at {min_d * 1000:.1f} mm")
     worst = float(np.max(task_err[:, :3]))
-    if worst > 0.05:
+    if worst > UNREACHED_ERROR:
         notes.append(f"target not reached: task position error up to {worst:.3f} m")
     if final.clipped:
         notes.append(f"joint angles clipped at {final.clipped} steps")
@@ -346,7 +345,7 @@ def _rprop(problem: Problem, a0: np.ndarray, c: PlanConfig, record, history) -> 
     sign change (and skip that coordinate once). Returns whether it converged."""
     a = a0.copy()
     step = c.rprop_step * np.broadcast_to(np.asarray(_TOLERANCE[: a.shape[1]]), a.shape).copy()
-    step_max = 50.0 * step
+    step_max = _RPROP_MAX * step
     prev = np.zeros_like(a)
     total, values, grad = problem.evaluate(a)
     record(a, total, values)
@@ -354,8 +353,8 @@ def _rprop(problem: Problem, a0: np.ndarray, c: PlanConfig, record, history) -> 
         if not np.all(np.isfinite(grad)):
             return False
         sign = prev * grad
-        step = np.where(sign > 0, np.minimum(step * 1.2, step_max), step)
-        step = np.where(sign < 0, step * 0.5, step)
+        step = np.where(sign > 0, np.minimum(step * _RPROP_GROW, step_max), step)
+        step = np.where(sign < 0, step * _RPROP_SHRINK, step)
         grad = np.where(sign < 0, 0.0, grad)
         a = a - np.sign(grad) * step
         prev = grad

@@ -1,0 +1,116 @@
+"""``Kinematics`` of the robot in the pouring scene: held objects follow the hands, point
+Jacobians, their rates and signed-distance gradients against central finite differences."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+import pytest
+from imitate.envs import assembly
+from imitate.models import humanoid, objects
+
+from imitate.errors import ImitateError
+from imitate.kinematics import Kinematics
+
+H = 1e-6  # central-difference step [rad]
+
+
+@pytest.fixture(scope="module")
+def kin():
+    model = assembly.build_model(replace(assembly.SceneConfig(), particles=0, holder="robot"))
+    return Kinematics(model, humanoid.JOINTS, assembly.clearance_geoms(model))
+
+
+def _posture(seed: int, n: int) -> np.ndarray:
+    return humanoid.rest_pose() + np.random.default_rng(seed).uniform(-0.3, 0.3, n)
+
+
+def _bodies_and_points(kin: Kinematics) -> tuple[list[int], np.ndarray]:
+    """The two held objects and the right hand, each with a point fixed in its body frame."""
+    names = (objects.BOTTLE, objects.GLASS, humanoid.RIGHT_HAND)
+    bodies = [kin.model.body(name).id for name in names]
+    local = np.array([[0.01, -0.02, 0.15], [0.03, 0.0, -0.05], [0.02, 0.01, 0.0]])
+    return bodies, local
+
+
+def _world(kin: Kinematics, bodies, local) -> np.ndarray:
+    d = kin.data
+    return np.array([
+        d.xpos[b] + d.xmat[b].reshape(3, 3) @ p for b, p in zip(bodies, local, strict=True)
+    ])
+
+
+def test_held_objects_follow_the_hands(kin):
+    bottle = kin.model.body(objects.BOTTLE).id
+    kin.update(_posture(0, kin.n))
+    before = kin.data.xpos[bottle].copy()
+    kin.update(_posture(1, kin.n), held=False)
+    np.testing.assert_array_equal(kin.data.xpos[bottle], before)  # left where it was
+    kin.update(_posture(1, kin.n))
+    assert np.linalg.norm(kin.data.xpos[bottle] - before) > 1e-3
+
+
+def test_point_jacobians_and_rates_match_finite_differences(kin):
+    bodies, local = _bodies_and_points(kin)
+    q = _posture(2, kin.n)
+    kin.update(q)
+    points = _world(kin, bodies, local)
+    jac = kin.point_jacobians(bodies, points)
+    for i, jac_i in enumerate(jac):
+        np.testing.assert_array_equal(kin.point_jacobian(bodies[i], points[i]), jac_i)
+    fd = np.empty_like(jac)
+    for j, e in enumerate(np.eye(kin.n) * H):
+        kin.update(q + e)
+        plus = _world(kin, bodies, local)
+        kin.update(q - e)
+        fd[:, :, j] = (plus - _world(kin, bodies, local)) / (2 * H)
+    np.testing.assert_allclose(jac, fd, atol=1e-7)
+
+    b = np.random.default_rng(2).normal(size=kin.n)
+    kin.update(q)
+    kin.update(q + 0.1, held=False)
+    kin.update(q, held=False)  # robot-only update: enough for the rates
+    rates = kin.point_jacobian_rates(bodies, points, b)
+    jacs = []
+    for sign in (1.0, -1.0):
+        kin.update(q + sign * H * b)
+        jacs.append(kin.point_jacobians(bodies, _world(kin, bodies, local)))
+    np.testing.assert_allclose(rates, (jacs[0] - jacs[1]) / (2 * H), atol=1e-6)
+
+
+def test_distance_gradient_matches_finite_differences(kin):
+    rng = np.random.default_rng(2)
+    checked = 0
+    for _ in range(5):
+        q = humanoid.rest_pose() + rng.uniform(-0.3, 0.3, kin.n)
+        kin.update(q)
+        near = kin.distances(0.05, jacobian=True)
+        for k, pair in enumerate(near.pairs):
+            fd = np.zeros(kin.n)
+            for i in range(kin.n):
+                e = np.zeros(kin.n)
+                e[i] = H
+                vals = []
+                for sign in (1, -1):
+                    kin.update(q + sign * e)
+                    full = kin.distances(0.2)
+                    vals.append(full.dist[full.pairs == pair][0])
+                fd[i] = (vals[0] - vals[1]) / (2 * H)
+            np.testing.assert_allclose(near.jac[k], fd, atol=1e-4)
+            checked += 1
+    assert checked > 0
+
+
+def test_bad_input_raises(kin):
+    with pytest.raises(ImitateError, match="unknown"):
+        Kinematics(kin.model, ("no_such_joint",))
+    free = next(
+        kin.model.joint(j).name for j in range(kin.model.njnt)
+        if kin.model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE
+    )
+    with pytest.raises(ImitateError, match="not a hinge"):
+        Kinematics(kin.model, (free,))
+    with pytest.raises(ImitateError, match="geoms"):
+        Kinematics(kin.model, humanoid.JOINTS).distances(0.1)
