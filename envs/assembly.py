@@ -30,7 +30,6 @@ GRASPS = {
         objects.GLASS: (teacher.HAND["right"], teacher.GRIP["right"]),
     },
 }
-SHAPES = {objects.BOTTLE: objects.BOTTLE_SHAPE, objects.GLASS: objects.GLASS_SHAPE}
 
 
 @dataclass(frozen=True)
@@ -124,7 +123,7 @@ def build_spec(config: SceneConfig = SceneConfig()) -> mujoco.MjSpec:
     parts = ["scene.xml", "humanoid.xml"] + (["teacher.xml"] if config.teacher else [])
     includes = "".join(f'<include file="{model_path(part)}"/>' for part in parts)
     spec = mujoco.MjSpec.from_string(f'<mujoco model="pouring">{includes}</mujoco>')
-    for obj, shape in SHAPES.items():
+    for obj, shape in objects.SHAPES.items():
         objects.add_container(spec, spec.worldbody, obj, shape)
     objects.add_particles(spec, config.particles)
     for i, obstacle in enumerate(config.obstacles):

@@ -67,6 +67,7 @@ GLASS_SHAPE = ContainerShape(
     segments=18,
     rgba=(0.12, 0.30, 0.92, 1.0),
 )
+SHAPES = {BOTTLE: BOTTLE_SHAPE, GLASS: GLASS_SHAPE}
 PARTICLE_RADIUS = 0.005  # [m]
 PARTICLE_DENSITY = 1000.0  # [kg/m^3], water
 PARTICLE_RGBA = (0.95, 0.85, 0.45, 1.0)  # pale juice: unsaturated, away from green and blue

@@ -83,7 +83,7 @@ def test_object_colours_distinct_from_scene():
         return 360 * h, s
 
     model = assembly.build_model(assembly.SceneConfig(particles=1))
-    targets = {obj: hue_sat(shape.rgba) for obj, shape in assembly.SHAPES.items()}
+    targets = {obj: hue_sat(shape.rgba) for obj, shape in objects.SHAPES.items()}
     for g in range(model.ngeom):
         name = model.geom(g).name
         if name.startswith((objects.BOTTLE, objects.GLASS)) or model.geom_rgba[g][3] == 0:
