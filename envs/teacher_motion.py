@@ -273,6 +273,32 @@ class TeacherMotion:
             objects.GLASS: (state[:, :3] + shake[1, :, :3], glass_rot.as_quat(scalar_first=True)),
         }
 
+    def demonstration_frames(self, times: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Ground-truth frames of the bottle and the glass at the ``times`` inside each
+        demonstration.
+
+        Args:
+            times: ``(n,)`` session times [s].
+
+        Returns:
+            Per demonstration, ``(position (2, m, 3) [m], axis (2, m, 3))``: the frames' origins
+            (bottom centres) and unit long axes in the world frame, objects in
+            ``TEACHER_OBJECTS`` order, at the ``m`` of ``times`` within its start and end.
+        """
+        times = np.asarray(times, dtype=float)
+        frames = []
+        for start, end in self.boundaries:
+            poses = self.poses(times[(times >= start) & (times <= end)])
+            position = np.array([poses[obj][0] for obj in TEACHER_OBJECTS])
+            axis = np.array(
+                [
+                    Rotation.from_quat(poses[obj][1], scalar_first=True).as_matrix()[:, :, 2]
+                    for obj in TEACHER_OBJECTS
+                ]
+            )
+            frames.append((position, axis))
+        return frames
+
 
 def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMotion:
     """Draw a recording session of ``config.n_demos`` pouring demonstrations.

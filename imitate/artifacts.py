@@ -16,17 +16,7 @@ from typing import Any
 import numpy as np
 
 from imitate.errors import ImitateError
-
-# Which stage writes which artifact, for the "re-run" hint of a missing or corrupt file.
-PRODUCERS = {
-    "config.json": "observe",
-    "observations.npz": "observe",
-    "demos.npz": "observe",
-    "model.npz": "learn",
-    "plan.npz": "optimize",
-    "replay.npz": "replay",
-    "report.json": "run",
-}
+from imitate.stages import producer
 
 
 def write_atomic(path: Path, write: Callable[[Path], None]) -> Path:
@@ -88,8 +78,7 @@ def load_json(path: Path) -> Any:
 
 
 def _rerun_hint(path: Path) -> str:
-    stage = PRODUCERS.get(path.name, "run")
-    return f"re-run `imitate {stage} {path.parent}` to write it"
+    return f"re-run `imitate {producer(path.name)} {path.parent}` to write it"
 
 
 def _to_builtin(value: Any) -> Any:

@@ -6,7 +6,7 @@
     imitate replay runs/latest && imitate figures runs/latest
 
 Each stage reads the previous stage's artifacts in the run directory (see
-:mod:`imitate.pipeline`); settings given on the command line replace those in its
+:mod:`imitate.stages`); settings given on the command line replace those in its
 ``config.json``, the rest are kept.
 """
 
@@ -14,77 +14,17 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
+from imitate.config import RunConfig, Setting, load_config, settings
 from imitate.errors import ImitateError
+from imitate.stages import NAMES, RUN_HELP, STAGES
 
 __all__ = ["main"]
 
 DEFAULT_RUN = Path("runs/latest")
-HELP = {
-    "observe": "the teacher demonstrates; track the objects in the robot's eyes; cut the demos",
-    "learn": "task space, DTW, GMM (components by BIC), GMR mean and variance",
-    "optimize": "whole-body attractor optimisation of the reproduction, Fig. 9 sweep",
-    "replay": "the optimised movement in full physics: pour fraction, spill, clearance",
-    "figures": "figures/*.png and video.mp4 from the run's artifacts",
-    "run": "all stages: observe, learn, optimize, replay, figures",
-}
-# The settings each stage owns: (flag, RunConfig field, type, help); tests check the defaults.
-KNOBS = {
-    "observe": (
-        ("--demos", "n_demos", int, "demonstrations the teacher shows, 2..20 (default 5)"),
-        ("--width", "width", int, "head-camera image width [px], 64..1920 (default 640)"),
-        ("--height", "height", int, "head-camera image height [px], 48..1080 (default 480)"),
-        ("--fps", "fps", float, "camera rate [Hz], 5..120 (default 30)"),
-    ),
-    "learn": (
-        ("--k-max", "k_max", int, "largest number of GMM components tried, 1..50 (default 30)"),
-        ("--smoothing", "smoothing", float,
-         "Savitzky-Golay window over the tracks before learning [s], 0..1 (default 0.3)"),
-    ),
-    "optimize": (
-        ("--collision-weight", "collision_weight", float,
-         "weight of the collision cost, >= 0 (default 3000)"),
-        ("--max-iter", "max_iter", int, "optimiser iteration limit, >= 1 (default 100)"),
-        ("--bottle-grasp", "bottle_grasp", float,
-         "where the robot holds the bottle, height above its bottom [m] (default 0.09)"),
-        ("--glass-grasp", "glass_grasp", float,
-         "where the robot holds the glass, height above its bottom [m] (default 0.05)"),
-    ),
-    "replay": (
-        ("--particles", "particles", int, "liquid spheres in the bottle, 1..120 (default 60)"),
-    ),
-    "figures": (
-        ("--video-width", "video_width", int, "video width [px], 64..1920 (default 640)"),
-        ("--video-height", "video_height", int, "video height [px], 48..1080 (default 480)"),
-    ),
-}
-STAGE_ORDER = tuple(KNOBS)
-
-
-def obstacle(text: str):
-    """``--obstacle`` value: ``box:X,Y,Z:SX,SY,SZ`` (centre, half extents [m]),
-    ``cylinder:X,Y,Z:R,H`` (centre, radius, half height [m]) or ``none``."""
-    if text.lower() == "none":
-        return None
-    try:
-        shape, pos, size = text.split(":")
-        values = {
-            "shape": shape,
-            "pos": tuple(float(v) for v in pos.split(",")),
-            "size": tuple(float(v) for v in size.split(",")),
-        }
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"{text!r} not accepted: box:X,Y,Z:SX,SY,SZ or cylinder:X,Y,Z:R,H [m] or none, e.g. "
-            "box:0.55,0.0,0.70:0.03,0.03,0.05"
-        ) from None
-    from imitate.envs.assembly import Obstacle
-
-    try:
-        return Obstacle(**values)
-    except ImitateError as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -94,57 +34,67 @@ def build_parser() -> argparse.ArgumentParser:
         "end to end in MuJoCo.",
     )
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for command, text in HELP.items():
+    helps = {**{s.name: s.help for s in STAGES}, "run": RUN_HELP}
+    for command, text in helps.items():
         sub = commands.add_parser(command, help=text, description=text)
         sub.add_argument("run_dir", nargs="?", type=Path, metavar="RUN_DIR",
                          help=f"run directory (default {DEFAULT_RUN}); same as --out")
         sub.add_argument("--out", type=Path, metavar="DIR", help="run directory")
-        sub.add_argument("--seed", type=int, metavar="N", help="seed of the whole run (default 0)")
+        _add_settings(sub, settings([None]))
         sub.add_argument("--quick", action="store_true",
                          help="small images, 3 demonstrations, short optimisation (tests)")
-        stages = STAGE_ORDER if command == "run" else (command,)
-        for stage in stages:
-            group = sub.add_argument_group(f"{stage} settings")
-            for flag, dest, kind, knob_help in KNOBS[stage]:
-                group.add_argument(flag, dest=dest, type=kind, help=knob_help,
-                                   metavar=kind.__name__.upper())
-            if stage == "learn":
-                group.add_argument("--bic", choices=("full", "fast"),
-                                   help="choose the number of components by the full BIC (EM "
-                                   "for every K) or the paper's fast K-means heuristic "
-                                   "(default full)")
-                group.add_argument("--oracle", action=argparse.BooleanOptionalAction,
-                                   help="learn from ground-truth poses instead of perception "
-                                   "(default --no-oracle)")
-            if stage == "optimize":
-                group.add_argument("--obstacle", type=obstacle, default=argparse.SUPPRESS,
-                                   metavar="SHAPE:POS:SIZE",
-                                   help=obstacle.__doc__.split(": ", 1)[1].replace("``", ""))
+        for stage in _stages(command):
+            _add_settings(sub.add_argument_group(f"{stage} settings"), settings([stage]))
     return parser
 
 
+def _add_settings(group, declared: list[tuple[str, Setting, Any]]) -> None:
+    """One flag per declared setting that has one; a flag not given leaves no attribute."""
+    for name, s, default in declared:
+        if s.flag is None:
+            continue
+        if isinstance(default, bool):
+            group.add_argument(s.flag, dest=name, action=argparse.BooleanOptionalAction,
+                               default=argparse.SUPPRESS, help=s.describe(default))
+            continue
+        kind = s.parse or type(default)
+        group.add_argument(
+            s.flag, dest=name, type=_argument_type(kind), choices=s.choices,
+            default=argparse.SUPPRESS, help=s.describe(default),
+            metavar=None if s.choices else s.metavar or kind.__name__.upper(),
+        )
 
-def config_for(args: argparse.Namespace, run_dir: Path):
+
+def _argument_type(parse: Callable[[str], Any]) -> Callable[[str], Any]:
+    """``parse`` with its ``ImitateError`` shown by argparse as the flag's error."""
+
+    def read(text: str) -> Any:
+        try:
+            return parse(text)
+        except ImitateError as err:
+            raise argparse.ArgumentTypeError(str(err)) from None
+
+    read.__name__ = parse.__name__  # argparse names it in "invalid int value"
+    return read
+
+
+def _stages(command: str) -> tuple[str, ...]:
+    return NAMES if command == "run" else (command,)
+
+
+def config_for(args: argparse.Namespace, run_dir: Path) -> RunConfig:
     """The run's configuration: ``config.json`` of ``run_dir`` for a later stage (a new one
     for ``run`` and ``observe``), with ``--quick`` and the given settings applied."""
-    from imitate import pipeline
-
-    stages = STAGE_ORDER if args.command == "run" else (args.command,)
-    owned = {dest for stage in stages for _, dest, _, _ in KNOBS[stage]}
-    owned |= {"oracle", "bic"} if "learn" in stages else set()
-    given = {k: v for k, v in vars(args).items() if k in owned and v is not None}
-    if "obstacle" in vars(args):  # given, possibly as "none"
-        given["obstacle"] = args.obstacle
-    if args.seed is not None:
-        given["seed"] = args.seed
+    owned = {name for name, s, _ in settings(_stages(args.command)) if s.flag}
+    given = {k: v for k, v in vars(args).items() if k in owned or k == "seed"}
     fresh = args.command in ("run", "observe")
-    base = pipeline.RunConfig() if fresh else pipeline.load_config(run_dir)
+    base = RunConfig() if fresh else load_config(run_dir)
     if args.quick:
-        quick = pipeline.RunConfig.quick().to_json()
-        base = pipeline.RunConfig.from_json(
+        quick = RunConfig.quick().to_json()
+        base = RunConfig.from_json(
             {**base.to_json(), **{k: v for k, v in quick.items() if fresh or k in owned}}
         )
-    return pipeline.RunConfig.from_json({**base.to_json(), **given})
+    return RunConfig.from_json({**base.to_json(), **given})
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -153,13 +103,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.run_dir and args.out and args.run_dir != args.out:
         parser.error(f"two run directories given: {args.run_dir} and --out {args.out}; give one")
     run_dir = args.out or args.run_dir or DEFAULT_RUN
-    from imitate import pipeline  # heavy (MuJoCo, numba): only once the arguments are fine
+    from imitate import pipeline  # the stages (matplotlib, rendering): once the arguments are fine
 
     try:
         config = config_for(args, run_dir)
     except ImitateError as err:
         parser.error(str(err))
-    stages = STAGE_ORDER if args.command == "run" else (args.command,)
+    stages = _stages(args.command)
     try:
         for stage in stages:
             print(f"== {stage}", file=sys.stderr, flush=True)

@@ -9,7 +9,7 @@ prepended as the first dimension, the number of components is chosen by BIC
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -84,6 +84,37 @@ class LearnedModel:
     def variance(self) -> np.ndarray:
         """GMR variances ``sigma_hat_t`` (the covariance diagonals), shape ``(T, n_dims)``."""
         return np.diagonal(self.covariance, axis1=1, axis2=2).copy()
+
+    @staticmethod
+    def array_names(prefix: str = "") -> tuple[str, ...]:
+        """Names of the arrays :meth:`to_arrays` writes (the alignment is not stored)."""
+        return tuple(prefix + name for name in _ARRAYS)
+
+    def to_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
+        """The model as named arrays (for ``model.npz``), each name prefixed by ``prefix``: the
+        fields, and the GMM's ``weights`` ``(K,)``, ``means`` ``(K, 1 + n_dims)`` and
+        ``covariances`` ``(K, 1 + n_dims, 1 + n_dims)``."""
+        g = self.gmm
+        arrays = {
+            "data": self.data, "weights": g.weights_, "means": g.means_,
+            "covariances": g.covariances_, "bic_curve": self.bic_curve, "times": self.times,
+            "mean": self.mean, "covariance": self.covariance,
+        }
+        return {prefix + name: arrays[name] for name in _ARRAYS}
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str = "") -> LearnedModel:
+        """The model stored by :meth:`to_arrays` under ``prefix``, without its alignment.
+
+        Raises:
+            ImitateError: the GMM's parameters are inconsistent.
+        """
+        a = {name: arrays[prefix + name] for name in _ARRAYS}
+        gmm = GMM.from_parameters(a.pop("weights"), a.pop("means"), a.pop("covariances"))
+        return cls(gmm=gmm, alignment=None, **a)
+
+
+_ARRAYS = ("data", "weights", "means", "covariances", "bic_curve", "times", "mean", "covariance")
 
 
 def time_stacked(demos: Sequence[np.ndarray], rate: float) -> np.ndarray:

@@ -1,8 +1,7 @@
-"""Planning set-up for the robot in the pouring scene, the oracle learned model, and replay.
+"""Planning set-up for the robot in the pouring scene, and replay.
 
 :func:`planning_task` builds the kinematic planning model of a scene (no particles) and its
-task map; :func:`oracle_model` learns the pouring task from the teacher's ground-truth object
-poses (no perception); :func:`replay` drives ``PouringEnv``'s actuators along a plan in full
+task map; :func:`replay` drives ``PouringEnv``'s actuators along a plan in full
 physics and measures the pour.
 """
 
@@ -12,13 +11,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from imitate.envs import assembly
 from imitate.envs.pouring import PouringEnv
-from imitate.envs.teacher_motion import TeacherConfig, script_demonstrations
 from imitate.kinematics import Kinematics
-from imitate.learning import LearnedModel, LearningConfig, learn
 from imitate.models import humanoid, objects
 from imitate.motion import Plan
 from imitate.motion.control import ControlConfig
@@ -50,32 +46,6 @@ def planning_task(
         # MuJoCo camera axes are right, up, backward: right, down, forward is x, -y, -z.
         gaze = np.column_stack((R[:, 0], -R[:, 1], -R[:, 2]))
     return TaskMap(kin, objects.BOTTLE, objects.GLASS, gaze, control.fixed_joints)
-
-
-def oracle_model(
-    gaze: np.ndarray,
-    teacher: TeacherConfig | None = None,
-    learning: LearningConfig | None = None,
-    rate: float = 50.0,
-) -> LearnedModel:
-    """Learns the task from the teacher's ground-truth poses, sampled at ``rate`` [Hz]
-    (default learning: BIC over ``K <= 20``)."""
-    motion = script_demonstrations(teacher or TeacherConfig())
-    learning = learning or LearningConfig(k_max=20)
-    demos = []
-    for start, end in motion.boundaries:
-        poses = motion.poses(np.arange(start, end, 1.0 / rate))
-        axes = {
-            obj: Rotation.from_quat(quat, scalar_first=True).as_matrix()[:, :, 2]
-            for obj, (_, quat) in poses.items()
-        }
-        demos.append(
-            task_space(
-                poses[objects.BOTTLE][0], axes[objects.BOTTLE],
-                poses[objects.GLASS][0], axes[objects.GLASS], gaze,
-            )
-        )
-    return learn(demos, rate=rate, config=learning)
 
 
 @dataclass(frozen=True)
@@ -167,4 +137,4 @@ def _task_state(env: PouringEnv, task: TaskMap, plan: Plan, t: float) -> np.ndar
     return x
 
 
-__all__ = ["ReplayResult", "oracle_model", "planning_task", "replay"]
+__all__ = ["ReplayResult", "planning_task", "replay"]

@@ -15,6 +15,8 @@ of time and its square root linearly: a line through the square root of the dist
 is between ``onset_distance`` and eight times that, extended to zero gives the onset (and, run
 backwards from the next rest position, the stop). This puts the boundary on the motion's onset
 rather than on the later moment the spread test notices it.
+
+:func:`task_demo` turns a demonstration into the task-space samples that learning takes.
 """
 
 from __future__ import annotations
@@ -27,7 +29,9 @@ from scipy.signal import savgol_filter
 
 from imitate.artifacts import load_npz, save_npz
 from imitate.errors import ImitateError
+from imitate.models.objects import BOTTLE, GLASS, SHAPES
 from imitate.perception import Tracks
+from imitate.taskspace import task_space
 
 
 @dataclass(frozen=True)
@@ -100,7 +104,8 @@ def smoothed(tracks: Tracks, smoothing: float) -> tuple[np.ndarray, np.ndarray]:
     Gaps left in the tracks are bridged linearly for this purpose.
 
     Raises:
-        ImitateError: tracks too short for the smoothing window.
+        ImitateError: tracks too short for the smoothing window, or an object tracked in none
+            of the frames.
     """
     t = tracks.times
     window = max(5, _frames(t, smoothing) | 1)
@@ -111,13 +116,34 @@ def smoothed(tracks: Tracks, smoothing: float) -> tuple[np.ndarray, np.ndarray]:
         )
     out = []
     for tracked in (tracks.position, tracks.angle[..., None]):
-        values = tracked.copy()
-        for k in range(values.shape[0]):
-            ok = np.all(np.isfinite(values[k]), axis=-1)
-            for c in range(values.shape[-1]):
-                values[k, :, c] = np.interp(t, t[ok], values[k, ok, c])
-        out.append(savgol_filter(values, window, 2, axis=1))
+        ok = np.all(np.isfinite(tracked), axis=-1)
+        out.append(_savgol(_bridged(t, tracked, ok), window))
     return out[0], out[1][..., 0]
+
+
+def _bridged(times: np.ndarray, values: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """A copy of ``values`` ``(n_objects, n, c)`` where the samples not ``ok`` ``(n_objects,
+    n)`` are interpolated linearly in ``times`` ``(n,)`` [s] from the others, held at the ends.
+
+    Raises:
+        ImitateError: an object has no sample ``ok``.
+    """
+    values = values.copy()
+    for k in range(len(values)):
+        if not ok[k].any():
+            raise ImitateError(
+                f"object {k} was tracked in none of the frames at {times[0]:.2f}..{times[-1]:.2f}"
+                " s; see figures/observation.png"
+            )
+        for c in range(values.shape[-1]):
+            values[k, :, c] = np.interp(times, times[ok[k]], values[k, ok[k], c])
+    return values
+
+
+def _savgol(values: np.ndarray, frames: int) -> np.ndarray:
+    """``values`` ``(n_objects, n, c)`` smoothed over time by a quadratic Savitzky-Golay filter
+    of ``frames`` (odd, 5..n)."""
+    return savgol_filter(values, frames, 2, axis=1)
 
 
 def still_frames(
@@ -233,6 +259,47 @@ def segment(tracks: Tracks, config: StillnessConfig = StillnessConfig()) -> list
             )
         )
     return demos
+
+
+def task_demo(
+    demo: Demonstration, objects: tuple[str, ...], gaze: np.ndarray, *, smoothing: float,
+    rate: float,
+) -> np.ndarray:
+    """The task-space demonstration (eq. 1) learned from ``demo``.
+
+    Samples perception left missing (gaps too long to fill) are bridged linearly in time, the
+    tracks smoothed by a quadratic Savitzky-Golay filter over ``smoothing`` [s] (not at all
+    where that is under 5 frames or longer than the demonstration), and the tracked points
+    (axis centres) moved back to the object frames (bottoms).
+
+    Args:
+        demo: The demonstration; ``objects`` names the first axis of its arrays.
+        objects: Object names, the bottle and the glass among them.
+        gaze: ``(3, 3)`` gaze frame of the observation.
+        smoothing: Savitzky-Golay window [s]; 0: none.
+        rate: Frame rate of the tracks [Hz].
+
+    Returns:
+        ``(m, 7)`` task-space samples.
+
+    Raises:
+        ImitateError: an object was tracked in none of the demonstration's frames.
+    """
+    ok = np.all(np.isfinite(demo.position) & np.isfinite(demo.axis), axis=-1)
+    position, axis = (_bridged(demo.times, v, ok) for v in (demo.position, demo.axis))
+    axis = _unit(axis)
+    frames = int(round(smoothing * rate)) | 1
+    if 5 <= frames <= position.shape[1]:
+        position, axis = _savgol(position, frames), _unit(_savgol(axis, frames))
+    bottoms = {
+        name: (position[k] - axis[k] * SHAPES[name].height / 2, axis[k])
+        for k, name in enumerate(objects)
+    }
+    return task_space(*bottoms[BOTTLE], *bottoms[GLASS], gaze)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 def save_demos(path, demos: list[Demonstration], tracks: Tracks):

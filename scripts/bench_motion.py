@@ -12,9 +12,10 @@ import time
 import numpy as np
 from imitate.models import humanoid
 
-from imitate.motion import PlanConfig, plan
+from imitate.motion import PlanConfig, plan_from_model, setup
 from imitate.motion.control import backward, rollout
-from imitate.replay import oracle_model, planning_task
+from imitate.oracle import oracle_model
+from imitate.replay import planning_task
 
 
 def main() -> None:
@@ -27,7 +28,6 @@ def main() -> None:
     learned = oracle_model(task.gaze)
     g = learned.gmm
     config = PlanConfig(collision_weight=args.collision_weight, max_iter=args.max_iter)
-    widths, priors = np.sqrt(g.covariances_[:, 0, 0]), g.weights_
     print(
         f"movement {learned.times[-1]:.2f} s, dt {config.dt} s, K={g.n_components}, "
         f"collision weight {config.collision_weight}"
@@ -36,16 +36,13 @@ def main() -> None:
     print("|---|---|---|---|---|---|")
     for k in range(args.repeats):
         start = time.perf_counter()
-        p = plan(task, learned.times, learned.mean, learned.variance, g.means_[:, 0],
-                 humanoid.rest_pose(), config, widths, priors)
+        p = plan_from_model(task, learned, q0=humanoid.rest_pose(), config=config)
         total = time.perf_counter() - start
         print(f"| {k} | {total:.2f} | {p.n_iter} | {p.n_evaluations} | "
               f"{1000 * total / max(p.n_evaluations, 1):.1f} | {p.min_distance * 1000:.1f} |")
 
     # Breakdown of one iteration: forward rollout (with distances), cost terms, backward pass.
-    from imitate.motion.optimizer import Problem  # noqa: PLC0415
-
-    problem = Problem(task, _dynamics(p, learned, config), p.q_start, p.mean, p.weights, config)
+    problem = setup(task, learned, q0=humanoid.rest_pose(), config=config).problem
     distmax = problem.terms["collision"][1].distmax
     timings = {"rollout (kinematics, RMR)": [], "distances": [], "costs": [], "gradient": []}
     for _ in range(args.repeats):
@@ -71,17 +68,6 @@ def main() -> None:
     for name, values in timings.items():
         ms = 1000 * float(np.median(values))
         print(f"| {name} | {ms:.1f} | {1000 * ms / (len(p.times) - 1):.0f} |")
-
-
-def _dynamics(p, learned, config):
-    from imitate.motion import AttractorDynamics  # noqa: PLC0415
-
-    g = learned.gmm
-    interval = (p.times[-1] - p.times[0]) / g.n_components
-    return AttractorDynamics(
-        len(p.times) - 1, config.dt, g.means_[:, 0], config.omega_per_interval / interval,
-        np.sqrt(g.covariances_[:, 0, 0]), g.weights_,
-    )
 
 
 if __name__ == "__main__":

@@ -19,19 +19,16 @@ from imitate.models import humanoid, objects
 from imitate.models.scene import TABLE_HEIGHT
 
 from imitate import plots
-from imitate.motion import PlanConfig, plan
-from imitate.pipeline import pour_phase
-from imitate.replay import oracle_model, planning_task, replay
+from imitate.motion import PlanConfig, plan_from_model
+from imitate.motion.metrics import deviation, pour_phase_error
+from imitate.oracle import oracle_model
+from imitate.replay import planning_task, replay
 
 
 def run_plan(task, learned, weight: float, max_iter: int):
     config = PlanConfig(collision_weight=weight, max_iter=max_iter)
     start = time.perf_counter()
-    g = learned.gmm
-    result = plan(
-        task, learned.times, learned.mean, learned.variance, g.means_[:, 0],
-        humanoid.rest_pose(), config, np.sqrt(g.covariances_[:, 0, 0]), g.weights_,
-    )
+    result = plan_from_model(task, learned, q0=humanoid.rest_pose(), config=config)
     return result, time.perf_counter() - start
 
 
@@ -52,26 +49,20 @@ def main() -> None:
     for weight in args.weights:
         p, seconds = run_plan(task, learned, weight, args.max_iter)
         plans[weight] = p
-        pour = pour_phase(p.mean)
-        err = p.task_error()[pour]
-        pos = np.linalg.norm(err[:, :3], axis=1).max()
-        ang = np.degrees(np.abs(err[:, [3, 5]]).max())
+        pos, ang = pour_phase_error(p)
         print(
             f"w_coll={weight:7.1f}: min distance {p.min_distance * 1000:6.1f} mm {p.closest}, "
             f"pour-phase error {pos * 1000:5.1f} mm / {ang:4.2f} deg, {p.n_iter} iterations "
             f"in {seconds:.2f} s; {p.message}"
         )
     base = plans[args.weights[0]]
-    var = base.variance[:, :3].sum(axis=1)
-    high = var > np.median(var)
     for weight in args.weights[1:]:
-        dev = np.sum((plans[weight].x[:, :3] - base.mean[:, :3]) ** 2, axis=1)
-        extra = np.sum((plans[weight].x[:, :3] - base.x[:, :3]) ** 2, axis=1)
+        d = deviation(plans[weight], base)
         print(
-            f"w_coll={weight:7.1f}: squared deviation from the GMR mean {dev.sum():.4f} m^2 "
-            f"({dev[high].sum() / dev.sum():.0%} above the median variance); change from "
-            f"w_coll={args.weights[0]}: {extra.sum():.4f} m^2 "
-            f"({extra[high].sum() / max(extra.sum(), 1e-12):.0%} above the median variance)"
+            f"w_coll={weight:7.1f}: squared deviation from the GMR mean {d['deviation_m2']:.4f} "
+            f"m^2 ({d['deviation_high_variance_share']:.0%} above the median variance); change "
+            f"from w_coll={args.weights[0]}: {d['change_from_first_m2']:.4f} m^2 "
+            f"({d['change_high_variance_share']:.0%} above the median variance)"
         )
     _figures(plans, args.out)
 

@@ -1,6 +1,8 @@
 """The ``imitate`` command end to end: ``imitate run --quick``, its report, determinism, errors."""
 
+import argparse
 import json
+import re
 import shutil
 
 import imageio.v3 as iio
@@ -8,8 +10,9 @@ import numpy as np
 import pytest
 
 from imitate.artifacts import load_npz
-from imitate.cli import main
-from imitate.pipeline import RunConfig
+from imitate.cli import build_parser, main
+from imitate.config import RunConfig, settings
+from imitate.errors import ImitateError
 
 NPZ = ("observations.npz", "demos.npz", "model.npz", "plan.npz", "replay.npz")
 FIGURES = (
@@ -139,11 +142,15 @@ def test_bad_flag_values_are_refused(argv, expected, tmp_path, capsys):
     assert not (tmp_path / "config.json").exists()
 
 
-def test_cli_knows_every_stage_in_order():
-    from imitate.cli import STAGE_ORDER
-    from imitate.pipeline import STAGES
+def _commands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return action.choices
 
-    assert STAGE_ORDER == STAGES
+
+def test_cli_knows_every_stage_in_order():
+    from imitate.stages import NAMES
+
+    assert tuple(_commands(build_parser())) == (*NAMES, "run")
 
 
 def test_config_round_trips_through_json():
@@ -154,16 +161,36 @@ def test_config_round_trips_through_json():
 
 
 def test_help_states_the_real_defaults():
-    import re
-
-    from imitate.cli import KNOBS
-
     defaults = RunConfig()
-    for knobs in KNOBS.values():
-        for flag, dest, _, text in knobs:
-            stated = re.search(r"\(default ([0-9.]+)\)", text)
-            assert stated, flag
-            assert float(stated.group(1)) == getattr(defaults, dest), flag
+    flags = [
+        action
+        for command in _commands(build_parser()).values()
+        for action in command._actions
+        if action.dest in RunConfig.__dataclass_fields__
+    ]
+    assert {a.dest for a in flags} >= {"n_demos", "k_max", "collision_weight", "particles"}
+    for action in flags:
+        expected = getattr(defaults, action.dest)
+        if expected is None:  # --obstacle: no obstacle unless given
+            continue
+        stated = re.search(r"\(default (\S+)\)", action.help)
+        assert stated, action.option_strings
+        if isinstance(expected, bool):
+            assert stated.group(1) == ("--" if expected else "--no-") + action.dest
+        elif isinstance(expected, str):
+            assert stated.group(1) == expected, action.option_strings
+        else:
+            assert float(stated.group(1)) == expected, action.option_strings
+
+
+def test_settings_refuse_values_outside_the_range_their_help_states():
+    for name, setting, default in settings():
+        if setting.low is None:
+            continue
+        assert setting.bounds() in setting.describe(default)
+        bad = setting.low - 1
+        with pytest.raises(ImitateError, match=rf"{name}=.* not accepted: .*{setting.bounds()}"):
+            RunConfig(**{name: (bad,) if isinstance(default, tuple) else bad})
 
 
 def test_interrupted_stage_leaves_no_half_written_file(quick_run, tmp_path, monkeypatch):

@@ -3,6 +3,8 @@ term and of the total through the RMR rollout (central finite differences), fail
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from imitate.models import humanoid
@@ -14,14 +16,13 @@ from imitate.motion import (
     ControlConfig,
     JointLimitCost,
     PlanConfig,
-    Problem,
-    plan,
-    reach,
+    plan_from_model,
     rollout,
-    similarity_weights,
+    setup,
 )
 from imitate.motion.optimizer import _TOLERANCE
-from imitate.replay import oracle_model, planning_task
+from imitate.oracle import oracle_model
+from imitate.replay import planning_task
 from imitate.taskspace import gaze_frame, object_orientation, task_space
 
 DT = 0.1  # coarse steps keep the finite-difference sweeps fast
@@ -40,22 +41,9 @@ def learned(task):
 @pytest.fixture(scope="module")
 def problem(task, learned):
     c = PlanConfig(dt=DT, collision_weight=300.0, margin=0.02, epsilon=0.03)
-    T = int(round(learned.times[-1] / DT))
-    grid = np.arange(T + 1) * DT
-    mu = np.column_stack([np.interp(grid, learned.times, learned.mean[:, i]) for i in range(7)])
-    var = np.column_stack(
-        [np.interp(grid, learned.times, learned.variance[:, i]) for i in range(7)]
-    )
-    weights = similarity_weights(var, 1 / np.square(_TOLERANCE), var.max(axis=0))
-    g = learned.gmm
-    dyn = AttractorDynamics(
-        T, DT, g.means_[:, 0], 2.0 / (grid[-1] / g.n_components),
-        np.sqrt(g.covariances_[:, 0, 0]), g.weights_,
-    )
-    limits = JointLimitCost(task.kin.lower, task.kin.upper, c.control.free_ratio)
-    q0 = reach(task, mu[0], humanoid.rest_pose(), c.control, limits)
-    p = Problem(task, dyn, q0, mu, weights, c)
-    a = dyn.fit(mu, p.x_start)
+    start = setup(task, learned, q0=humanoid.rest_pose(), config=c)
+    p = start.problem
+    a = p.dynamics.fit(start.mean, p.x_start)  # unweighted: the point these checks were set at
     a = a + np.random.default_rng(0).normal(size=a.shape) * np.array(_TOLERANCE)
     return p, a
 
@@ -151,9 +139,9 @@ def test_collision_term_is_active_in_the_gradient_check(problem):
 def test_unconverged_and_unreachable_plans_report_instead_of_failing(task, learned):
     far = learned.mean.copy()
     far[:, 0] += 2.0  # 2 m between bottle and glass: out of reach
-    result = plan(
-        task, learned.times, far, learned.variance, learned.gmm.means_[:, 0],
-        humanoid.rest_pose(), PlanConfig(dt=DT, max_iter=2, collision_weight=0.0),
+    result = plan_from_model(
+        task, dataclasses.replace(learned, mean=far), q0=humanoid.rest_pose(),
+        config=PlanConfig(dt=DT, max_iter=2, collision_weight=0.0),
     )
     assert np.all(np.isfinite(result.q)) and np.all(np.isfinite(result.costs["total"]))
     assert not result.converged and "not converged" in result.message
@@ -193,7 +181,8 @@ def test_bad_input_raises(task, learned):
     with pytest.raises(ImitateError, match="optimizer"):
         PlanConfig(optimizer="sgd")
     with pytest.raises(ImitateError, match="plan needs"):
-        plan(task, learned.times, learned.mean[:, :3], learned.variance, [1.0], np.zeros(18))
+        short = dataclasses.replace(learned, mean=learned.mean[:, :3])
+        plan_from_model(task, short, q0=np.zeros(18))
 
 
 def test_task_curvature_is_the_contraction_of_the_rates(task):

@@ -15,14 +15,22 @@ that implements it):
 ``Phi``         total cost ``sum_i w_i c_i``; its gradient by the adjoint recursion
 ==============  =================================================================================
 
-:func:`plan` is the entry point; it returns a frozen :class:`Plan`.
+:func:`plan_from_model` is the entry point; it returns a frozen :class:`Plan`
+(:mod:`.plan`, which also stores it); :mod:`.metrics` measures it.
 """
 
 from imitate.motion.attractors import AttractorDynamics
 from imitate.motion.control import ControlConfig, JointLimitCost, Rollout, reach, rollout
 from imitate.motion.costs import Collision, JointLimits, PathLength, Similarity, similarity_weights
-from imitate.motion.optimizer import OPTIMIZERS, Plan, PlanConfig, Problem, plan
-from imitate.taskspace import TaskMap
+from imitate.motion.optimizer import (
+    OPTIMIZERS,
+    PlanConfig,
+    Problem,
+    Setup,
+    plan_from_model,
+    setup,
+)
+from imitate.motion.plan import Plan
 
 __all__ = [
     "OPTIMIZERS",
@@ -36,10 +44,11 @@ __all__ = [
     "PlanConfig",
     "Problem",
     "Rollout",
+    "Setup",
     "Similarity",
-    "TaskMap",
-    "plan",
+    "plan_from_model",
     "reach",
     "rollout",
+    "setup",
     "similarity_weights",
 ]

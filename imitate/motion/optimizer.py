@@ -1,15 +1,17 @@
 """Attractor optimisation: find the attractor points whose rollout minimises the total cost.
 
-:func:`plan` resamples the GMR mean and variance to the planning step, moves the robot's start
-posture onto the learned start (by RMR), fits the attractors to the GMR mean in least squares and
-then minimises ``Phi(a) = sum_i w_i c_i`` by iRprop- (default; sign-based, so it tolerates the
-gradient's neglected ``dJ#/dq`` terms) or L-BFGS (scipy). It returns a frozen :class:`Plan` with
-the best attractors found, whether or not the optimiser converged.
+:func:`plan_from_model` resamples the learned GMR mean and variance to the planning step, moves
+the robot's start posture onto the learned start (by RMR), fits one attractor per GMM component
+to the GMR mean in least squares (:func:`setup`) and then minimises ``Phi(a) = sum_i w_i c_i``
+by iRprop- (default; sign-based, so it tolerates the gradient's neglected ``dJ#/dq`` terms) or
+L-BFGS (scipy). It returns a frozen :class:`Plan` with the best attractors found, whether or not
+the optimiser converged.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.optimize import minimize
@@ -19,9 +21,13 @@ from imitate.kinematics import Kinematics
 from imitate.motion.attractors import AttractorDynamics
 from imitate.motion.control import ControlConfig, JointLimitCost, Rollout, backward, reach, rollout
 from imitate.motion.costs import Collision, JointLimits, PathLength, Similarity, similarity_weights
+from imitate.motion.plan import Plan
 from imitate.taskspace import TaskMap
 
-__all__ = ["OPTIMIZERS", "Plan", "PlanConfig", "Problem", "plan"]
+if TYPE_CHECKING:
+    from imitate.learning import LearnedModel
+
+__all__ = ["OPTIMIZERS", "PlanConfig", "Problem", "Setup", "plan_from_model", "setup"]
 
 OPTIMIZERS = ("rprop", "lbfgs")
 # Default similarity tolerances per task dimension (eq. 1 order): the error that, held for 1 s
@@ -37,7 +43,7 @@ _RPROP_GROW, _RPROP_SHRINK, _RPROP_MAX = 1.2, 0.5, 50.0
 
 @dataclass(frozen=True)
 class PlanConfig:
-    """Parameters of :func:`plan`.
+    """Parameters of :func:`plan_from_model`.
 
     Attributes:
         dt: Planning step [s].
@@ -95,52 +101,6 @@ class PlanConfig:
                 f"max_iter >= 0, patience >= 1 and tol >= 0 needed; got {self.max_iter}, "
                 f"{self.patience}, {self.tol}"
             )
-
-
-@dataclass(frozen=True)
-class Plan:
-    """Result of :func:`plan`.
-
-    Attributes:
-        times: ``(T + 1,)`` [s].
-        attractors: ``(K, m)`` optimised attractor points, sorted by time.
-        target: ``(T + 1, m)`` attractor trajectory ``x_t`` (what RMR tracks).
-        x: ``(T + 1, m)`` task state reached, ``phi(q_t)``.
-        q: ``(T + 1, n)`` joint angles [rad] in ``Kinematics.joints`` order.
-        q_start: ``(n,)`` start posture (``q[0]``), reached from the given posture by RMR.
-        mean, variance, weights: GMR mean, variance and eq. 21 weights at ``times``, ``(T+1, m)``.
-        costs: ``{term: (n_iter + 1,)}`` weighted cost per iteration of the accepted iterate,
-            and ``"total"``.
-        min_distance: Smallest signed distance [m] over the trajectory and all pairs.
-        closest: Geom names of that pair (``None`` if none is within 0.2 m).
-        converged: Whether the stopping rule was met within ``max_iter``.
-        clipped: Joint-angle clips in the best rollout.
-        message: What happened, in words (convergence, collisions, unreachable targets).
-        n_iter: Iterations run.
-        n_evaluations: Rollouts evaluated.
-    """
-
-    times: np.ndarray
-    attractors: np.ndarray
-    target: np.ndarray
-    x: np.ndarray
-    q: np.ndarray
-    q_start: np.ndarray
-    mean: np.ndarray
-    variance: np.ndarray
-    weights: np.ndarray
-    costs: dict[str, np.ndarray]
-    min_distance: float
-    closest: tuple[str, str] | None
-    converged: bool
-    clipped: int
-    message: str
-    n_iter: int
-    n_evaluations: int
-
-    def task_error(self) -> np.ndarray:
-        """``(T + 1, m)`` reached minus learned, ``phi(q_t) - mu_t``."""
-        return self.x - self.mean
 
 
 class Problem:
@@ -215,38 +175,47 @@ class Problem:
         return total, values, self.dynamics.gradient(dx)
 
 
-def plan(
-    task: TaskMap,
-    times: np.ndarray,
-    mean: np.ndarray,
-    variance: np.ndarray,
-    centres: np.ndarray,
-    q0: np.ndarray,
-    config: PlanConfig = PlanConfig(),
-    widths: np.ndarray | None = None,
-    priors: np.ndarray | None = None,
-) -> Plan:
-    """Optimises a whole-body movement that reproduces the learned task (paper section V).
+@dataclass(frozen=True)
+class Setup:
+    """The optimisation of :func:`plan_from_model` before its first iteration.
+
+    Attributes:
+        times: ``(T + 1,)`` planning steps [s], ``dt`` apart from the first GMR time.
+        mean, variance: ``(T + 1, m)`` GMR mean and variances resampled to ``times``.
+        weights: ``(T + 1, m)`` eq. 21 similarity weights.
+        problem: The total cost over the attractors, from the start posture ``problem.q_start``
+            (reached from the given posture by RMR onto ``mean[0]``).
+        a0: ``(K, m)`` attractors fitted to ``mean`` in weighted least squares.
+    """
+
+    times: np.ndarray
+    mean: np.ndarray
+    variance: np.ndarray
+    weights: np.ndarray
+    problem: Problem
+    a0: np.ndarray
+
+
+def setup(
+    task: TaskMap, model: LearnedModel, *, q0: np.ndarray, config: PlanConfig = PlanConfig()
+) -> Setup:
+    """The problem :func:`plan_from_model` optimises: resampled GMR, eq. 21 weights, attractor
+    dynamics with one attractor per GMM component (soft switching by the components' time
+    spread and priors), the start posture, the least-squares attractors.
 
     Args:
         task: Task map of the robot (kinematics, objects, gaze).
-        times: ``(T_g,)`` GMR query times [s], increasing, from 0.
-        mean: ``(T_g, m)`` GMR mean ``mu_hat_t``.
-        variance: ``(T_g, m)`` GMR variances ``sigma_hat_t``.
-        centres: ``(K,)`` time means of the GMM components [s]: one attractor each.
-        q0: ``(n,)`` current posture [rad]; the plan starts where RMR brings it onto ``mean[0]``.
+        model: The learned model: GMR ``times`` ``(T_g,)`` [s] (increasing, from 0), ``mean``
+            and ``covariance`` over ``m`` task dimensions, GMM over ``(t, x)``.
+        q0: ``(n,)`` current posture [rad].
         config: Parameters.
-        widths, priors: ``(K,)`` time standard deviations [s] and priors of the components
-            for soft attractor switching (see :class:`AttractorDynamics`); ``None``: hard.
-
-    Returns:
-        The :class:`Plan`; never raises for a colliding, unreachable or unconverged result, it
-        says so in ``message``.
 
     Raises:
         ImitateError: On inconsistent shapes or non-finite inputs.
     """
-    times, mean, variance = (np.asarray(v, dtype=float) for v in (times, mean, variance))
+    times, mean, variance = (
+        np.asarray(v, dtype=float) for v in (model.times, model.mean, model.variance)
+    )
     q0 = np.asarray(q0, dtype=float)
     kin = task.kin
     if (
@@ -271,15 +240,42 @@ def plan(
     sigma_max = np.asarray(c.sigma_max if c.sigma_max is not None else var.max(axis=0))
     weights = similarity_weights(var, w_max, np.maximum(sigma_max, 1e-12))
 
-    centres = np.asarray(centres, dtype=float).ravel()
+    g = model.gmm
+    centres = np.asarray(g.means_[:, 0], dtype=float).ravel()
     interval = (grid[-1] - grid[0]) / max(len(centres), 1)
     dynamics = AttractorDynamics(
-        n_steps, c.dt, centres - times[0], c.omega_per_interval / interval, widths, priors
+        n_steps, c.dt, centres - times[0], c.omega_per_interval / interval,
+        np.sqrt(g.covariances_[:, 0, 0]), g.weights_,
     )
     limits = JointLimitCost(kin.lower, kin.upper, c.control.free_ratio)
     q_start = reach(task, mu[0], q0, c.control, limits)
     problem = Problem(task, dynamics, q_start, mu, weights, c)
     a0 = dynamics.fit(mu, problem.x_start, weights)
+    return Setup(grid, mu, var, weights, problem, a0)
+
+
+def plan_from_model(
+    task: TaskMap, model: LearnedModel, *, q0: np.ndarray, config: PlanConfig = PlanConfig()
+) -> Plan:
+    """Optimises a whole-body movement that reproduces the learned task (paper section V).
+
+    Args:
+        task: Task map of the robot (kinematics, objects, gaze).
+        model: The learned model (see :func:`setup`).
+        q0: ``(n,)`` current posture [rad]; the plan starts where RMR brings it onto the GMR
+            mean's start.
+        config: Parameters.
+
+    Returns:
+        The :class:`Plan`; never raises for a colliding, unreachable or unconverged result, it
+        says so in ``message``.
+
+    Raises:
+        ImitateError: On inconsistent shapes or non-finite inputs.
+    """
+    c = config
+    start = setup(task, model, q0=q0, config=c)
+    problem, a0, mu = start.problem, start.a0, start.mean
 
     history: list[tuple[float, dict[str, float]]] = []
     best = {"a": a0, "cost": np.inf, "rollout": None}
@@ -308,7 +304,7 @@ def plan(
 
     a = best["a"]
     target, final = best["rollout"] or problem.rollout(a)
-    min_d, closest = _min_distance(kin, final.q)
+    min_d, closest = _min_distance(task.kin, final.q)
     names = tuple(problem.terms) + ("total",)
     costs = {
         name: np.array([h[0] if name == "total" else h[1][name] for h in history]) for name in names
@@ -323,10 +319,11 @@ def plan(
     if final.clipped:
         notes.append(f"joint angles clipped at {final.clipped} steps")
     return Plan(
-        times=grid, attractors=a, target=target, x=final.x, q=final.q, q_start=q_start,
-        mean=mu, variance=var, weights=weights, costs=costs, min_distance=min_d,
-        closest=closest, converged=converged, clipped=final.clipped, message="; ".join(notes),
-        n_iter=max(len(history) - 1, 0), n_evaluations=problem.n_evaluations,
+        times=start.times, attractors=a, target=target, x=final.x, q=final.q,
+        q_start=problem.q_start, mean=mu, variance=start.variance, weights=start.weights,
+        costs=costs, min_distance=min_d, closest=closest, converged=converged,
+        clipped=final.clipped, message="; ".join(notes), n_iter=max(len(history) - 1, 0),
+        n_evaluations=problem.n_evaluations,
     )
 
 

@@ -1,0 +1,286 @@
+"""The settings of a run (``config.json``): one declaration per setting.
+
+Each field of :class:`RunConfig` carries a :class:`Setting` (what it is, its range, its stage and
+flag); the checks, the command-line flags with their help and the class's documentation are
+derived from these.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from imitate.artifacts import load_json
+from imitate.bic import BIC_METHODS, DEFAULT_BIC
+from imitate.envs import assembly
+from imitate.envs.teacher_motion import TeacherConfig
+from imitate.errors import ImitateError
+from imitate.motion import PlanConfig
+from imitate.segment import StillnessConfig
+
+__all__ = ["RunConfig", "Setting", "load_config", "parse_obstacle", "settings"]
+
+
+@dataclass(frozen=True)
+class Setting:
+    """What one field of :class:`RunConfig` means, what it accepts and where it is set.
+
+    Attributes:
+        help: What it is, with its unit; the flag's help and the documentation.
+        stage: The stage that first uses it; its sub-command (and ``run``) takes the flag.
+            ``None``: a setting of the whole run, taken by every sub-command.
+        flag: Its command-line flag; ``None``: set in ``config.json`` only.
+        low, high: Accepted range, inclusive; ``None``: unbounded on that side. A value with a
+            bound must be finite; a tuple value needs one or more elements, each in range.
+        choices: The accepted values.
+        parse: Reads the flag's text (raising ``ImitateError``); ``None``: the field's type.
+        metavar: The flag's value in the help; ``None``: the type's name in capitals.
+    """
+
+    help: str
+    stage: str | None = None
+    flag: str | None = None
+    low: float | None = None
+    high: float | None = None
+    choices: tuple[str, ...] | None = None
+    parse: Callable[[str], Any] | None = None
+    metavar: str | None = None
+
+    def bounds(self) -> str:
+        """The range in short (``"2..20"``, ``">= 0"``), or ``""`` if unbounded."""
+        if self.low is not None and self.high is not None:
+            return f"{self.low:g}..{self.high:g}"
+        return f">= {self.low:g}" if self.low is not None else ""
+
+    def check(self, name: str, value: Any) -> None:
+        """Raises ``ImitateError`` naming ``name``, ``value`` and what is accepted, unless
+        ``value`` is accepted."""
+        if self.choices is not None and value not in self.choices:
+            raise ImitateError(f"{name}={value!r} not accepted: one of {self.choices}")
+        if self.low is None and self.high is None:
+            return
+        values = value if isinstance(value, tuple) else (value,)
+        if values and all(self._in_range(v) for v in values):
+            return
+        if isinstance(value, tuple):
+            accepted = f"one or more finite values {self.bounds()}"
+        elif self.high is None:
+            accepted = f"a finite value {self.bounds()}"
+        else:
+            accepted = f"a value in {self.bounds()}"
+        raise ImitateError(f"{name}={value!r} not accepted: {accepted}")
+
+    def describe(self, default: Any) -> str:
+        """The help with the range and the default: ``"camera rate [Hz], 5..120 (default 30)"``."""
+        text = ", ".join(part for part in (self.help, self.bounds()) if part)
+        if isinstance(default, bool):
+            return f"{text} (default --{'' if default else 'no-'}{self.flag.removeprefix('--')})"
+        if default is None:
+            return text
+        shown = f"{default:g}" if _is_number(default) else default
+        return f"{text} (default {shown})"
+
+    def _in_range(self, v: Any) -> bool:
+        return bool(
+            np.isfinite(v)
+            and (self.low is None or v >= self.low)
+            and (self.high is None or v <= self.high)
+        )
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _setting(default: Any, help: str, **declaration: Any) -> Any:
+    """A :class:`RunConfig` field with its :class:`Setting`."""
+    return field(default=default, metadata={"setting": Setting(help, **declaration)})
+
+
+_OBSTACLE_FORMS = (
+    "box:X,Y,Z:SX,SY,SZ (centre, half extents [m]), cylinder:X,Y,Z:R,H (centre, radius, half "
+    "height [m]) or none"
+)
+
+
+def parse_obstacle(text: str) -> assembly.Obstacle | None:
+    """The obstacle written in one of the forms ``--obstacle`` takes; ``None`` for ``none``.
+
+    Raises:
+        ImitateError: another form, or an obstacle off the table.
+    """
+    if text.lower() == "none":
+        return None
+    try:
+        shape, pos, size = text.split(":")
+        values = {
+            "shape": shape,
+            "pos": tuple(float(v) for v in pos.split(",")),
+            "size": tuple(float(v) for v in size.split(",")),
+        }
+    except ValueError:
+        raise ImitateError(
+            f"{text!r} not accepted: {_OBSTACLE_FORMS}, e.g. box:0.55,0.0,0.70:0.03,0.03,0.05"
+        ) from None
+    return assembly.Obstacle(**values)
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """Everything a run depends on; stored as ``config.json`` in the run directory.
+
+    The settings, each with its range, default, stage and flag, are listed below (generated
+    from the fields' :class:`Setting`).
+    """
+
+    seed: int = _setting(0, "seed of the whole run", flag="--seed", metavar="N")
+    n_demos: int = _setting(
+        5, "demonstrations the teacher shows", stage="observe", flag="--demos", low=2, high=20
+    )
+    width: int = _setting(
+        640, "head-camera image width [px]", stage="observe", flag="--width", low=64, high=1920
+    )
+    height: int = _setting(
+        480, "head-camera image height [px]", stage="observe", flag="--height", low=48, high=1080
+    )
+    fps: float = _setting(30.0, "camera rate [Hz]", stage="observe", flag="--fps", low=5, high=120)
+    k_max: int = _setting(
+        30, "largest number of GMM components tried", stage="learn", flag="--k-max", low=1,
+        high=50,
+    )
+    smoothing: float = _setting(
+        StillnessConfig.smoothing, "Savitzky-Golay window over the tracks before learning [s]",
+        stage="learn", flag="--smoothing", low=0, high=1,
+    )
+    bic: str = _setting(
+        DEFAULT_BIC, "choose the number of components by the full BIC (EM for every K) or the "
+        "paper's fast K-means heuristic", stage="learn", flag="--bic", choices=BIC_METHODS,
+    )
+    oracle: bool = _setting(
+        False, "learn from ground-truth poses instead of perception", stage="learn",
+        flag="--oracle",
+    )
+    collision_weight: float = _setting(
+        PlanConfig.collision_weight, "weight of the collision cost", stage="optimize",
+        flag="--collision-weight", low=0,
+    )
+    sweep: tuple[float, ...] = _setting(
+        (0.0, 0.1, 1.0), "collision weights of the Fig. 9 sweep, as fractions of "
+        "collision_weight", stage="optimize", low=0,
+    )
+    max_iter: int = _setting(
+        PlanConfig.max_iter, "optimiser iteration limit", stage="optimize", flag="--max-iter",
+        low=1, high=10_000,
+    )
+    bottle_grasp: float = _setting(
+        assembly.SceneConfig.bottle_grasp,
+        "where the robot holds the bottle, height above its bottom [m]", stage="optimize",
+        flag="--bottle-grasp",
+    )
+    glass_grasp: float = _setting(
+        assembly.SceneConfig.glass_grasp,
+        "where the robot holds the glass, height above its bottom [m]", stage="optimize",
+        flag="--glass-grasp",
+    )
+    obstacle: assembly.Obstacle | None = _setting(
+        None, f"{_OBSTACLE_FORMS}.",
+        stage="optimize", flag="--obstacle", parse=parse_obstacle, metavar="SHAPE:POS:SIZE",
+    )
+    particles: int = _setting(
+        60, "liquid spheres in the bottle", stage="replay", flag="--particles", low=1,
+        high=assembly.MAX_PARTICLES,
+    )
+    video_width: int = _setting(
+        640, "video width [px]", stage="figures", flag="--video-width", low=64, high=1920
+    )
+    video_height: int = _setting(
+        480, "video height [px]", stage="figures", flag="--video-height", low=48, high=1080
+    )
+    video_fps: float = _setting(
+        25.0, "frame rate of video.mp4 and of the replay's recorded states [Hz]",
+        stage="replay", low=1, high=60,
+    )
+    teacher_speedup: float = _setting(
+        2.0, "the teacher's part of the video plays this many times faster", stage="figures",
+        low=1, high=10,
+    )
+
+    def __post_init__(self):
+        if isinstance(self.obstacle, dict):  # from config.json
+            values = {k: tuple(v) if isinstance(v, list) else v for k, v in self.obstacle.items()}
+            object.__setattr__(self, "obstacle", assembly.Obstacle(**values))
+        object.__setattr__(self, "sweep", tuple(float(s) for s in self.sweep))
+        for name, setting, _ in settings():
+            setting.check(name, getattr(self, name))
+        self.scene()  # validates the grasps and the obstacle
+
+    @classmethod
+    def quick(cls, **overrides) -> RunConfig:
+        """Small images, 3 demonstrations, short optimisation: the whole run in well under
+        a minute (for tests)."""
+        values = dict(
+            n_demos=3, width=320, height=240, fps=20.0, k_max=10, max_iter=30, particles=30,
+            video_width=320, video_height=240, video_fps=10.0, teacher_speedup=3.0,
+        )
+        return cls(**{**values, **overrides})
+
+    def scene(self, **overrides) -> assembly.SceneConfig:
+        """The robot's scene (objects in its hands)."""
+        values = dict(
+            particles=self.particles,
+            obstacles=(self.obstacle,) if self.obstacle else (),
+            bottle_grasp=self.bottle_grasp,
+            glass_grasp=self.glass_grasp,
+        )
+        return assembly.SceneConfig(**{**values, **overrides})
+
+    def teacher(self) -> TeacherConfig:
+        """The teacher's demonstrations."""
+        return TeacherConfig(n_demos=self.n_demos, seed=self.seed)
+
+    def to_json(self) -> dict[str, Any]:
+        """The settings as JSON-ready values (the obstacle as a dict)."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_json(cls, values: dict[str, Any]) -> RunConfig:
+        """Settings read back from ``config.json``; unknown names are refused."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - names)
+        if unknown:
+            raise ImitateError(
+                f"config.json has unknown settings {unknown}; accepted: {sorted(names)}"
+            )
+        return cls(**values)
+
+
+def settings(stages: Iterable[str | None] | None = None) -> list[tuple[str, Setting, Any]]:
+    """``(field name, setting, default)`` of :class:`RunConfig`'s settings in field order; those
+    of ``stages`` only if given (``None`` in it: the settings of the whole run)."""
+    chosen = None if stages is None else set(stages)
+    return [
+        (f.name, f.metadata["setting"], f.default)
+        for f in dataclasses.fields(RunConfig)
+        if chosen is None or f.metadata["setting"].stage in chosen
+    ]
+
+
+def load_config(run_dir: Path) -> RunConfig:
+    """The ``config.json`` of ``run_dir``."""
+    return RunConfig.from_json(load_json(Path(run_dir) / "config.json"))
+
+
+def _documentation() -> str:
+    lines = []
+    for name, s, default in settings():
+        where = ", ".join(part for part in (s.stage and f"{s.stage} stage", s.flag) if part)
+        lines.append(f"        {name} ({where or 'config.json only'}): {s.describe(default)}")
+    return "\n\n    Attributes:\n" + "\n".join(lines) + "\n    "
+
+
+RunConfig.__doc__ = RunConfig.__doc__.rstrip() + _documentation()

@@ -1,0 +1,48 @@
+"""How well a plan reproduces the learned task: the pour-phase error and where it deviates."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from imitate.motion.plan import Plan
+
+__all__ = ["deviation", "pour_phase", "pour_phase_error"]
+
+
+def pour_phase(mean: np.ndarray) -> np.ndarray:
+    """Steps ``(T,) bool`` where the bottle is tilted beyond 80 % of its largest tilt from the
+    start, given the GMR mean ``(T, 7)``: the low-variance pouring phase."""
+    tilt = np.abs(mean[:, 3] - mean[0, 3])
+    return tilt >= 0.8 * tilt.max()
+
+
+def pour_phase_error(plan: Plan) -> tuple[float, float]:
+    """Largest task error of ``plan`` in the pouring phase: relative position [m] and bottle or
+    glass angle [deg]."""
+    error = plan.task_error()[pour_phase(plan.mean)]
+    return (
+        float(np.linalg.norm(error[:, :3], axis=1).max()),
+        float(np.degrees(np.abs(error[:, [3, 5]]).max())),
+    )
+
+
+def deviation(plan: Plan, first: Plan) -> dict[str, float]:
+    """Where ``plan`` deviates from the GMR mean (paper Fig. 9), against ``first`` (the plan of
+    the sweep's first, smallest collision weight; same model and step).
+
+    Returns:
+        ``deviation_m2``: squared deviation of the relative position from the GMR mean, summed
+        over the steps [m^2]; ``deviation_high_variance_share``: its share in the steps whose
+        GMR position variance is above its median; ``change_from_first_m2`` and
+        ``change_high_variance_share``: the same for the change from ``first``'s positions.
+    """
+    dev = np.sum((plan.x[:, :3] - plan.mean[:, :3]) ** 2, axis=1)
+    extra = np.sum((plan.x[:, :3] - first.x[:, :3]) ** 2, axis=1)
+    var = plan.variance[:, :3].sum(axis=1)
+    high = var > np.median(var)
+    return {
+        "deviation_m2": float(dev.sum()),
+        "deviation_high_variance_share": float(dev[high].sum() / max(dev.sum(), 1e-12)),
+        "change_from_first_m2": float(extra.sum()),
+        "change_high_variance_share": float(extra[high].sum() / max(extra.sum(), 1e-12)),
+    }

@@ -1,0 +1,112 @@
+"""The stages of a run, in order: what each does, its function, what it writes, what it reports.
+
+The command line, the artifacts' re-run hints and :func:`imitate.pipeline.run_stage` all read
+:data:`STAGES`. This module imports nothing heavy (the command line parses its arguments before
+MuJoCo loads, and :mod:`imitate.artifacts` reads it): a stage's function is named as
+``"module:function"`` and imported when the stage runs.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from imitate.errors import ImitateError
+
+if TYPE_CHECKING:
+    from imitate.config import RunConfig
+
+__all__ = ["FIGURES", "NAMES", "REPORT", "RUN_HELP", "STAGES", "Stage", "find", "producer"]
+
+REPORT = "report.json"  # every stage merges its sections into it
+FIGURES = (
+    "observation", "fig4_gmm_dtw", "fig5_bic", "gmr", "fig8_snapshots", "fig9_collision_sweep",
+    "costs",
+)
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One stage of a run.
+
+    Attributes:
+        name: Its sub-command and its key in the report's ``timings``.
+        help: One line for ``imitate --help``.
+        function: ``"module:function"`` of ``(run_dir: Path, config: RunConfig) -> dict`` that
+            runs it and returns its report sections by name.
+        writes: Artifacts it writes, paths relative to the run directory (``config.json``: the
+            stage that starts a run).
+        sections: The report sections it owns, in report order.
+    """
+
+    name: str
+    help: str
+    function: str
+    writes: tuple[str, ...]
+    sections: tuple[str, ...]
+
+    def run(self, run_dir: Path, config: RunConfig) -> dict:
+        """Runs the stage in ``run_dir``; returns its report sections by name."""
+        module, name = self.function.split(":")
+        return getattr(importlib.import_module(module), name)(run_dir, config)
+
+
+STAGES = (
+    Stage(
+        "observe",
+        "the teacher demonstrates; track the objects in the robot's eyes; cut the demos",
+        "imitate.pipeline:observe",
+        ("config.json", "observations.npz", "demos.npz"),
+        ("demos", "perception"),
+    ),
+    Stage(
+        "learn",
+        "task space, DTW, GMM (components by BIC), GMR mean and variance",
+        "imitate.pipeline:learn",
+        ("model.npz",),
+        ("learning",),
+    ),
+    Stage(
+        "optimize",
+        "whole-body attractor optimisation of the reproduction, Fig. 9 sweep",
+        "imitate.pipeline:optimize",
+        ("plan.npz",),
+        ("optimization",),
+    ),
+    Stage(
+        "replay",
+        "the optimised movement in full physics: pour fraction, spill, clearance",
+        "imitate.pipeline:replay",
+        ("replay.npz",),
+        ("replay",),
+    ),
+    Stage(
+        "figures",
+        "figures/*.png and video.mp4 from the run's artifacts",
+        "imitate.pipeline:figures",
+        ("video.mp4", *(f"figures/{name}.png" for name in FIGURES)),
+        ("video",),
+    ),
+)
+NAMES = tuple(s.name for s in STAGES)
+RUN_HELP = f"all stages: {', '.join(NAMES)}"
+
+
+def find(name: str) -> Stage:
+    """The stage called ``name``.
+
+    Raises:
+        ImitateError: no such stage; the message lists them.
+    """
+    for s in STAGES:
+        if s.name == name:
+            return s
+    raise ImitateError(f"stage {name!r} unknown; accepted: {NAMES}")
+
+
+def producer(artifact: str) -> str:
+    """The command that writes ``artifact`` (a path relative to the run directory): its stage,
+    or ``"run"`` for the report and anything no stage writes."""
+    return next((s.name for s in STAGES if artifact in s.writes), "run")
