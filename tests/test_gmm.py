@@ -77,9 +77,12 @@ def test_property_responsibilities_sum_to_one(seed, k, scale):
     gmm = GMM.from_parameters(rng.dirichlet(np.ones(k)), rng.normal(size=(k, 3)) * scale, cov)
     X = rng.normal(size=(50, 3)) * scale * 10.0 ** rng.uniform(-2, 3)  # also far away
     resp = gmm.predict_proba(X)
-    assert np.all(resp >= 0)
-    np.testing.assert_allclose(resp.sum(axis=1), 1.0, rtol=1e-12)
-    assert np.all(np.isfinite(gmm.score_samples(X)))
+    log_p = gmm.score_samples(X)
+    assert np.all(resp >= 0) and np.all(np.isfinite(log_p))
+    # exp(log pi_k N_k - log p) loses about eps * |log p| to rounding for far-away samples
+    # (|log p| reaches 1e5 here): the sums may miss 1 by that much and no more.
+    tolerance = 4 * np.finfo(float).eps * np.maximum(1.0, np.abs(log_p))
+    assert np.all(np.abs(resp.sum(axis=1) - 1.0) <= tolerance)
 
 
 def test_duplicated_points_are_regularised_not_singular():
