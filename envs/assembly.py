@@ -11,9 +11,9 @@ from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
-from imitate.models import humanoid, model_path, objects, scene, teacher
 
 from imitate.errors import ImitateError
+from imitate.models import humanoid, model_path, objects, scene, teacher
 
 HOLDERS = ("robot", "teacher")
 OBSTACLE_SHAPES = ("box", "cylinder")

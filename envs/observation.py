@@ -15,13 +15,13 @@ from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
+from scipy.spatial.transform import Rotation
+
 from imitate.envs import teacher_motion
 from imitate.envs.assembly import SceneConfig, build_model, hold
 from imitate.envs.rendering import make_renderer
-from imitate.models import humanoid, objects
-from scipy.spatial.transform import Rotation
-
 from imitate.errors import ImitateError
+from imitate.models import humanoid, objects
 
 EYES = (humanoid.LEFT_EYE, humanoid.RIGHT_EYE)
 

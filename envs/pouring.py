@@ -49,15 +49,15 @@ from typing import Any
 import gymnasium as gym
 import mujoco
 import numpy as np
+
 from imitate.envs import assembly
 from imitate.envs.collision import CollisionPairs, signed_distances
 from imitate.envs.rendering import make_renderer
 from imitate.envs.teacher_motion import pose_arm, shoulder_position
+from imitate.errors import ImitateError
 from imitate.models import humanoid, objects
 from imitate.models import scene as scene_names
 from imitate.models import teacher as teacher_names
-
-from imitate.errors import ImitateError
 
 OBS_TYPES = ("state", "stereo")
 RESET_OPTIONS = ("bottle_grasp", "glass_grasp")

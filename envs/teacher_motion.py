@@ -21,12 +21,12 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-from imitate.envs.assembly import GRASPS
-from imitate.models import objects, scene, teacher
 from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
 from scipy.spatial.transform import Rotation
 
+from imitate.envs.assembly import GRASPS
 from imitate.errors import ImitateError
+from imitate.models import objects, scene, teacher
 
 _YAW = np.pi  # the mannequin faces the robot (-x)
 

@@ -14,14 +14,14 @@ import cv2
 import imageio.v2 as imageio
 import mujoco
 import numpy as np
+
+from imitate.artifacts import write_atomic
 from imitate.envs import teacher_motion
 from imitate.envs.assembly import SceneConfig, build_model
 from imitate.envs.observation import ObservationConfig, watching_scene
 from imitate.envs.pouring import PouringEnv
 from imitate.envs.rendering import make_renderer
 from imitate.models import scene as scene_names
-
-from imitate.artifacts import write_atomic
 
 CLOSE_UP_LOOKAT = (0.25, 0.0, 0.9)  # between the robot's hands at the start [m]
 

@@ -10,8 +10,8 @@ import argparse
 import time
 
 import numpy as np
-from imitate.models import humanoid
 
+from imitate.models import humanoid
 from imitate.motion import PlanConfig, plan_from_model, setup
 from imitate.motion.control import backward, rollout
 from imitate.oracle import oracle_model

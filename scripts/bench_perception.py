@@ -22,10 +22,10 @@ from pathlib import Path
 import cv2
 import mujoco
 import numpy as np
-from imitate.envs.observation import ObservationConfig, frames, session
-from imitate.envs.teacher_motion import TeacherConfig
 
 import imitate  # noqa: F401  (selects the headless GL backend before MuJoCo is imported)
+from imitate.envs.observation import ObservationConfig, frames, session
+from imitate.envs.teacher_motion import TeacherConfig
 from imitate.observe import cameras, ground_truth
 from imitate.perception import (
     Observations,

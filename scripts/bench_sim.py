@@ -15,6 +15,7 @@ import platform
 import time
 
 import mujoco
+
 from imitate.envs.observation import ObservationConfig, frames, session
 from imitate.envs.pouring import PouringEnv
 from imitate.envs.rendering import make_renderer

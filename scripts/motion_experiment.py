@@ -13,12 +13,12 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from imitate import plots
 from imitate.envs.assembly import GRASP_RANGE, Obstacle, SceneConfig
 from imitate.envs.pouring import PouringEnv
 from imitate.models import humanoid, objects
 from imitate.models.scene import TABLE_HEIGHT
-
-from imitate import plots
 from imitate.motion import PlanConfig, plan_from_model
 from imitate.motion.metrics import deviation, pour_phase_error
 from imitate.oracle import oracle_model

@@ -11,10 +11,10 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-from imitate.envs.observation import ObservationConfig
-from imitate.envs.teacher_motion import TeacherConfig
 
 import imitate  # noqa: F401  (selects the headless GL backend before MuJoCo is imported)
+from imitate.envs.observation import ObservationConfig
+from imitate.envs.teacher_motion import TeacherConfig
 from imitate.observe import observe
 from imitate.perception import save_observations
 from imitate.plots import plot_observation, save

@@ -14,11 +14,11 @@ from pathlib import Path
 import cv2
 import imageio.v3 as iio
 import numpy as np
-from imitate.envs.pouring import PouringEnv
-from imitate.models import humanoid, objects
 from tqdm import tqdm
 
 from imitate.artifacts import write_atomic
+from imitate.envs.pouring import PouringEnv
+from imitate.models import humanoid, objects
 
 WAVING_JOINTS = {"right_wrist_roll": 0.6, "right_wrist_pitch": 0.5, "right_elbow": 0.25}  # [rad]
 

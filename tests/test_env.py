@@ -8,10 +8,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
-from imitate.envs.assembly import Obstacle
-from imitate.envs.pouring import PouringEnv
 
 import imitate
+from imitate.envs.assembly import Obstacle
+from imitate.envs.pouring import PouringEnv
 from imitate.errors import ImitateError
 
 SMALL = {"width": 96, "height": 72, "particles": 20}

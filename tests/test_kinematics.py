@@ -8,11 +8,11 @@ from dataclasses import replace
 import mujoco
 import numpy as np
 import pytest
-from imitate.envs import assembly
-from imitate.models import humanoid, objects
 
+from imitate.envs import assembly
 from imitate.errors import ImitateError
 from imitate.kinematics import Kinematics
+from imitate.models import humanoid, objects
 
 H = 1e-6  # central-difference step [rad]
 

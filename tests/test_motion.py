@@ -7,10 +7,10 @@ import dataclasses
 
 import numpy as np
 import pytest
-from imitate.models import humanoid
 
 from imitate.errors import ImitateError
 from imitate.learning import LearningConfig
+from imitate.models import humanoid
 from imitate.motion import (
     AttractorDynamics,
     ControlConfig,

@@ -6,11 +6,11 @@ import dataclasses
 import mujoco
 import numpy as np
 import pytest
+
+import imitate  # noqa: F401  (selects the headless GL backend)
 from imitate.envs import observation
 from imitate.envs.assembly import SceneConfig, build_model
 from imitate.envs.teacher_motion import TeacherConfig
-
-import imitate  # noqa: F401  (selects the headless GL backend)
 from imitate.errors import ImitateError
 from imitate.observe import cameras, ground_truth, observe
 from imitate.perception import (

@@ -3,6 +3,7 @@
 import mujoco
 import numpy as np
 import pytest
+
 from imitate.envs import assembly, teacher_motion
 from imitate.envs.pouring import PouringEnv, _inside
 from imitate.models import objects

@@ -3,12 +3,12 @@
 import mujoco
 import numpy as np
 import pytest
+
 from imitate.envs import assembly
+from imitate.errors import ImitateError
 from imitate.models import humanoid, objects
 from imitate.models import scene as names
 from imitate.models import teacher as teacher_names
-
-from imitate.errors import ImitateError
 
 
 @pytest.fixture(scope="module")

@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
+
 from imitate.envs.observation import tracked_point
 from imitate.envs.teacher_motion import TeacherConfig, script_demonstrations
-
 from imitate.errors import ImitateError
 
 
