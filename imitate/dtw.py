@@ -16,8 +16,7 @@ of local distances with the same summation order as ``scipy.spatial.distance.cdi
 dtw-python), keeps only two rows of accumulated costs, fills each row in a vectorised pass (the
 diagonal and up steps) and a serial one (the left step), and records the chosen step of every
 cell (one byte each); the path is read back from those steps, exactly as dtw-python does. The first
-call of a process compiles the loops (about 2 s) or loads them from numba's on-disk cache
-(about 0.5 s).
+call of a process compiles the loops or loads them from numba's on-disk cache.
 """
 
 from __future__ import annotations

@@ -242,8 +242,8 @@ def segment(tracks: Tracks, config: StillnessConfig = StillnessConfig()) -> list
     if len(bounds) < 2:
         raise ImitateError(
             f"found {len(bounds)} demonstration(s) in {tracks.times[-1] - tracks.times[0]:.1f} s "
-            f"of tracks, at least 2 needed; stillness settings: {config.describe()} (a lower "
-            f"speed_threshold or min_still finds more)"
+            f"of tracks, at least 2 needed; stillness settings: {config.describe()} (a "
+            f"shorter min_still or a larger still_range finds more)"
         )
     demos = []
     for start, end in bounds:
