@@ -1,35 +1,123 @@
 """Run-directory artifacts: written atomically, read back with errors that name the stage to re-run.
 
-Every file is first written to a hidden temporary name in the same directory and then renamed,
-so an interrupted stage never leaves a half-written artifact behind.
+Every file is first written to a hidden temporary name unique to the writer
+(``.NAME.PID-RANDOM.partial.SUFFIX``) and then renamed, so an interrupted write never leaves a
+half-written artifact behind. Inside :func:`staged` the renames wait until the whole stage has
+succeeded: a stage that fails, or is interrupted, leaves the run directory as it was.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import secrets
 import zipfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from imitate.errors import ImitateError
-from imitate.stages import producer
+from imitate.stages import REPORT, producer
+
+__all__ = [
+    "Arrays", "Staging", "load_json", "load_npz", "remove_temporary", "save_json", "save_npz",
+    "staged", "write_atomic",
+]
+
+TEMPORARY = ".*.partial*"  # glob of the temporary names (also those of earlier versions)
+
+
+class Staging:
+    """The files a stage writes under ``root``, kept under temporary names in ``root`` until
+    :meth:`commit` renames them into place (see :func:`staged`)."""
+
+    def __init__(self, root: Path):
+        self.root = Path(os.path.abspath(root))
+        self._pending: dict[Path, Path] = {}  # destination -> temporary file
+
+    def holds(self, path: Path) -> bool:
+        """Whether ``path`` lies under the root (and so waits for the commit)."""
+        return Path(os.path.abspath(path)).is_relative_to(self.root)
+
+    def write(self, path: Path, write: Callable[[Path], None]) -> None:
+        """``write(tmp)`` a temporary file in the root that :meth:`commit` renames to ``path``."""
+        path = Path(os.path.abspath(path))
+        tmp = _temporary(self.root / path.name)
+        try:
+            write(tmp)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
+        if path in self._pending:
+            self._pending[path].unlink(missing_ok=True)
+        self._pending[path] = tmp
+
+    def files(self) -> dict[str, Path]:
+        """The temporary file of each staged artifact, by its path relative to the root."""
+        return {path.relative_to(self.root).as_posix(): tmp for path, tmp in self._pending.items()}
+
+    def commit(self) -> None:
+        """Rename every staged file into place, in the order written."""
+        for path, tmp in list(self._pending.items()):
+            path.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(tmp, path)
+            del self._pending[path]
+
+    def discard(self) -> None:
+        """Delete the staged files not committed."""
+        for tmp in self._pending.values():
+            tmp.unlink(missing_ok=True)
+        self._pending.clear()
+
+
+_STAGING: ContextVar[Staging | None] = ContextVar("staging", default=None)
+
+
+@contextmanager
+def staged(root: Path) -> Iterator[Staging]:
+    """Within the block, files written under ``root`` wait under temporary names; they are all
+    renamed into place when the block ends normally, and all deleted when it raises."""
+    staging = Staging(root)
+    token = _STAGING.set(staging)
+    try:
+        yield staging
+        staging.commit()
+    finally:
+        _STAGING.reset(token)
+        staging.discard()
 
 
 def write_atomic(path: Path, write: Callable[[Path], None]) -> Path:
-    """Call ``write(tmp)`` for a temporary file beside ``path``, then rename it to ``path``."""
+    """Call ``write(tmp)`` for a temporary file beside ``path``, then rename it to ``path``
+    (inside :func:`staged`: when the stage commits)."""
     path = Path(path)
+    staging = _STAGING.get()
+    if staging is not None and staging.holds(path):
+        staging.write(path, write)
+        return path
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.partial{path.suffix}")
+    tmp = _temporary(path)
     try:
         write(tmp)
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
     return path
+
+
+def remove_temporary(directory: Path) -> list[Path]:
+    """Delete the temporary files that killed writers left in ``directory`` and its immediate
+    sub-directories (only safe while no one writes there); returns them."""
+    directory = Path(directory)
+    folders = [directory, *(p for p in directory.iterdir() if p.is_dir())]
+    left = [p for folder in folders for p in folder.glob(TEMPORARY) if p.is_file()]
+    for path in left:
+        path.unlink(missing_ok=True)
+    return left
 
 
 def save_npz(path: Path, arrays: Mapping[str, Any]) -> Path:
@@ -39,7 +127,19 @@ def save_npz(path: Path, arrays: Mapping[str, Any]) -> Path:
     )
 
 
-def load_npz(path: Path, required: tuple[str, ...] = ()) -> dict[str, np.ndarray]:
+class Arrays(dict):
+    """The arrays of one ``.npz`` artifact by name; a name it lacks raises ``ImitateError``
+    naming the file and the stage that writes it (not ``KeyError``)."""
+
+    def __init__(self, path: Path, arrays: Mapping[str, np.ndarray]):
+        super().__init__(arrays)
+        self.path = Path(path)
+
+    def __missing__(self, name: str) -> np.ndarray:
+        raise ImitateError(f"{self.path} lacks {name!r}; {_rerun_hint(self.path)}")
+
+
+def load_npz(path: Path, required: tuple[str, ...] = ()) -> Arrays:
     """Read an ``.npz`` artifact; every array in ``required`` must be present.
 
     Raises:
@@ -49,7 +149,7 @@ def load_npz(path: Path, required: tuple[str, ...] = ()) -> dict[str, np.ndarray
     path = Path(path)
     try:
         with np.load(path, allow_pickle=False) as npz:
-            arrays = {name: npz[name] for name in npz.files}
+            arrays = Arrays(path, {name: npz[name] for name in npz.files})
     except FileNotFoundError:
         raise ImitateError(f"{path} is missing; {_rerun_hint(path)}") from None
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:
@@ -77,7 +177,15 @@ def load_json(path: Path) -> Any:
         raise ImitateError(f"{path} is corrupt ({err}); {_rerun_hint(path)}") from err
 
 
+def _temporary(path: Path) -> Path:
+    """A hidden name beside ``path`` that no other writer uses; it keeps the suffix (``np.savez``
+    and ``imageio`` go by it)."""
+    return path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.partial{path.suffix}")
+
+
 def _rerun_hint(path: Path) -> str:
+    if path.name == REPORT:
+        return "delete it to start a new report"
     return f"re-run `imitate {producer(path.name)} {path.parent}` to write it"
 
 

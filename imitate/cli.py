@@ -7,19 +7,27 @@
 
 Each stage reads the previous stage's artifacts in the run directory (see
 :mod:`imitate.stages`); settings given on the command line replace those in its
-``config.json``, the rest are kept.
+``config.json``, the rest are kept. One command at a time holds a run directory (see
+:mod:`imitate.rundir`); a stage refuses inputs that are stale or from another run unless
+``--force`` (see :mod:`imitate.provenance`). Errors are one line on stderr: exit status 1, 2
+for a bad flag, 130 for Ctrl-C and 143 for SIGTERM; a stage that does not finish changes
+nothing.
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from imitate.config import RunConfig, Setting, load_config, settings
 from imitate.errors import ImitateError
+from imitate.rundir import locked
 from imitate.stages import NAMES, RUN_HELP, STAGES
 
 __all__ = ["main"]
@@ -43,6 +51,9 @@ def build_parser() -> argparse.ArgumentParser:
         _add_settings(sub, settings([None]))
         sub.add_argument("--quick", action="store_true",
                          help="small images, 3 demonstrations, short optimisation (tests)")
+        sub.add_argument("--force", action="store_true",
+                         help="use input artifacts that are stale or from another run (see "
+                         "manifest.json) instead of refusing them")
         for stage in _stages(command):
             _add_settings(sub.add_argument_group(f"{stage} settings"), settings([stage]))
     return parser
@@ -82,15 +93,15 @@ def _stages(command: str) -> tuple[str, ...]:
     return NAMES if command == "run" else (command,)
 
 
-def config_for(args: argparse.Namespace, run_dir: Path) -> RunConfig:
-    """The run's configuration: ``config.json`` of ``run_dir`` for a later stage (a new one
-    for ``run`` and ``observe``), with ``--quick`` and the given settings applied."""
+def config_for(args: argparse.Namespace, base: RunConfig) -> RunConfig:
+    """The run's configuration: ``base`` (the run directory's ``config.json`` for a later
+    stage, the defaults for ``run`` and ``observe``) with ``--quick`` and the given settings
+    applied."""
     owned = {name for name, s, _ in settings(_stages(args.command)) if s.flag}
     given = {k: v for k, v in vars(args).items() if k in owned or k == "seed"}
-    fresh = args.command in ("run", "observe")
-    base = RunConfig() if fresh else load_config(run_dir)
     if args.quick:
         quick = RunConfig.quick().to_json()
+        fresh = _starts_run(args.command)
         base = RunConfig.from_json(
             {**base.to_json(), **{k: v for k, v in quick.items() if fresh or k in owned}}
         )
@@ -103,22 +114,69 @@ def main(argv: list[str] | None = None) -> int:
     if args.run_dir and args.out and args.run_dir != args.out:
         parser.error(f"two run directories given: {args.run_dir} and --out {args.out}; give one")
     run_dir = args.out or args.run_dir or DEFAULT_RUN
-    from imitate import pipeline  # the stages (matplotlib, rendering): once the arguments are fine
+    command = " ".join(["imitate", *(sys.argv[1:] if argv is None else argv)])
+    stages, stage = _stages(args.command), None
+    fresh = _starts_run(args.command)
+    try:
+        with _terminated_as_exception(), locked(run_dir, command, create=fresh):
+            from imitate import pipeline  # the stages (matplotlib, rendering): once it is ours
 
-    try:
-        config = config_for(args, run_dir)
+            base = RunConfig() if fresh else load_config(run_dir)
+            try:
+                config = config_for(args, base)
+            except ImitateError as err:
+                parser.error(str(err))
+            for stage in stages:
+                print(f"== {stage}", file=sys.stderr, flush=True)
+                report = pipeline.run_stage(stage, run_dir, config, force=args.force)
     except ImitateError as err:
-        parser.error(str(err))
-    stages = _stages(args.command)
-    try:
-        for stage in stages:
-            print(f"== {stage}", file=sys.stderr, flush=True)
-            report = pipeline.run_stage(stage, run_dir, config)
-    except ImitateError as err:
-        print(f"imitate {args.command}: error: {err}", file=sys.stderr)
-        return 1
+        return _fail(args.command, str(err), 1)
+    except OSError as err:
+        return _fail(args.command, str(err), 1)
+    except KeyboardInterrupt:
+        return _fail(args.command, _stopped("interrupted (Ctrl-C)", stage, run_dir), 130)
+    except _Terminated:
+        return _fail(args.command, _stopped("terminated (SIGTERM)", stage, run_dir), 143)
     print(summary(report, stages, run_dir))
     return 0
+
+
+class _Terminated(BaseException):
+    """SIGTERM arrived; unwinds like Ctrl-C, so that temporary files and child processes go."""
+
+
+@contextmanager
+def _terminated_as_exception() -> Iterator[None]:
+    """Within the block, SIGTERM raises :class:`_Terminated` (in the main thread)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum, frame):
+        raise _Terminated
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _stopped(how: str, stage: str | None, run_dir: Path) -> str:
+    if stage is None:
+        return f"{how} before any stage ran"
+    return f"{how} in stage {stage}, which changed nothing in {run_dir}"
+
+
+def _fail(command: str, message: str, status: int) -> int:
+    """Print ``message`` as the command's one-line error; returns ``status``."""
+    print(f"imitate {command}: error: {' '.join(message.split())}", file=sys.stderr)
+    return status
+
+
+def _starts_run(command: str) -> bool:
+    """Whether ``command`` starts a run (from the defaults, making the directory)."""
+    return command in ("run", "observe")
 
 
 def summary(report: dict, stages: tuple[str, ...], run_dir: Path) -> str:

@@ -271,8 +271,55 @@ def settings(stages: Iterable[str | None] | None = None) -> list[tuple[str, Sett
 
 
 def load_config(run_dir: Path) -> RunConfig:
-    """The ``config.json`` of ``run_dir``."""
-    return RunConfig.from_json(load_json(Path(run_dir) / "config.json"))
+    """The ``config.json`` of ``run_dir``.
+
+    Raises:
+        ImitateError: the file is missing or unreadable, not an object of settings, or holds a
+            setting of the wrong JSON type or out of range; the message names the file.
+    """
+    path = Path(run_dir) / "config.json"
+    values = load_json(path)
+    if not isinstance(values, dict):
+        raise ImitateError(
+            f"{path} holds {values!r:.40}, not an object of settings; re-run "
+            f"`imitate observe {run_dir}` to write it"
+        )
+    defaults = {name: default for name, _, default in settings()}
+    for name, value in values.items():
+        if name in defaults and not _json_fits(value, defaults[name]):
+            raise ImitateError(
+                f"{path}: {name}={value!r} not accepted: {_json_kind(defaults[name])}"
+            )
+    try:
+        return RunConfig.from_json(values)
+    except ImitateError as err:
+        raise ImitateError(f"{path}: {err}") from None
+
+
+def _json_fits(value: Any, default: Any) -> bool:
+    """Whether the JSON ``value`` has the type of a setting whose default is ``default``."""
+    if isinstance(default, bool) or isinstance(value, bool):
+        return isinstance(default, bool) and isinstance(value, bool)
+    if isinstance(default, tuple):
+        return isinstance(value, list) and all(_json_fits(v, 0.0) for v in value)
+    if default is None:  # the obstacle
+        return value is None or (
+            isinstance(value, dict) and set(value) == {"shape", "pos", "size"}
+            and isinstance(value["shape"], str)
+            and all(_json_fits(value[k], ()) for k in ("pos", "size"))
+        )
+    if isinstance(default, float):
+        return isinstance(value, int | float)
+    return isinstance(value, type(default))
+
+
+def _json_kind(default: Any) -> str:
+    """What :func:`_json_fits` accepts for a setting whose default is ``default``."""
+    if default is None:
+        return 'null or {"shape": "box" or "cylinder", "pos": [x, y, z], "size": [...]}'
+    kinds = {bool: "true or false", int: "a whole number", float: "a number",
+             str: "a string", tuple: "a list of numbers"}
+    return kinds[type(default)]
 
 
 def _documentation() -> str:

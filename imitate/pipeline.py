@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from imitate import plots, stages
-from imitate.artifacts import load_json, load_npz, save_json, save_npz
+from imitate import plots, provenance, stages
+from imitate.artifacts import load_json, load_npz, save_json, save_npz, staged
 from imitate.bic import bic_sweep
 from imitate.config import RunConfig
 from imitate.envs.observation import ObservationConfig
@@ -32,6 +32,7 @@ from imitate.envs.video import (
     teacher_frames,
     write_video,
 )
+from imitate.errors import ImitateError
 from imitate.learning import LearnedModel, LearningConfig
 from imitate.learning import learn as learn_model
 from imitate.metrics import demo_counts, tracking_errors
@@ -229,30 +230,38 @@ def figures(run_dir: Path, config: RunConfig) -> dict:
 # --- Running -----------------------------------------------------------------------------------
 
 
-def run_stage(stage: str, run_dir: Path, config: RunConfig) -> dict:
-    """Run one stage in ``run_dir`` with ``config`` (stored as ``config.json`` first) and merge
-    its numbers, its time and the artifacts present into ``report.json``; the sections of later
-    stages are dropped (they no longer follow from it). Returns the report."""
+def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False) -> dict:
+    """Run one stage in ``run_dir`` with ``config``, all or nothing: its artifacts,
+    ``config.json``, its record in ``manifest.json`` (see :mod:`imitate.provenance`) and
+    ``report.json`` (its numbers, its time and the artifacts present merged in; the sections of
+    later stages dropped, as they no longer follow from it) are renamed into place only when
+    the stage has succeeded. Returns the report.
+
+    Raises:
+        ImitateError: before the stage runs, ``report.json`` or ``manifest.json`` is unusable,
+            or an input is stale or from another run (with ``force``: a warning on stderr
+            instead); or the stage's own errors. The directory is then unchanged.
+    """
     current = stages.find(stage)
     run_dir = Path(run_dir)
-    save_json(run_dir / "config.json", config.to_json())
-    start = time.perf_counter()
-    sections = current.run(run_dir, config)
-    seconds = time.perf_counter() - start
     previous = _previous_report(run_dir)
-    earlier = stages.STAGES[: stages.STAGES.index(current)]
-    kept = {name for s in earlier for name in s.sections}
-    report = {"seed": config.seed}
-    for name in [name for s in stages.STAGES for name in s.sections]:
-        if name in sections:
-            report[name] = sections[name]
-        elif name in kept and name in previous:
-            report[name] = previous[name]
-    done = {s.name for s in earlier}
-    timings = {s: t for s, t in previous.get("timings", {}).items() if s in done}
-    report["timings"] = {**timings, stage: seconds}
-    report["artifacts"] = _artifacts(run_dir)
-    save_json(run_dir / stages.REPORT, report)
+    manifest = provenance.load(run_dir)
+    problems = provenance.stale(run_dir, current, config, manifest)
+    if problems and not force:
+        raise ImitateError(f"{problems[0]}, or add --force to go on anyway")
+    for problem in problems:
+        print(f"warning: {problem}; going on anyway (--force)", file=sys.stderr)
+    with staged(run_dir) as staging:
+        start = time.perf_counter()
+        sections = current.run(run_dir, config)
+        seconds = time.perf_counter() - start
+        outputs = staging.files()
+        manifest = provenance.recorded(manifest, run_dir, current, config, outputs)
+        report = _report(current, sections, seconds, previous, config.seed)
+        report["artifacts"] = _artifacts(run_dir, set(outputs))
+        save_json(run_dir / "config.json", config.to_json())
+        save_json(run_dir / provenance.MANIFEST, manifest)
+        save_json(run_dir / stages.REPORT, report)
     return report
 
 
@@ -284,13 +293,52 @@ def _video_frames(config: RunConfig, states: dict[str, np.ndarray]):
     )
 
 
+def _report(
+    current: stages.Stage, sections: dict, seconds: float, previous: dict, seed: int
+) -> dict:
+    """The report after ``current`` returned ``sections`` in ``seconds`` [s]: those of the
+    earlier stages kept from ``previous``, those of later ones dropped."""
+    earlier = stages.STAGES[: stages.STAGES.index(current)]
+    kept = {name for s in earlier for name in s.sections}
+    report = {"seed": seed}
+    for name in [name for s in stages.STAGES for name in s.sections]:
+        if name in sections:
+            report[name] = sections[name]
+        elif name in kept and name in previous:
+            report[name] = previous[name]
+    done = {s.name for s in earlier}
+    timings = {s: t for s, t in previous.get("timings", {}).items() if s in done}
+    report["timings"] = {**timings, current.name: seconds}
+    return report
+
+
 def _previous_report(run_dir: Path) -> dict:
+    """``report.json`` of ``run_dir`` (empty if none yet).
+
+    Raises:
+        ImitateError: it is unreadable, or not an object of sections.
+    """
     path = run_dir / stages.REPORT
-    return load_json(path) if path.exists() else {}
+    if not path.exists():
+        return {}
+    report = load_json(path)
+    names = ("timings", *(name for s in stages.STAGES for name in s.sections))
+    if not isinstance(report, dict) or any(
+        not isinstance(report.get(name, {}), dict) for name in names
+    ):
+        raise ImitateError(
+            f"{path} is not a report (an object of sections); delete it to start a new report"
+        )
+    return report
 
 
-def _artifacts(run_dir: Path) -> dict[str, str]:
-    """Relative paths of the artifacts present, by name (the report: always)."""
+def _artifacts(run_dir: Path, written: set[str]) -> dict[str, str]:
+    """Relative paths of the artifacts present or ``written`` now, by name (the report:
+    always)."""
     report = stages.REPORT
     names = (*(name for s in stages.STAGES for name in s.writes), report)
-    return {Path(name).stem: name for name in names if (run_dir / name).exists() or name == report}
+    return {
+        Path(name).stem: name
+        for name in names
+        if name in written or (run_dir / name).exists() or name == report
+    }

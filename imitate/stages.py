@@ -36,6 +36,7 @@ class Stage:
         help: One line for ``imitate --help``.
         function: ``"module:function"`` of ``(run_dir: Path, config: RunConfig) -> dict`` that
             runs it and returns its report sections by name.
+        reads: Artifacts of earlier stages it reads (its inputs in ``manifest.json``).
         writes: Artifacts it writes, paths relative to the run directory (``config.json``: the
             stage that starts a run).
         sections: The report sections it owns, in report order.
@@ -44,6 +45,7 @@ class Stage:
     name: str
     help: str
     function: str
+    reads: tuple[str, ...]
     writes: tuple[str, ...]
     sections: tuple[str, ...]
 
@@ -58,6 +60,7 @@ STAGES = (
         "observe",
         "the teacher demonstrates; track the objects in the robot's eyes; cut the demos",
         "imitate.pipeline:observe",
+        (),
         ("config.json", "observations.npz", "demos.npz"),
         ("demos", "perception"),
     ),
@@ -65,6 +68,7 @@ STAGES = (
         "learn",
         "task space, DTW, GMM (components by BIC), GMR mean and variance",
         "imitate.pipeline:learn",
+        ("observations.npz", "demos.npz"),
         ("model.npz",),
         ("learning",),
     ),
@@ -72,6 +76,7 @@ STAGES = (
         "optimize",
         "whole-body attractor optimisation of the reproduction, Fig. 9 sweep",
         "imitate.pipeline:optimize",
+        ("model.npz",),
         ("plan.npz",),
         ("optimization",),
     ),
@@ -79,6 +84,7 @@ STAGES = (
         "replay",
         "the optimised movement in full physics: pour fraction, spill, clearance",
         "imitate.pipeline:replay",
+        ("plan.npz", "model.npz"),
         ("replay.npz",),
         ("replay",),
     ),
@@ -86,6 +92,7 @@ STAGES = (
         "figures",
         "figures/*.png and video.mp4 from the run's artifacts",
         "imitate.pipeline:figures",
+        ("observations.npz", "demos.npz", "model.npz", "plan.npz", "replay.npz"),
         ("video.mp4", *(f"figures/{name}.png" for name in FIGURES)),
         ("video",),
     ),

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from imitate.artifacts import load_json, load_npz, save_json, save_npz, write_atomic
+from imitate.artifacts import load_json, load_npz, save_json, save_npz, staged, write_atomic
 from imitate.errors import ImitateError
 
 
@@ -52,3 +52,30 @@ def test_missing_array_is_named(tmp_path):
     save_npz(tmp_path / "demos.npz", {"t": np.zeros(3)})
     with pytest.raises(ImitateError, match=r"lacks \['segments'\]; re-run `imitate observe"):
         load_npz(tmp_path / "demos.npz", required=("t", "segments"))
+
+
+def test_array_read_but_not_required_is_named_with_its_stage(tmp_path):
+    save_npz(tmp_path / "plan.npz", {"times": np.zeros(3)})
+    plan = load_npz(tmp_path / "plan.npz", required=("times",))
+    with pytest.raises(ImitateError, match=r"lacks 'sweep2_cost_total'; re-run `imitate optimize"):
+        plan["sweep2_cost_total"]
+
+
+def test_staged_files_appear_together_when_the_block_ends(tmp_path):
+    with staged(tmp_path) as staging:
+        save_json(tmp_path / "report.json", {"seed": 1})
+        save_npz(tmp_path / "figures" / "model.npz", {"x": np.zeros(2)})
+        assert list(staging.files()) == ["report.json", "figures/model.npz"]
+        assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith(".")) == []
+    assert load_json(tmp_path / "report.json") == {"seed": 1}
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["figures", "model.npz", "report.json"]
+
+
+def test_staged_files_vanish_when_the_block_raises(tmp_path):
+    save_json(tmp_path / "report.json", {"seed": 1})
+    with pytest.raises(KeyboardInterrupt), staged(tmp_path):
+        save_json(tmp_path / "report.json", {"seed": 2})
+        save_npz(tmp_path / "figures" / "model.npz", {"x": np.zeros(2)})
+        raise KeyboardInterrupt
+    assert load_json(tmp_path / "report.json") == {"seed": 1}
+    assert [p.name for p in tmp_path.iterdir()] == ["report.json"]

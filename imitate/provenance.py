@@ -1,0 +1,146 @@
+"""What each artifact was made from: ``manifest.json``, one record per stage that has run.
+
+A record holds the settings the stage ran with (those of the whole run, of the stage and of the
+stages before it), and the sha256 of every file it read and wrote, paths relative to the run
+directory::
+
+    {"learn": {"settings": {"seed": 0, "n_demos": 5, ..., "oracle": false},
+               "inputs": {"observations.npz": "9f2c...", "demos.npz": "41ab..."},
+               "outputs": {"model.npz": "c07e..."}}, ...}
+
+Before a stage runs, :func:`stale` follows the records back from the files the stage reads:
+each must be the file its stage wrote, made from the files now present, with the settings now
+in force. A copied-in or edited artifact, one left from before an earlier stage was re-run, or
+one made under another seed is named, with the stage to re-run.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+from imitate import stages
+from imitate.artifacts import load_json
+from imitate.config import RunConfig, settings
+from imitate.errors import ImitateError
+
+__all__ = ["MANIFEST", "digest", "load", "recorded", "stale"]
+
+MANIFEST = "manifest.json"
+
+
+def load(run_dir: Path) -> dict[str, dict]:
+    """The records of ``run_dir`` by stage name (none when it has no manifest yet).
+
+    Raises:
+        ImitateError: ``manifest.json`` is unreadable or not a manifest.
+    """
+    path = Path(run_dir) / MANIFEST
+    if not path.exists():
+        return {}
+    manifest = load_json(path)
+    fields = ("settings", "inputs", "outputs")
+    if not (
+        isinstance(manifest, dict)
+        and all(isinstance(r, dict) and all(isinstance(r.get(f), dict) for f in fields)
+                for r in manifest.values())
+    ):
+        raise ImitateError(
+            f"{path} is not a manifest (an object of stage records with {fields}); delete it "
+            f"and re-run `imitate run --out {run_dir}`"
+        )
+    return manifest
+
+
+def recorded(
+    manifest: dict[str, dict],
+    run_dir: Path,
+    stage: stages.Stage,
+    config: RunConfig,
+    outputs: dict[str, Path],
+) -> dict[str, dict]:
+    """``manifest`` with the record of ``stage`` run with ``config`` in ``run_dir`` (the other
+    records kept), in run order; ``outputs`` maps each file the stage wrote (relative path) to
+    where its bytes are now (a staged temporary file)."""
+    run_dir = Path(run_dir)
+    new = {
+        "settings": _settings(stage, config),
+        "inputs": {f: digest(run_dir / f) for f in stage.reads if (run_dir / f).is_file()},
+        "outputs": {name: digest(path) for name, path in outputs.items()},
+    }
+    records = {**manifest, stage.name: new}
+    return {name: records[name] for name in stages.NAMES if name in records}
+
+
+def stale(
+    run_dir: Path, stage: stages.Stage, config: RunConfig, manifest: dict[str, dict]
+) -> list[str]:
+    """Why the inputs of ``stage`` in ``run_dir`` do not follow from ``config`` and each other:
+    one line per upstream stage at fault, earliest first, each naming the stage to re-run.
+    Files that are absent are left to the stage (it names them)."""
+    run_dir = Path(run_dir)
+    upstream = _upstream(stage)
+    needed = {f for s in (stage, *upstream) for f in s.reads}
+    digests: dict[str, str | None] = {}
+
+    def current(name: str) -> str | None:
+        if name not in digests:
+            path = run_dir / name
+            digests[name] = digest(path) if path.is_file() else None
+        return digests[name]
+
+    problems = []
+    for s in upstream:
+        files = [f for f in s.writes if f in needed and (run_dir / f).is_file()]
+        if not files:
+            continue
+        problem = _fault(s, files, manifest.get(s.name), _settings(s, config), current)
+        if problem:
+            problems.append(f"{problem}; re-run `imitate {s.name} {run_dir}`")
+    return problems
+
+
+def digest(path: Path) -> str:
+    """sha256 of the file's bytes, hex."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _fault(stage: stages.Stage, files: list[str], rec: dict | None, now: dict, current) -> str:
+    """What is wrong with ``files`` that ``stage`` wrote, given its record ``rec``, the settings
+    ``now`` in force and ``current(name)`` (a file's digest, ``None`` if absent); ``""`` if
+    nothing."""
+    named = " and ".join(files)
+    were = "was" if len(files) == 1 else "were"
+    if rec is None:
+        return f"{named} {were} not recorded in {MANIFEST} as written by `imitate {stage.name}`"
+    for f in files:
+        if current(f) != rec["outputs"].get(f):
+            return (
+                f"{f} is not the file `imitate {stage.name}` wrote (changed since, or copied "
+                f"from another run)"
+            )
+    for f, sha in rec["inputs"].items():
+        if f in stage.reads and current(f) not in (None, sha):
+            return f"{named} {were} made from another {f} (it changed since)"
+    for name, value in rec["settings"].items():
+        if name in now and now[name] != value:
+            return f"{named} {were} made with {name}={value!r}, not {now[name]!r}"
+    return ""
+
+
+def _settings(stage: stages.Stage, config: RunConfig) -> dict:
+    """The settings ``stage``'s outputs depend on, as JSON values: the whole run's, its own and
+    the earlier stages'."""
+    names = stages.NAMES[: stages.NAMES.index(stage.name) + 1]
+    values = json.loads(json.dumps(config.to_json()))
+    return {name: values[name] for name, _, _ in settings([None, *names])}
+
+
+def _upstream(stage: stages.Stage) -> list[stages.Stage]:
+    """The stages whose outputs ``stage`` reads, directly or through another, in run order."""
+    needed = set(stage.reads)
+    for s in reversed(stages.STAGES):
+        if needed & set(s.writes):
+            needed |= set(s.reads)
+    return [s for s in stages.STAGES if needed & set(s.writes) and s is not stage]

@@ -1,0 +1,116 @@
+"""One command at a time in a run directory: the lock ``RUN/.lock``.
+
+The lock is an exclusive, non-blocking ``flock`` on ``RUN/.lock``, held for a whole command; the
+file records its holder (pid, host, command, start) for the error a second command gets. The
+kernel releases a ``flock`` when its holder exits or is killed, so a ``.lock`` left behind by a
+killed process is no obstacle: the next command takes it over. Whoever holds the lock may also
+delete the temporary files that killed writers left behind (nobody else writes there).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+import socket
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from imitate.artifacts import remove_temporary
+from imitate.errors import ImitateError
+
+__all__ = ["LOCK", "locked"]
+
+LOCK = ".lock"
+
+
+@contextmanager
+def locked(run_dir: Path, command: str, create: bool = False) -> Iterator[Path]:
+    """Hold the lock of ``run_dir`` for the block, the directory made first if ``create`` (and
+    removed again if the block leaves it empty); leftover temporary files are deleted.
+
+    Raises:
+        ImitateError: another process holds the lock (the message names it), or ``run_dir`` is
+            missing (without ``create``), not a directory, or not writable.
+    """
+    run_dir = Path(run_dir)
+    made = _directory(run_dir, create)
+    try:
+        fd = _acquire(run_dir / LOCK, command)
+        try:
+            remove_temporary(run_dir)
+            yield run_dir
+        finally:
+            (run_dir / LOCK).unlink(missing_ok=True)  # still ours: unlinked before the release
+            os.close(fd)
+    finally:
+        if made and not any(run_dir.iterdir()):
+            run_dir.rmdir()
+
+
+def _directory(run_dir: Path, create: bool) -> bool:
+    """Checks that ``run_dir`` is a directory, making it if ``create``; whether it was made."""
+    if run_dir.is_dir():
+        return False
+    if run_dir.exists():
+        raise ImitateError(f"run directory {run_dir} is not a directory; give a directory")
+    if not create:
+        raise ImitateError(
+            f"run directory {run_dir} does not exist; start a run with `imitate run --out "
+            f"{run_dir}`"
+        )
+    try:
+        run_dir.mkdir(parents=True)
+    except OSError as err:
+        raise ImitateError(f"cannot create run directory {run_dir}: {err.strerror}") from None
+    return True
+
+
+def _acquire(path: Path, command: str) -> int:
+    """The descriptor of ``path``, locked, with the holder written into it."""
+    while True:
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as err:
+            raise ImitateError(
+                f"cannot lock run directory {path.parent} ({err.strerror}); it must be writable"
+            ) from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = _holder(os.pread(fd, 4096, 0))
+            os.close(fd)
+            raise ImitateError(
+                f"run directory {path.parent} is in use by {holder}; wait for it to end or stop "
+                f"it (a killed process leaves no lock)"
+            ) from None
+        if _same_file(fd, path):
+            break
+        os.close(fd)  # its holder unlinked it between our open and flock: lock the new one
+    holder = {
+        "pid": os.getpid(), "host": socket.gethostname(), "command": command,
+        "since": time.strftime("%Y-%m-%d %H:%M:%S"),
+    }
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, json.dumps(holder).encode(), 0)
+    return fd
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    try:
+        on_disk = os.stat(path)
+    except FileNotFoundError:
+        return False
+    held = os.fstat(fd)
+    return (held.st_dev, held.st_ino) == (on_disk.st_dev, on_disk.st_ino)
+
+
+def _holder(text: bytes) -> str:
+    """``"pid 12 on host h (`imitate run ...`, since ...)"`` from the lock file's record."""
+    try:
+        h = json.loads(text)
+        return f"pid {h['pid']} on host {h['host']} (`{h['command']}`, since {h['since']})"
+    except (ValueError, TypeError, KeyError):
+        return "another process"

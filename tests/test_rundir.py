@@ -1,0 +1,278 @@
+"""The run directory keeps one consistent run: one command at a time, stages that refuse stale
+inputs, stages that change nothing unless they succeed, and one-line errors.
+
+The numbers in the test names are those of issue 14 (the reliability review of 2026-11-23).
+"""
+
+import contextlib
+import hashlib
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from imitate import provenance, stages
+from imitate.cli import main
+from imitate.config import load_config
+from imitate.rundir import LOCK, locked
+
+
+@pytest.fixture
+def run_dir(quick_run, tmp_path):
+    """A copy of the finished quick run."""
+    copy = tmp_path / "run"
+    shutil.copytree(quick_run, copy)
+    return copy
+
+
+def snapshot(directory):
+    """sha256 of every file under ``directory`` (hidden ones too) by relative path."""
+    return {
+        p.relative_to(directory).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(directory.rglob("*"))
+        if p.is_file()
+    }
+
+
+def one_error_line(err: str, command: str) -> str:
+    """The only line of ``err`` besides ``== stage`` and warnings; it must be an error."""
+    lines = [
+        line for line in err.splitlines() if not line.startswith(("== ", "warning: "))
+    ]
+    assert len(lines) == 1 and lines[0].startswith(f"imitate {command}: error: "), err
+    return lines[0]
+
+
+def test_the_quick_run_is_recorded_consistently(quick_run):
+    manifest = provenance.load(quick_run)
+    assert list(manifest) == list(stages.NAMES)
+    assert manifest["learn"]["inputs"]["demos.npz"] == manifest["observe"]["outputs"]["demos.npz"]
+    for name, digest in manifest["figures"]["outputs"].items():
+        assert provenance.digest(quick_run / name) == digest, name
+    config = load_config(quick_run)
+    assert provenance.stale(quick_run, stages.find("figures"), config, manifest) == []
+    assert not (quick_run / LOCK).exists()
+
+
+# --- 1: two processes in one run directory ------------------------------------------------------
+
+
+def test_1_second_command_is_refused_at_once_naming_the_holder(run_dir):
+    before = snapshot(run_dir)
+    with locked(run_dir, "imitate figures (the test)"):
+        done = subprocess.run(
+            [sys.executable, "-m", "imitate.cli", "figures", str(run_dir)],
+            capture_output=True, text=True, timeout=120, check=False,
+        )
+    assert done.returncode == 1
+    line = one_error_line(done.stderr, "figures")
+    assert f"in use by pid {os.getpid()}" in line and "imitate figures (the test)" in line
+    assert snapshot(run_dir) == before
+
+
+def test_1_lock_of_a_killed_process_is_no_obstacle(run_dir):
+    (run_dir / LOCK).write_text(json.dumps({"pid": 2**22 + 1, "host": "h", "command": "x",
+                                            "since": "then"}))
+    with locked(run_dir, "imitate replay"):
+        assert json.loads((run_dir / LOCK).read_text())["pid"] == os.getpid()
+    assert not (run_dir / LOCK).exists()
+
+
+def test_1_writers_of_one_file_do_not_share_a_temporary_name(tmp_path):
+    from imitate.artifacts import load_json, save_json, write_atomic
+
+    path = tmp_path / "report.json"
+
+    def outer(tmp):
+        tmp.write_text(json.dumps({"writer": "outer"}))
+        save_json(path, {"writer": "inner"})  # another writer, before this one renames
+
+    write_atomic(path, outer)
+    assert load_json(path) == {"writer": "outer"}
+    assert [p.name for p in tmp_path.iterdir()] == ["report.json"]
+
+
+# --- 3: stale artifacts ---------------------------------------------------------------------
+
+
+def test_3_figures_refuse_observations_newer_than_the_model(run_dir, capsys):
+    assert main(["observe", "--quick", "--seed", "3", str(run_dir)]) == 0
+    capsys.readouterr()
+    before = snapshot(run_dir)
+    assert main(["figures", str(run_dir)]) == 1
+    line = one_error_line(capsys.readouterr().err, "figures")
+    assert "model.npz" in line and f"imitate learn {run_dir}" in line and "--force" in line
+    assert snapshot(run_dir) == before
+
+
+def test_3_model_of_another_run_is_refused_unless_forced(run_dir, capsys):
+    arrays = dict(np.load(run_dir / "model.npz"))
+    arrays["mean"] = arrays["mean"] + 0.01  # another run's model
+    np.savez(run_dir / "model.npz", **arrays)
+    before = snapshot(run_dir)
+    assert main(["optimize", str(run_dir), "--max-iter", "2"]) == 1
+    line = one_error_line(capsys.readouterr().err, "optimize")
+    assert "model.npz is not the file `imitate learn` wrote" in line
+    assert snapshot(run_dir) == before
+    assert main(["optimize", str(run_dir), "--max-iter", "2", "--force"]) == 0
+    assert "warning: model.npz is not the file" in capsys.readouterr().err
+
+
+def test_3_replay_with_another_seed_does_not_rewrite_the_runs_seed(run_dir, capsys):
+    before = snapshot(run_dir)
+    assert main(["replay", str(run_dir), "--seed", "5"]) == 1
+    line = one_error_line(capsys.readouterr().err, "replay")
+    assert "made with seed=0, not 5" in line and "imitate observe" in line
+    assert snapshot(run_dir) == before
+
+
+# --- 4: a failed stage changes nothing ------------------------------------------------------
+
+
+@pytest.mark.parametrize("force", [[], ["--force"]])
+def test_4_failed_optimize_keeps_config_and_plan(run_dir, force, capsys):
+    (run_dir / "model.npz").write_bytes(b"")
+    before = snapshot(run_dir)
+    assert main(["optimize", str(run_dir), "--collision-weight", "30", *force]) == 1
+    one_error_line(capsys.readouterr().err, "optimize")
+    assert snapshot(run_dir) == before
+
+
+def test_4_corrupt_report_is_found_before_the_stage_runs(run_dir, capsys):
+    (run_dir / "report.json").write_text("garbage{")
+    before = snapshot(run_dir)
+    assert main(["replay", str(run_dir), "--particles", "10"]) == 1
+    line = one_error_line(capsys.readouterr().err, "replay")
+    assert "report.json is corrupt" in line and "delete it" in line
+    assert snapshot(run_dir) == before
+
+
+def test_4_stage_failing_after_it_wrote_leaves_nothing(run_dir, monkeypatch, capsys):
+    from imitate import pipeline
+
+    def fails(*args, **kwargs):
+        raise pipeline.ImitateError("the encoder broke")
+
+    monkeypatch.setattr(pipeline, "write_video", fails)  # after the seven figures
+    before = snapshot(run_dir)
+    assert main(["figures", str(run_dir)]) == 1
+    assert "the encoder broke" in one_error_line(capsys.readouterr().err, "figures")
+    assert snapshot(run_dir) == before
+
+
+# --- 6: one-line errors, not tracebacks -----------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [("collision_weight", "abc"), ("n_demos", "5"), ("sweep", ["x"]), ("oracle", 1),
+     ("obstacle", 5), ("particles", 2.5)],
+)
+def test_6_config_of_the_wrong_type_names_file_and_key(run_dir, key, value, capsys):
+    config = json.loads((run_dir / "config.json").read_text())
+    (run_dir / "config.json").write_text(json.dumps({**config, key: value}))
+    before = snapshot(run_dir)
+    assert main(["optimize", str(run_dir)]) == 1
+    line = one_error_line(capsys.readouterr().err, "optimize")
+    assert "config.json" in line and f"{key}=" in line
+    assert snapshot(run_dir) == before
+
+
+@pytest.mark.parametrize("text", ["[]", '{"timings": 5}', '{"replay": []}'])
+def test_6_report_of_the_wrong_shape(run_dir, text, capsys):
+    (run_dir / "report.json").write_text(text)
+    assert main(["optimize", str(run_dir), "--max-iter", "2"]) == 1
+    assert "report.json is not a report" in one_error_line(capsys.readouterr().err, "optimize")
+
+
+def test_6_observations_lacking_an_array(run_dir, capsys):
+    arrays = dict(np.load(run_dir / "observations.npz"))
+    del arrays["gap_span"]
+    np.savez(run_dir / "observations.npz", **arrays)
+    assert main(["figures", str(run_dir)]) == 1
+    line = one_error_line(capsys.readouterr().err, "figures")
+    assert "observations.npz is not the file `imitate observe` wrote" in line
+    assert main(["figures", str(run_dir), "--force"]) == 1
+    line = one_error_line(capsys.readouterr().err, "figures")
+    assert "observations.npz lacks 'gap_span'" in line and "imitate observe" in line
+
+
+@pytest.mark.parametrize("command", [["observe", "--quick"], ["replay"], ["run", "--quick"]])
+def test_6_run_directory_that_is_a_file(tmp_path, command, capsys):
+    path = tmp_path / "run"
+    path.write_text("not a run")
+    assert main([*command, str(path)]) == 1
+    assert "is not a directory" in one_error_line(capsys.readouterr().err, command[0])
+    assert path.read_text() == "not a run"
+
+
+def test_6_run_directory_under_an_unwritable_parent(capsys):
+    assert main(["run", "--quick", "--out", "/proc/nope/run"]) == 1
+    line = one_error_line(capsys.readouterr().err, "run")
+    assert "cannot create run directory /proc/nope/run" in line
+
+
+@contextlib.contextmanager
+def read_only(path):
+    """``path`` made unwritable (even for root: ``chattr +i``), for the block."""
+    if os.geteuid() != 0:
+        path.chmod(0o555)
+        undo = lambda: path.chmod(0o755)  # noqa: E731
+    else:
+        if subprocess.run(["chattr", "+i", str(path)], check=False).returncode != 0:
+            pytest.skip("chattr +i is not available here")
+        undo = lambda: subprocess.run(["chattr", "-i", str(path)], check=True)  # noqa: E731
+    try:
+        yield
+    finally:
+        undo()
+
+
+def test_6_read_only_run_directory(run_dir, capsys):
+    before = snapshot(run_dir)
+    with read_only(run_dir):
+        assert main(["replay", str(run_dir)]) == 1
+    assert "must be writable" in one_error_line(capsys.readouterr().err, "replay")
+    assert snapshot(run_dir) == before
+
+
+def test_6_ctrl_c_is_one_line_and_exit_130(run_dir, monkeypatch, capsys):
+    def interrupted(file, **arrays):
+        with open(file, "wb") as out:
+            out.write(b"half of it")
+        raise KeyboardInterrupt
+
+    before = snapshot(run_dir)
+    monkeypatch.setattr(np, "savez", interrupted)
+    try:
+        status = main(["learn", str(run_dir)])
+    except KeyboardInterrupt:  # a traceback, not a message
+        status = "KeyboardInterrupt"
+    assert status == 130
+    line = one_error_line(capsys.readouterr().err, "learn")
+    assert "interrupted (Ctrl-C) in stage learn" in line
+    assert snapshot(run_dir) == before
+
+
+def test_6_sigterm_is_one_line_and_exit_143(run_dir, monkeypatch, capsys):
+    def terminated(file, **arrays):
+        with open(file, "wb") as out:
+            out.write(b"half of it")
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    received = []
+    previous = signal.signal(signal.SIGTERM, lambda *_: received.append(1))  # not this process
+    try:
+        before = snapshot(run_dir)
+        monkeypatch.setattr(np, "savez", terminated)
+        assert main(["learn", str(run_dir)]) == 143
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    line = one_error_line(capsys.readouterr().err, "learn")
+    assert "terminated (SIGTERM) in stage learn" in line
+    assert snapshot(run_dir) == before and not received
