@@ -7,7 +7,10 @@ weld constraints, either in the robot's hands (bottle right, glass left) or in t
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass, field
+from numbers import Real
 
 import mujoco
 import numpy as np
@@ -18,6 +21,8 @@ from imitate.models import humanoid, model_path, objects, scene, teacher
 HOLDERS = ("robot", "teacher")
 OBSTACLE_SHAPES = ("box", "cylinder")
 MAX_PARTICLES = 120  # what fits in the bottle below its shoulder
+# Highest an obstacle's bottom may float above the table top [m]: up to the robot's shoulders.
+OBSTACLE_MAX_LIFT = 0.5
 GRASP_RANGE = {objects.BOTTLE: (0.05, 0.13), objects.GLASS: (0.03, 0.08)}  # [m] from the bottom
 # Which hand (and grip site) holds which object, for each holder.
 GRASPS = {
@@ -32,15 +37,30 @@ GRASPS = {
 }
 
 
+def _finite(values) -> tuple[float, ...] | None:
+    """``values`` as floats if they are finite real numbers, else ``None``."""
+    try:
+        items = tuple(values)
+        if all(isinstance(v, Real) and not isinstance(v, bool) and math.isfinite(v) for v in items):
+            return tuple(float(v) for v in items)
+    except (TypeError, OverflowError):
+        pass
+    return None
+
+
 @dataclass(frozen=True)
 class Obstacle:
     """A box or upright cylinder standing on the table.
 
     Attributes:
         shape: ``"box"`` or ``"cylinder"``.
-        pos: ``(3,)`` centre in the world frame [m]; its footprint must be on the table top and
-            its bottom at or above it.
-        size: half extents ``(3,)`` for a box, ``(radius, half height)`` for a cylinder [m].
+        pos: ``(3,)`` centre in the world frame [m].
+        size: half extents ``(3,)`` for a box, ``(radius, half height)`` for a cylinder [m],
+            positive.
+
+    Its whole footprint lies on the table top and its bottom at or above the top, at most
+    ``OBSTACLE_MAX_LIFT`` above it. Whether it clears the robot and the objects it holds is
+    :func:`check_clearance`'s question (it needs the assembled scene).
     """
 
     shape: str
@@ -53,19 +73,28 @@ class Obstacle:
                 f"obstacle shape {self.shape!r} unknown; accepted: {OBSTACLE_SHAPES}"
             )
         n_size = 3 if self.shape == "box" else 2
-        if len(self.pos) != 3 or len(self.size) != n_size or min(self.size) <= 0:
+        pos, size = _finite(self.pos), _finite(self.size)
+        if pos is None or len(pos) != 3 or size is None or len(size) != n_size or min(size) <= 0:
             raise ImitateError(
-                f"obstacle {self.shape} with pos={self.pos} size={self.size}: pos needs 3 "
-                f"values [m] and size {n_size} positive values [m]"
+                f"obstacle {self.shape} with pos={self.pos} size={self.size} not accepted: pos "
+                f"needs 3 finite values [m] and size {n_size} finite positive values [m]"
             )
-        (x0, x1), (y0, y1) = scene.TABLE_X, scene.TABLE_Y
-        x, y, z = self.pos
-        half_height = self.size[2] if self.shape == "box" else self.size[1]
-        if not (x0 <= x <= x1 and y0 <= y <= y1) or z - half_height < scene.TABLE_HEIGHT - 1e-3:
+        object.__setattr__(self, "pos", pos)
+        object.__setattr__(self, "size", size)
+        (x0, x1), (y0, y1), top = scene.TABLE_X, scene.TABLE_Y, scene.TABLE_HEIGHT
+        (x, y, z), half_x, half_y = pos, size[0], size[1 if self.shape == "box" else 0]
+        if not (x0 <= x - half_x and x + half_x <= x1 and y0 <= y - half_y and y + half_y <= y1):
             raise ImitateError(
-                f"obstacle at pos={self.pos} is outside the table: its centre must have x in "
-                f"[{x0}, {x1}] and y in [{y0}, {y1}] and its bottom (z - half height = "
-                f"{z - half_height:.3f}) must be at or above the table top z={scene.TABLE_HEIGHT}"
+                f"obstacle {self.shape} at pos={pos} size={size} is outside the table: its "
+                f"footprint x {x - half_x:.3f}..{x + half_x:.3f}, y {y - half_y:.3f}.."
+                f"{y + half_y:.3f} must lie within the table top x {x0}..{x1}, y {y0}..{y1}"
+            )
+        bottom = z - size[-1]
+        if not top - 1e-3 <= bottom <= top + OBSTACLE_MAX_LIFT:
+            raise ImitateError(
+                f"obstacle {self.shape} at pos={pos} size={size} is outside the table: its bottom "
+                f"(z - half height = {bottom:.3f}) must be at or above the table top z={top} "
+                f"and at most {OBSTACLE_MAX_LIFT} m above it"
             )
 
 
@@ -90,6 +119,8 @@ class SceneConfig:
     glass_grasp: float = 0.05
 
     def __post_init__(self):
+        if not isinstance(self.teacher, bool | np.bool_):
+            raise ImitateError(f"teacher={self.teacher!r} not accepted: True or False")
         if not isinstance(self.particles, int | np.integer) or not (
             0 <= self.particles <= MAX_PARTICLES
         ):
@@ -111,11 +142,37 @@ class SceneConfig:
 def check_grasp(obj: str, height: float) -> None:
     """Raise ``ImitateError`` unless ``height`` [m] is in ``GRASP_RANGE[obj]``."""
     low, high = GRASP_RANGE[obj]
-    if not low <= height <= high:
+    if _finite((height,)) is None or not low <= height <= high:
         raise ImitateError(
             f"{obj} grasp height {height!r} m not accepted: a height in [{low}, {high}] m "
             f"above the {obj}'s bottom"
         )
+
+
+def check_clearance(config: SceneConfig) -> None:
+    """Raise ``ImitateError`` if an obstacle of ``config`` overlaps the robot or an object it
+    holds at the start: the rest pose, the objects at their grasps. The message names the
+    obstacle, the geom it overlaps and by how much."""
+    if not config.obstacles:
+        return
+    model = build_model(dataclasses.replace(config, teacher=False, particles=0, holder="robot"))
+    data = mujoco.MjData(model)
+    data.qpos[[model.joint(j).qposadr[0] for j in humanoid.JOINTS]] = humanoid.rest_pose()
+    hold(model, data, "robot")
+    geoms = clearance_geoms(model)
+    names = {g: model.geom(g).name for g in geoms}
+    obstacle_geoms = [g for g in geoms if names[g].startswith(scene.OBSTACLE_PREFIX)]
+    others = [g for g in geoms if g not in obstacle_geoms and names[g] != scene.TABLE_TOP]
+    for obstacle, o in zip(config.obstacles, obstacle_geoms, strict=True):
+        for g in others:
+            distance = mujoco.mj_geomDistance(model, data, o, g, 0.01, None)
+            if distance < 0.0:
+                raise ImitateError(
+                    f"obstacle {obstacle.shape} at pos={obstacle.pos} size={obstacle.size} "
+                    f"overlaps {names[g]!r} by {-distance * 1000:.1f} mm at the start (rest "
+                    f"pose, objects at their grasps): it must stand clear of the robot and "
+                    f"the objects it holds"
+                )
 
 
 def build_spec(config: SceneConfig = SceneConfig()) -> mujoco.MjSpec:

@@ -21,7 +21,13 @@ quaternion wxyz, 7 each). ``obs_type="stereo"`` adds the two head-camera images:
 since the last step (the sum over an episode is the final fraction). ``reward_collision``:
 ``-collision_weight`` on every step where two geoms that must not touch penetrate
 (``min_distance < 0``). ``info`` also has ``pour_fraction``, ``spilled`` (particles in neither
-container), ``is_success`` (>= 90 % in the glass) and ``min_distance`` [m].
+container), ``is_success`` (>= 90 % in the glass), ``min_distance`` [m] and ``diverged``.
+
+## Episode end
+Never ``terminated``. ``truncated`` (with ``info["diverged"]``) when the physics diverged in the
+step: MuJoCo found a NaN, infinite or huge joint position, velocity or acceleration and reset the
+state to its model defaults (its warning is not printed); reset the env. ``info["diverged"]`` is
+False otherwise.
 
 ## Arguments
 | argument | default | meaning |
@@ -31,7 +37,7 @@ container), ``is_success`` (>= 90 % in the glass) and ``min_distance`` [m].
 | camera | ``"overview"`` | camera for ``render()``: overview, left_eye or right_eye |
 | width, height | 640, 480 | image size of ``render()`` and of the stereo images [px] |
 | particles | 60 | liquid spheres in the bottle, 0..120 |
-| obstacles | () | ``imitate.envs.assembly.Obstacle``s (or their keyword dicts) on the table |
+| obstacles | () | ``assembly.Obstacle``s (or keyword dicts) on the table, clear of the robot |
 | teacher | True | include the teacher mannequin |
 | frame_skip | 10 | physics steps (2 ms each) per env step |
 | reset_noise_scale | 0.01 | half-width of the uniform noise on the initial joint angles [rad] |
@@ -39,11 +45,18 @@ container), ``is_success`` (>= 90 % in the glass) and ``min_distance`` [m].
 
 ## Reset options
 ``bottle_grasp`` and ``glass_grasp``: where the hand holds each object, height above its bottom
-[m] (ranges in ``imitate.envs.assembly.GRASP_RANGE``).
+[m] (ranges in ``imitate.envs.assembly.GRASP_RANGE``). All are checked before any is applied: a
+refused reset leaves the env as it was.
+
+``step`` before the first ``reset`` raises ``ImitateError``.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import warnings
+from collections.abc import Mapping
+from numbers import Real
 from typing import Any
 
 import gymnasium as gym
@@ -61,6 +74,12 @@ from imitate.models import teacher as teacher_names
 
 OBS_TYPES = ("state", "stereo")
 RESET_OPTIONS = ("bottle_grasp", "glass_grasp")
+# MuJoCo's warnings that it found the state diverged (it then resets it).
+DIVERGENCE = (
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADQACC,
+)
 SUCCESS_FRACTION = 0.9
 # How far [m] below its shoulder the teacher's hand hangs at rest (arms down, hands by the hips).
 TEACHER_HAND_DROP = 0.53
@@ -97,7 +116,7 @@ class PouringEnv(gym.Env):
             ("pour_weight", pour_weight),
             ("collision_weight", collision_weight),
         ):
-            if not np.isfinite(value) or value < 0:
+            if not isinstance(value, Real) or not np.isfinite(value) or value < 0:
                 raise ImitateError(f"{name}={value!r} not accepted: a finite number >= 0")
         self.render_mode, self.obs_type, self.camera = render_mode, obs_type, camera
         self.width, self.height = width, height
@@ -109,6 +128,7 @@ class PouringEnv(gym.Env):
         self.config = assembly.SceneConfig(
             teacher=teacher, particles=particles, obstacles=obstacles
         )
+        assembly.check_clearance(self.config)
         self.model = assembly.build_model(self.config)
         self.data = mujoco.MjData(self.model)
         self.dt = self.model.opt.timestep * frame_skip
@@ -124,6 +144,7 @@ class PouringEnv(gym.Env):
         self._pairs = CollisionPairs.between(self.model, assembly.clearance_geoms(self.model))
         self._renderer: mujoco.Renderer | None = None
         self._pour_fraction = 0.0
+        self._needs_reset = True
 
         ctrl = self.model.actuator_ctrlrange.astype(np.float32)
         self.action_space = gym.spaces.Box(ctrl[:, 0], ctrl[:, 1], dtype=np.float32)
@@ -143,14 +164,10 @@ class PouringEnv(gym.Env):
     # ---------------------------------------------------------------- gym API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """Robot at its rest pose (plus seeded noise) holding both objects, bottle full."""
+        scene = self._scene(options)
         super().reset(seed=seed)
-        options = dict(options or {})
-        unknown = sorted(set(options) - set(RESET_OPTIONS))
-        if unknown:
-            raise ImitateError(f"reset options {unknown} unknown; accepted: {list(RESET_OPTIONS)}")
         for obj in (objects.BOTTLE, objects.GLASS):
-            height = options.get(f"{obj}_grasp", getattr(self.config, f"{obj}_grasp"))
-            assembly.set_grasp(self.model, "robot", obj, float(height))
+            assembly.set_grasp(self.model, "robot", obj, getattr(scene, f"{obj}_grasp"))
 
         mujoco.mj_resetData(self.model, self.data)
         noise = self.np_random.uniform(-1, 1, len(humanoid.JOINTS)) * self._reset_noise_scale
@@ -164,26 +181,34 @@ class PouringEnv(gym.Env):
         assembly.fill_bottle(self.model, self.data, self.np_random)
         mujoco.mj_forward(self.model, self.data)
         self._pour_fraction = self._particle_fractions()[0]
+        self._needs_reset = False
         return self._get_obs(), self._get_info(self._min_distance())
 
     def step(self, action):
         """Apply joint targets for ``frame_skip`` physics steps."""
-        action = np.asarray(action, dtype=float)
-        if action.shape != self.action_space.shape or not np.all(np.isfinite(action)):
+        if self._needs_reset:
+            raise ImitateError("step() before reset(): call reset() first")
+        action = np.asarray(action)
+        if (
+            action.dtype.kind not in "biuf"
+            or action.shape != self.action_space.shape
+            or not np.all(np.isfinite(action))
+        ):
             raise ImitateError(
-                f"action of shape {action.shape} not accepted: {self.action_space.shape} finite "
-                f"joint targets [rad] in models.humanoid.JOINTS order"
+                f"action of shape {action.shape}, dtype {action.dtype} not accepted: "
+                f"{self.action_space.shape} finite real joint targets [rad] in "
+                f"models.humanoid.JOINTS order"
             )
         self.data.ctrl[:] = np.clip(action, self.action_space.low, self.action_space.high)
-        mujoco.mj_step(self.model, self.data, nstep=self.frame_skip)
+        diverged = self._simulate()
         fraction = self._particle_fractions()[0]
         min_distance = self._min_distance()
         reward_pour = self._pour_weight * (fraction - self._pour_fraction)
         reward_collision = -self._collision_weight if min_distance < 0.0 else 0.0
         self._pour_fraction = fraction
         info = self._get_info(min_distance)
-        info.update(reward_pour=reward_pour, reward_collision=reward_collision)
-        return self._get_obs(), reward_pour + reward_collision, False, False, info
+        info.update(reward_pour=reward_pour, reward_collision=reward_collision, diverged=diverged)
+        return self._get_obs(), reward_pour + reward_collision, False, diverged, info
 
     def render(self):
         """RGB image ``(height, width, 3) uint8`` from ``camera``, or None without render_mode."""
@@ -195,6 +220,45 @@ class PouringEnv(gym.Env):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+
+    # ---------------------------------------------------------------- physics
+    def _scene(self, options: Mapping[str, Any] | None) -> assembly.SceneConfig:
+        """The scene with the reset ``options`` applied, all of them checked (nothing is set)."""
+        options = {} if options is None else options
+        if not isinstance(options, Mapping):
+            raise ImitateError(
+                f"reset options={options!r} not accepted: a dict with keys from "
+                f"{list(RESET_OPTIONS)}"
+            )
+        unknown = sorted(set(options) - set(RESET_OPTIONS), key=str)
+        if unknown:
+            raise ImitateError(f"reset options {unknown} unknown; accepted: {list(RESET_OPTIONS)}")
+        scene = dataclasses.replace(self.config, **options)
+        if scene != self.config:
+            assembly.check_clearance(scene)
+        return scene
+
+    def _simulate(self) -> bool:
+        """``frame_skip`` physics steps; whether the state diverged in them.
+
+        MuJoCo's divergence warnings are counted afresh for the step (its reset after a
+        divergence would restart the counts) and not printed; others become ``RuntimeWarning``s.
+        """
+        for warning in DIVERGENCE:
+            self.data.warning[warning].number = 0
+        caught = []
+        previous = mujoco.get_mju_user_warning()
+        mujoco.set_mju_user_warning(caught.append)
+        try:
+            mujoco.mj_step(self.model, self.data, nstep=self.frame_skip)
+        finally:
+            mujoco.set_mju_user_warning(previous)
+        diverged = any(self.data.warning[w].number for w in DIVERGENCE) or not (
+            np.all(np.isfinite(self.data.qpos)) and np.all(np.isfinite(self.data.qvel))
+        )
+        for message in () if diverged else caught:
+            warnings.warn(f"MuJoCo: {message}", RuntimeWarning, stacklevel=3)
+        return bool(diverged)
 
     # ---------------------------------------------------------------- measurements
     def joint_positions(self) -> np.ndarray:
@@ -245,6 +309,7 @@ class PouringEnv(gym.Env):
             "spilled": int(round(n * (1.0 - in_glass - in_bottle))),
             "is_success": bool(n > 0 and in_glass >= SUCCESS_FRACTION),
             "min_distance": min_distance,
+            "diverged": False,
         }
 
     def _render(self, camera: str) -> np.ndarray:

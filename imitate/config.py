@@ -37,6 +37,7 @@ class Setting:
         flag: Its command-line flag; ``None``: set in ``config.json`` only.
         low, high: Accepted range, inclusive; ``None``: unbounded on that side. A value with a
             bound must be finite; a tuple value needs one or more elements, each in range.
+        multiple: The value must be a multiple of this; ``None``: any value in range.
         choices: The accepted values.
         parse: Reads the flag's text (raising ``ImitateError``); ``None``: the field's type.
         metavar: The flag's value in the help; ``None``: the type's name in capitals.
@@ -48,14 +49,18 @@ class Setting:
     low: float | None = None
     high: float | None = None
     choices: tuple[str, ...] | None = None
+    multiple: int | None = None
     parse: Callable[[str], Any] | None = None
     metavar: str | None = None
 
     def bounds(self) -> str:
-        """The range in short (``"2..20"``, ``">= 0"``), or ``""`` if unbounded."""
+        """The range in short (``"2..20"``, ``">= 0"``, ``"64..1920, a multiple of 8"``), or
+        ``""`` if unbounded."""
         if self.low is not None and self.high is not None:
-            return f"{self.low:g}..{self.high:g}"
-        return f">= {self.low:g}" if self.low is not None else ""
+            text = f"{self.low:g}..{self.high:g}"
+        else:
+            text = f">= {self.low:g}" if self.low is not None else ""
+        return f"{text}, a multiple of {self.multiple}" if self.multiple else text
 
     def check(self, name: str, value: Any) -> None:
         """Raises ``ImitateError`` naming ``name``, ``value`` and what is accepted, unless
@@ -65,7 +70,7 @@ class Setting:
         if self.low is None and self.high is None:
             return
         values = value if isinstance(value, tuple) else (value,)
-        if values and all(self._in_range(v) for v in values):
+        if values and all(self._accepts(v) for v in values):
             return
         if isinstance(value, tuple):
             accepted = f"one or more finite values {self.bounds()}"
@@ -73,7 +78,7 @@ class Setting:
             accepted = f"a finite value {self.bounds()}"
         else:
             accepted = f"a value in {self.bounds()}"
-        raise ImitateError(f"{name}={value!r} not accepted: {accepted}")
+        raise ImitateError(f"{name}={value!r} not accepted: {accepted}{self._nearest(value)}")
 
     def describe(self, default: Any) -> str:
         """The help with the range and the default: ``"camera rate [Hz], 5..120 (default 30)"``."""
@@ -85,12 +90,23 @@ class Setting:
         shown = f"{default:g}" if _is_number(default) else default
         return f"{text} (default {shown})"
 
+    def _accepts(self, v: Any) -> bool:
+        return self._in_range(v) and (self.multiple is None or v % self.multiple == 0)
+
     def _in_range(self, v: Any) -> bool:
         return bool(
-            np.isfinite(v)
+            (isinstance(v, int | np.integer) or np.isfinite(v))  # an int may exceed a float
             and (self.low is None or v >= self.low)
             and (self.high is None or v <= self.high)
         )
+
+    def _nearest(self, value: Any) -> str:
+        """``" (nearest: 64, 72)"``: the accepted multiples next to a value in range."""
+        if self.multiple is None or not self._in_range(value):
+            return ""
+        below = value // self.multiple * self.multiple
+        nearest = [v for v in (below, below + self.multiple) if self._accepts(v)]
+        return f" (nearest: {', '.join(str(v) for v in nearest)})"
 
 
 def _is_number(value: Any) -> bool:
@@ -101,6 +117,13 @@ def _setting(default: Any, help: str, **declaration: Any) -> Any:
     """A :class:`RunConfig` field with its :class:`Setting`."""
     return field(default=default, metadata={"setting": Setting(help, **declaration)})
 
+
+# Largest collision weight, over 300 times the default of 3000: it keeps the weighted costs and
+# the optimiser's arithmetic far from overflow.
+MAX_WEIGHT = 1e6
+# Video sizes are multiples of the encoder's macro block [px] (``envs/video.py``'s
+# ``write_video``): others would be padded up to one.
+VIDEO_BLOCK = 8
 
 _OBSTACLE_FORMS = (
     "box:X,Y,Z:SX,SY,SZ (centre, half extents [m]), cylinder:X,Y,Z:R,H (centre, radius, half "
@@ -138,7 +161,7 @@ class RunConfig:
     from the fields' :class:`Setting`).
     """
 
-    seed: int = _setting(0, "seed of the whole run", flag="--seed", metavar="N")
+    seed: int = _setting(0, "seed of the whole run", flag="--seed", metavar="N", low=0)
     n_demos: int = _setting(
         5, "demonstrations the teacher shows", stage="observe", flag="--demos", low=2, high=20
     )
@@ -167,11 +190,11 @@ class RunConfig:
     )
     collision_weight: float = _setting(
         PlanConfig.collision_weight, "weight of the collision cost", stage="optimize",
-        flag="--collision-weight", low=0,
+        flag="--collision-weight", low=0, high=MAX_WEIGHT,
     )
     sweep: tuple[float, ...] = _setting(
         (0.0, 0.1, 1.0), "collision weights of the Fig. 9 sweep, as fractions of "
-        "collision_weight", stage="optimize", low=0,
+        "collision_weight", stage="optimize", low=0, high=1,
     )
     max_iter: int = _setting(
         PlanConfig.max_iter, "optimiser iteration limit", stage="optimize", flag="--max-iter",
@@ -188,7 +211,9 @@ class RunConfig:
         flag="--glass-grasp",
     )
     obstacle: assembly.Obstacle | None = _setting(
-        None, f"{_OBSTACLE_FORMS}.",
+        None, f"{_OBSTACLE_FORMS}; it stands on the table (footprint on the top, bottom at most "
+        f"{assembly.OBSTACLE_MAX_LIFT:g} m above it), clear of the robot and the objects it "
+        f"holds at the start.",
         stage="optimize", flag="--obstacle", parse=parse_obstacle, metavar="SHAPE:POS:SIZE",
     )
     particles: int = _setting(
@@ -196,10 +221,12 @@ class RunConfig:
         high=assembly.MAX_PARTICLES,
     )
     video_width: int = _setting(
-        640, "video width [px]", stage="figures", flag="--video-width", low=64, high=1920
+        640, "video width [px]", stage="figures", flag="--video-width", low=64, high=1920,
+        multiple=VIDEO_BLOCK,
     )
     video_height: int = _setting(
-        480, "video height [px]", stage="figures", flag="--video-height", low=48, high=1080
+        480, "video height [px]", stage="figures", flag="--video-height", low=48, high=1080,
+        multiple=VIDEO_BLOCK,
     )
     video_fps: float = _setting(
         25.0, "frame rate of video.mp4 and of the replay's recorded states [Hz]",
@@ -217,7 +244,7 @@ class RunConfig:
         object.__setattr__(self, "sweep", tuple(float(s) for s in self.sweep))
         for name, setting, _ in settings():
             setting.check(name, getattr(self, name))
-        self.scene()  # validates the grasps and the obstacle
+        assembly.check_clearance(self.scene())  # validates the grasps and the obstacle
 
     @classmethod
     def quick(cls, **overrides) -> RunConfig:

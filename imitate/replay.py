@@ -2,7 +2,7 @@
 
 :func:`planning_task` builds the kinematic planning model of a scene (no particles) and its
 task map; :func:`replay` drives ``PouringEnv``'s actuators along a plan in full
-physics and measures the pour.
+physics and measures the pour, or stops where the physics diverges.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import numpy as np
 
 from imitate.envs import assembly
 from imitate.envs.pouring import PouringEnv
+from imitate.errors import ImitateError
 from imitate.kinematics import Kinematics
 from imitate.models import humanoid, objects
 from imitate.motion import Plan
@@ -83,7 +84,12 @@ def replay(
     ``approach`` [s] (cosine blend), the plan interpolated at the env's control rate, then
     ``settle`` [s] holding the last posture. ``on_step(env)``, if given, is called after the
     reset and after every step (to record states for a video, say). The task error is measured
-    in ``gaze``, which should be the plan's (``None``: :func:`planning_task`'s default)."""
+    in ``gaze``, which should be the plan's (``None``: :func:`planning_task`'s default).
+
+    Raises:
+        ImitateError: the physics diverged (``info["diverged"]`` of a step): the replay stops
+            there, naming the time.
+    """
     env.reset(seed=seed, options=options)
     dt = env.dt
     q_reset = env.joint_positions()
@@ -104,6 +110,12 @@ def replay(
         on_step(env)
     for k, target in enumerate(targets):
         _, _, _, _, info = env.step(target)
+        if info["diverged"]:
+            raise ImitateError(
+                f"the physics diverged {(k + 1) * dt:.2f} s into the replay (step {k + 1} of "
+                f"{len(targets)}): MuJoCo found a NaN, infinite or huge joint position, velocity "
+                f"or acceleration; the replay stopped there"
+            )
         if on_step is not None:
             on_step(env)
         min_distance = min(min_distance, info["min_distance"])

@@ -13,6 +13,9 @@ import imitate
 from imitate.envs.assembly import Obstacle
 from imitate.envs.pouring import PouringEnv
 from imitate.errors import ImitateError
+from imitate.models import humanoid
+from imitate.motion import Plan
+from imitate.replay import replay
 
 SMALL = {"width": 96, "height": 72, "particles": 20}
 
@@ -112,6 +115,16 @@ def test_obstacle_option():
             "table",
         ),
         ({"obstacles": ("box",)}, "obstacles must be"),
+        (
+            {"obstacles": ({"shape": "box", "pos": (0.55, 0, np.nan), "size": (0.03,) * 3},)},
+            "pos needs 3 finite values",
+        ),
+        (
+            {"obstacles": (Obstacle("box", (0.45, -0.17, 0.7), (0.05, 0.05, 0.09)),)},
+            "overlaps 'right_hand' by 13.8 mm at the start",
+        ),
+        ({"pour_weight": "1"}, "pour_weight='1' not accepted: a finite number"),
+        ({"teacher": "no"}, "teacher='no' not accepted"),
     ],
 )
 def test_bad_constructor_arguments(kwargs, match):
@@ -119,19 +132,88 @@ def test_bad_constructor_arguments(kwargs, match):
         PouringEnv(**{**SMALL, **kwargs})
 
 
-def test_bad_reset_options(env):
-    with pytest.raises(ImitateError, match=r"unknown; accepted: \['bottle_grasp'"):
-        env.reset(options={"bottle_height": 0.1})
-    with pytest.raises(ImitateError, match="bottle grasp height -0.1"):
-        env.reset(options={"bottle_grasp": -0.1})
+@pytest.mark.parametrize(
+    "options, match",
+    [
+        ({"bottle_height": 0.1}, r"unknown; accepted: \['bottle_grasp'"),
+        ({"bottle_grasp": -0.1}, "bottle grasp height -0.1"),
+        ({"bottle_grasp": "abc"}, "bottle grasp height 'abc' m not accepted"),
+        ({"glass_grasp": None}, "glass grasp height None m not accepted"),
+        ({"glass_grasp": np.inf}, "glass grasp height inf m not accepted"),
+        ("x", "reset options='x' not accepted: a dict"),
+    ],
+)
+def test_bad_reset_options(env, options, match):
+    with pytest.raises(ImitateError, match=match):
+        env.reset(options=options)
 
 
-def test_bad_action(env):
+def test_refused_reset_changes_nothing(env):
+    env.reset(seed=0, options={"bottle_grasp": 0.06})
+    welds = env.unwrapped.model.eq_data.copy()
+    state = env.unwrapped.data.qpos.copy()
+    with pytest.raises(ImitateError, match="glass grasp height 5.0"):
+        env.reset(seed=1, options={"bottle_grasp": 0.12, "glass_grasp": 5.0})
+    np.testing.assert_array_equal(env.unwrapped.model.eq_data, welds)
+    np.testing.assert_array_equal(env.unwrapped.data.qpos, state)
+
+
+@pytest.mark.parametrize(
+    "action, match",
+    [
+        (np.zeros(3), r"action of shape \(3,\), dtype float64 not accepted: \(18,\)"),
+        (np.full(18, np.nan), "finite"),
+        (["0.1"] * 18, "dtype <U3 not accepted"),
+        (np.zeros(18, dtype=complex), "dtype complex128 not accepted"),
+        (None, "dtype object not accepted"),
+    ],
+)
+def test_bad_action(env, action, match):
     env.reset(seed=0)
-    with pytest.raises(ImitateError, match=r"action of shape \(3,\) not accepted: \(18,\)"):
-        env.step(np.zeros(3))
-    with pytest.raises(ImitateError, match="finite"):
-        env.step(np.full(18, np.nan))
+    with pytest.raises(ImitateError, match=match):
+        env.step(action)
+
+
+def test_step_before_reset_is_refused():
+    env = PouringEnv(**SMALL)
+    with pytest.raises(ImitateError, match=r"step\(\) before reset\(\)"):
+        env.step(np.zeros(18))
+
+
+def test_divergence_truncates_quietly(tmp_path, monkeypatch, capfd):
+    monkeypatch.chdir(tmp_path)  # MuJoCo would append its warnings to ./MUJOCO_LOG.TXT
+    env = PouringEnv(**SMALL)
+    env.reset(seed=0)
+    hold = env.data.ctrl.copy()
+    *_, truncated, info = env.step(hold)
+    assert truncated is False and info["diverged"] is False
+    for _ in range(2):  # a second divergence is caught too (MuJoCo's reset restarts its counts)
+        env.data.qvel[:] = 1e30
+        obs, _, terminated, truncated, info = env.step(hold)
+        assert terminated is False and truncated is True and info["diverged"] is True
+        assert np.all(np.isfinite(obs))
+    out, err = capfd.readouterr()
+    assert "WARNING" not in out + err and not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+def test_replay_stops_where_the_physics_diverges():
+    env = PouringEnv(particles=0)
+    q = np.tile(humanoid.rest_pose(), (3, 1))
+    plan = Plan(
+        times=np.array([0.0, 0.1, 0.2]), attractors=np.zeros((1, 7)), target=np.zeros((3, 7)),
+        x=np.zeros((3, 7)), q=q, q_start=q[0], mean=np.zeros((3, 7)),
+        variance=np.ones((3, 7)), weights=np.ones((3, 7)), costs={}, min_distance=0.1,
+        closest=None, converged=True, clipped=0, message="", n_iter=0, n_evaluations=0,
+    )
+    calls = []
+
+    def corrupt(env):
+        calls.append(1)
+        if len(calls) == 4:  # after the third step
+            env.data.qvel[:] = 1e30
+
+    with pytest.raises(ImitateError, match=r"diverged 0\.08 s into the replay \(step 4 of 21\)"):
+        replay(plan, env, approach=0.1, settle=0.1, on_step=corrupt)
 
 
 def test_too_large_render_size():

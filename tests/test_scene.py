@@ -121,6 +121,9 @@ def test_weld_holds_object_at_grasp():
         ({"holder": "nobody"}, "holder='nobody'"),
         ({"teacher": False, "holder": "teacher"}, "needs teacher=True"),
         ({"bottle_grasp": 0.3}, "bottle grasp height"),
+        ({"bottle_grasp": float("nan")}, "bottle grasp height nan"),
+        ({"glass_grasp": "abc"}, "glass grasp height 'abc'"),
+        ({"teacher": None}, "teacher=None not accepted"),
     ],
 )
 def test_bad_scene_config(kwargs, match):
@@ -136,8 +139,34 @@ def test_bad_scene_config(kwargs, match):
         ("cylinder", (0.6, 0.0, 0.5), (0.05, 0.05), "outside the table"),
         ("sphere", (0.6, 0.0, 0.75), (0.05,), "shape 'sphere' unknown"),
         ("box", (0.6, 0.0, 0.75), (0.05, -0.05, 0.05), "positive"),
+        ("box", (0.55, 0.0, float("nan")), (0.03, 0.03, 0.05), "3 finite values"),
+        ("box", (0.55, 0.0, float("inf")), (0.03, 0.03, 0.05), "3 finite values"),
+        ("box", (0.55, 0.0, 0.7), (float("nan"), 0.03, 0.05), "3 finite positive values"),
+        ("box", (0.55, 0.0, 0.7), (0.03, float("inf"), 0.05), "3 finite positive values"),
+        ("cylinder", (0.55, 0.0, float("nan")), (0.03, 0.05), "3 finite values"),
+        ("box", ("a", 0.0, 0.7), (0.03, 0.03, 0.05), "3 finite values"),
+        # the footprint, not only the centre, on the table top
+        ("box", (0.40, -0.175, 0.75), (0.1, 0.1, 0.14), r"footprint x 0\.300\.\.0\.500"),
+        ("box", (0.78, 0.0, 2.61), (2.0, 2.0, 2.0), "outside the table"),
+        ("cylinder", (1.14, 0.0, 0.7), (0.05, 0.05), "outside the table"),
+        # floating far above the table
+        ("box", (0.78, 0.0, 100.0), (0.1, 0.1, 0.1), "at most 0.5 m above it"),
     ],
 )
 def test_bad_obstacle(shape, pos, size, match):
     with pytest.raises(ImitateError, match=match):
         assembly.Obstacle(shape, pos, size)
+
+
+def test_obstacle_values_become_floats():
+    box = assembly.Obstacle("box", [np.float32(0.6), 0, 0.72], [0.05, 0.05, 0.07])
+    assert box.pos == (pytest.approx(0.6), 0.0, 0.72) and isinstance(box.size, tuple)
+    assert all(type(v) is float for v in box.pos + box.size)
+
+
+def test_obstacle_touching_the_robot_at_the_start_is_refused():
+    on_hand = assembly.Obstacle("box", (0.45, -0.17, 0.70), (0.05, 0.05, 0.09))
+    with pytest.raises(ImitateError, match="overlaps 'right_hand' by 13.8 mm at the start"):
+        assembly.check_clearance(assembly.SceneConfig(obstacles=(on_hand,)))
+    clear = assembly.Obstacle("box", (0.55, 0.0, 0.70), (0.03, 0.03, 0.05))  # the README's
+    assembly.check_clearance(assembly.SceneConfig(obstacles=(_box(), clear)))
