@@ -242,7 +242,7 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig) -> dict:
     previous = _previous_report(run_dir)
     earlier = stages.STAGES[: stages.STAGES.index(current)]
     kept = {name for s in earlier for name in s.sections}
-    report = {"seed": config.seed}
+    report = {"schema": stages.REPORT_SCHEMA, "seed": config.seed}
     for name in [name for s in stages.STAGES for name in s.sections]:
         if name in sections:
             report[name] = sections[name]

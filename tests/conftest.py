@@ -16,3 +16,12 @@ def demo_data() -> np.ndarray:
     sd = pouring_demos()
     return time_stacked(list(align(sd.demos).aligned), sd.rate)
 
+
+@pytest.fixture(scope="session")
+def quick_run_dir(tmp_path_factory):
+    """A run directory of ``imitate run --quick`` (under a minute), for tests that only read it."""
+    from imitate.cli import main
+
+    run_dir = tmp_path_factory.mktemp("quick-run")
+    assert main(["run", "--quick", "--out", str(run_dir)]) == 0
+    return run_dir
