@@ -2,18 +2,33 @@
 
 Importing the package registers the Gymnasium environment ``imitate/Pouring-v0``
 (``gym.make("imitate:imitate/Pouring-v0")`` imports it for you) and selects the headless OpenGL
-backend before MuJoCo is first imported.
+backend before MuJoCo is first imported. ``imitate.load_run(path)`` reads a run directory as
+typed objects (:mod:`imitate.run`; imported on first use, it loads the learner and the planner).
 """
+
+from typing import TYPE_CHECKING
 
 import gymnasium as gym
 
 from imitate.envs import rendering  # noqa: F401  (sets MUJOCO_GL before anything imports mujoco)
 from imitate.errors import ImitateError
 
-__all__ = ["ENV_ID", "ImitateError"]
+if TYPE_CHECKING:
+    from imitate.run import Run, load_run
+
+__all__ = ["ENV_ID", "ImitateError", "Run", "load_run"]
 __version__ = "0.1.0"
 
 ENV_ID = "imitate/Pouring-v0"
 
 if ENV_ID not in gym.registry:
     gym.register(id=ENV_ID, entry_point="imitate.envs.pouring:PouringEnv", max_episode_steps=500)
+
+
+def __getattr__(name: str):
+    """``Run`` and ``load_run`` from :mod:`imitate.run`, imported when first asked for."""
+    if name in ("Run", "load_run"):
+        from imitate import run
+
+        return getattr(run, name)
+    raise AttributeError(f"module 'imitate' has no attribute {name!r}")

@@ -56,7 +56,41 @@ def build_parser() -> argparse.ArgumentParser:
                          "manifest.json) instead of refusing them")
         for stage in _stages(command):
             _add_settings(sub.add_argument_group(f"{stage} settings"), settings([stage]))
+    add_export(commands)
     return parser
+
+
+def add_export(commands) -> None:
+    """The ``export`` sub-command: a run's episodes as datasets (:mod:`imitate.export`)."""
+    from imitate.export import FORMATS
+
+    text = (
+        "the robot's replay and the teacher's demonstrations as datasets "
+        "(pip install 'imitate[export]')"
+    )
+    sub = commands.add_parser("export", help=text, description=text)
+    sub.add_argument("run_dir", nargs="?", type=Path, default=DEFAULT_RUN, metavar="RUN_DIR",
+                     help=f"run directory (default {DEFAULT_RUN})")
+    sub.add_argument("--format", required=True, choices=FORMATS,
+                     help="minari: a Minari datasets root; hdf5: robomimic-style files; "
+                     "lerobot: LeRobot v2.1 datasets")
+    sub.add_argument("--out", type=Path, metavar="PATH",
+                     help="output directory, must not exist (default RUN_DIR/export/FORMAT)")
+    sub.add_argument("--images", action="store_true",
+                     help="also store both head-camera images at every step")
+
+
+def export_command(args: argparse.Namespace) -> int:
+    """``imitate export``: writes the datasets, prints where."""
+    from imitate.export import export
+
+    try:
+        out = export(args.run_dir, args.format, args.out, images=args.images)
+    except ImitateError as err:
+        print(f"imitate export: error: {err}", file=sys.stderr)
+        return 1
+    print(out)
+    return 0
 
 
 def _add_settings(group, declared: list[tuple[str, Setting, Any]]) -> None:
@@ -111,6 +145,8 @@ def config_for(args: argparse.Namespace, base: RunConfig) -> RunConfig:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if args.command == "export":
+        return export_command(args)
     if args.run_dir and args.out and args.run_dir != args.out:
         parser.error(f"two run directories given: {args.run_dir} and --out {args.out}; give one")
     run_dir = args.out or args.run_dir or DEFAULT_RUN

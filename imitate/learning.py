@@ -80,6 +80,30 @@ class LearnedModel:
     covariance: np.ndarray
     alignment: Alignment | None
 
+    def predict(self, t: ArrayLike, covariance: str = "paper") -> tuple[np.ndarray, np.ndarray]:
+        """GMR at times ``t`` [s], scalar or ``(T,)``, of the fitted GMM (not limited to
+        :attr:`times`).
+
+        Args:
+            t: Query times [s], finite.
+            covariance: ``"paper"`` (eq. 18, as :func:`learn` computes :attr:`covariance` by
+                default) or ``"total"``, see :func:`imitate.gmr.gmr`.
+
+        Returns:
+            ``(mean, covariance)``: ``mu_hat_t`` of shape ``(T, n_dims)`` and ``(T, n_dims,
+            n_dims)``; a scalar ``t`` gives ``T = 1``.
+
+        Raises:
+            ImitateError: ``t`` not finite or of another shape, or an unknown ``covariance``.
+        """
+        try:
+            times = np.atleast_1d(np.asarray(t, dtype=float))
+        except (TypeError, ValueError):
+            raise ImitateError(
+                f"t must be times [s], a number or (T,) numbers; got {t!r}"
+            ) from None
+        return gmr(self.gmm, times, covariance=covariance)
+
     @property
     def variance(self) -> np.ndarray:
         """GMR variances ``sigma_hat_t`` (the covariance diagonals), shape ``(T, n_dims)``."""

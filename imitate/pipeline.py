@@ -300,7 +300,7 @@ def _report(
     earlier stages kept from ``previous``, those of later ones dropped."""
     earlier = stages.STAGES[: stages.STAGES.index(current)]
     kept = {name for s in earlier for name in s.sections}
-    report = {"seed": seed}
+    report = {"schema": stages.REPORT_SCHEMA, "seed": seed}
     for name in [name for s in stages.STAGES for name in s.sections]:
         if name in sections:
             report[name] = sections[name]

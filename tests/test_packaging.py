@@ -34,7 +34,8 @@ def test_wheel_installs_one_top_level_package(tmp_path):
         "imitate", f"imitate-{imitate.__version__}.dist-info"
     }
     for shipped in ("imitate/envs/pouring.py", "imitate/models/humanoid.xml",
-                    "imitate/models/scene.xml", "imitate/models/teacher.xml"):
+                    "imitate/models/scene.xml", "imitate/models/teacher.xml", "imitate/py.typed",
+                    "imitate/export/to_minari.py"):
         assert shipped in names
 
 

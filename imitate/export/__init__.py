@@ -1,0 +1,67 @@
+"""Datasets from a run: the robot's reproduction and the teacher's demonstrations as episodes
+(:mod:`imitate.export.episodes`), in one of :data:`FORMATS`.
+
+    imitate export runs/latest --format minari --out datasets/    # or hdf5, lerobot; --images
+
+The formats' libraries are the optional extra ``pip install imitate[export]``. The output is
+written to a temporary directory beside ``out`` and renamed when complete.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import os
+import shutil
+from pathlib import Path
+
+from imitate.errors import ImitateError
+
+__all__ = ["FORMATS", "export"]
+
+FORMATS = ("minari", "hdf5", "lerobot")
+_NEEDS = {"minari": ("minari", "h5py"), "hdf5": ("h5py",), "lerobot": ("pyarrow",)}
+
+
+def export(run_dir: str | Path, format: str, out: str | Path | None = None,
+           images: bool = False) -> Path:
+    """Write the run's episodes in ``format``; returns the output directory, absolute.
+
+    Args:
+        run_dir: The run directory; needs ``config.json``, ``demos.npz``, ``model.npz`` and
+            ``plan.npz``.
+        format: One of :data:`FORMATS`: ``"minari"`` (a Minari datasets root: ``out`` is its
+            ``MINARI_DATASETS_PATH``), ``"hdf5"`` (robomimic-style ``robot.hdf5`` and
+            ``teacher.hdf5``) or ``"lerobot"`` (LeRobot v2.1 datasets ``robot/``, ``teacher/``).
+        out: A directory that does not exist yet; ``None``: ``run_dir/export/<format>``.
+        images: Also store both head-camera images at every step (the robot's in the replay, the
+            teacher's as the robot saw them), at the run's camera size.
+
+    Raises:
+        ImitateError: an unknown format, the format's library missing, ``out`` existing, or a
+            missing artifact (the message names the stage to re-run).
+    """
+    if format not in FORMATS:
+        raise ImitateError(f"format {format!r} unknown; accepted: {FORMATS}")
+    missing = [name for name in _NEEDS[format] if importlib.util.find_spec(name) is None]
+    if missing:
+        raise ImitateError(
+            f"the {format} format needs {', '.join(missing)}: pip install 'imitate[export]'"
+        )
+    from imitate.export.episodes import robot_episode, teacher_episodes
+    from imitate.run import load_run
+
+    run = load_run(run_dir)
+    out = (Path(out) if out is not None else run.path / "export" / format).absolute()
+    if out.exists():
+        raise ImitateError(f"{out} exists; accepted: a path that does not exist yet")
+    write = importlib.import_module(f"imitate.export.to_{format}").write
+    tmp = out.with_name(f".{out.name}.partial")
+    shutil.rmtree(tmp, ignore_errors=True)  # left by an interrupted export
+    tmp.mkdir(parents=True)
+    try:
+        write(tmp, robot_episode(run, images), teacher_episodes(run, images))
+        os.replace(tmp, out)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return out

@@ -1,0 +1,203 @@
+"""A run's episodes: the robot's reproduction replayed in ``PouringEnv``, and the teacher's
+demonstrations.
+
+The robot's episode is a real sequence of env transitions: :func:`imitate.replay.replay` drives a
+``PouringEnv`` along the run's plan exactly as the replay stage does (same settings, seed and
+grasps) while :class:`Recorder` keeps what every ``reset`` and ``step`` returned.
+
+The teacher's episodes are its segmented demonstrations at camera rate. The teacher has no
+actions to record, so an action is the **next frame's true object poses** (the state it moves
+the objects to): every format here needs one action per step, and this is the usual choice for
+learning from observed states.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import gymnasium as gym
+import numpy as np
+
+from imitate import ENV_ID
+from imitate.artifacts import load_npz
+from imitate.envs.observation import EYES, ObservationConfig, frames, session
+from imitate.envs.pouring import PouringEnv
+from imitate.envs.teacher_motion import script_demonstrations
+from imitate.models import humanoid, objects
+from imitate.replay import replay
+from imitate.run import Run
+from imitate.segment import task_demo
+from imitate.taskspace import TASK_DIMS
+
+__all__ = ["Episode", "Recorder", "robot_episode", "teacher_episodes"]
+
+POSE = ("x", "y", "z", "qw", "qx", "qy", "qz")  # an object frame: position [m], quaternion wxyz
+OBJECTS = (objects.BOTTLE, objects.GLASS)
+TASK = "pour from the bottle into the glass"
+
+
+@dataclass(frozen=True, eq=False)
+class Episode:
+    """One episode of ``n`` steps.
+
+    Attributes:
+        observations: Name -> ``(n + 1, ...)``: the reset's observation, then one per step;
+            vectors ``(n + 1, k)`` float64, images ``(n + 1, height, width, 3)`` uint8 (keys
+            :data:`imitate.envs.observation.EYES`).
+        actions: ``(n, k)`` float64.
+        rewards: ``(n,)``.
+        terminations, truncations: ``(n,)`` bool.
+        infos: Name -> ``(n + 1,)``, the reset's first.
+        names: Name of each vector observation's and the action's components.
+        dt: Time between observations [s].
+        env: The Gymnasium spec that recreates the env (``None``: not from an env).
+        seed, options: The reset's seed and options (``None``: no reset).
+    """
+
+    observations: dict[str, np.ndarray]
+    actions: np.ndarray
+    rewards: np.ndarray
+    terminations: np.ndarray
+    truncations: np.ndarray
+    infos: dict[str, np.ndarray]
+    names: dict[str, tuple[str, ...]]
+    dt: float
+    env: gym.envs.registration.EnvSpec | None = None
+    seed: int | None = None
+    options: dict | None = None
+
+    def __len__(self) -> int:
+        return len(self.actions)
+
+
+class Recorder(gym.Wrapper):
+    """Keeps what every ``reset`` and ``step`` of the wrapped ``PouringEnv`` returned.
+
+    :func:`imitate.replay.replay` drives it as it would the env: the env's own attributes
+    (``dt``, ``data``, ``config``, ``joint_positions``) are read through.
+    """
+
+    def __init__(self, env: PouringEnv):
+        super().__init__(env)
+        self.seed, self.options = None, None
+        self.observations, self.infos, self.actions, self.steps = [], [], [], []
+
+    def reset(self, *, seed=None, options=None):
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.seed, self.options = seed, options
+        self.observations, self.infos, self.actions, self.steps = [obs], [info], [], []
+        return obs, info
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self.actions.append(np.array(action, dtype=float))
+        self.observations.append(obs)
+        self.infos.append(info)
+        self.steps.append((reward, terminated, truncated))
+        return obs, reward, terminated, truncated, info
+
+    def __getattr__(self, name: str):
+        if name.startswith("_"):
+            raise AttributeError(name)
+        return getattr(self.env.unwrapped, name)
+
+
+def robot_episode(run: Run, images: bool = False) -> Episode:
+    """The run's plan replayed in ``PouringEnv`` as the replay stage does, recorded.
+
+    The env gets the run's settings as its kwargs (with ``images``, ``obs_type="stereo"`` at the
+    run's camera size); the episode's spec is ``imitate/Pouring-v0``'s with these kwargs and the
+    episode's length as its time limit, so its last step is truncated, as that ``TimeLimit``
+    truncates it.
+
+    Args:
+        run: The run; needs its config, ``model.npz`` (the gaze) and ``plan.npz``.
+        images: Also record both head-camera images at every step.
+    """
+    config = run.config
+    kwargs = {
+        "particles": config.particles,
+        "obstacles": [dataclasses.asdict(o) for o in config.scene().obstacles],
+    }
+    if images:
+        kwargs.update(obs_type="stereo", width=config.width, height=config.height)
+    gaze = load_npz(run.path / "model.npz", required=("gaze",))["gaze"]
+    env = Recorder(PouringEnv(**kwargs))
+    options = {"bottle_grasp": config.bottle_grasp, "glass_grasp": config.glass_grasp}
+    try:
+        replay(run.plan, env, seed=config.seed, options=options, gaze=gaze)
+    finally:
+        env.close()
+    rewards, terminated, truncated = (np.array(v) for v in zip(*env.steps, strict=True))
+    truncated[-1] = True  # the spec's TimeLimit ends the episode here
+    structure = env.observation_structure
+    states = np.array([o if isinstance(o, np.ndarray) else o["state"] for o in env.observations])
+    bounds = np.cumsum([0, *structure.values()])
+    observations = {
+        name: states[:, start:stop]
+        for name, start, stop in zip(structure, bounds[:-1], bounds[1:], strict=True)
+    }
+    if images:
+        observations.update({eye: np.array([o[eye] for o in env.observations]) for eye in EYES})
+    names = {
+        "qpos": humanoid.JOINTS, "qvel": humanoid.JOINTS,
+        **{obj: POSE for obj in OBJECTS}, "action": humanoid.JOINTS,
+    }
+    spec = dataclasses.replace(gym.spec(ENV_ID), kwargs=kwargs, max_episode_steps=len(env.actions))
+    return Episode(
+        observations=observations, actions=np.array(env.actions), rewards=rewards,
+        terminations=terminated, truncations=truncated, infos=_stacked(env.infos),
+        names=names, dt=env.dt, env=spec, seed=env.seed, options=env.options,
+    )
+
+
+def teacher_episodes(run: Run, images: bool = False) -> Iterator[Episode]:
+    """The teacher's demonstrations as the robot cut them, one episode each, in time order.
+
+    Observations: ``task`` ``(n + 1, 7)``, the task space (eq. 1) of the tracked objects as
+    learning takes it; ``bottle`` and ``glass`` ``(n + 1, 7)``, the true object frames
+    (position [m], quaternion wxyz); with ``images``, both eyes' images as the robot saw them.
+    Actions: ``(n, 14)`` the next frame's true ``bottle`` and ``glass``. Rewards are 0 (none is
+    defined for the teacher); the last step terminates (the demonstration is complete). Infos:
+    ``time``, the session time [s] of each frame.
+    """
+    config = run.config
+    motion = script_demonstrations(config.teacher())
+    demos = run.demos
+    watching = None
+    if images:
+        watching = session(ObservationConfig(
+            teacher=config.teacher(), fps=config.fps, width=config.width, height=config.height,
+        ))
+    names = {
+        "task": TASK_DIMS, **{obj: POSE for obj in OBJECTS},
+        "action": tuple(f"next_{obj}_{c}" for obj in OBJECTS for c in POSE),
+    }
+    for demo in demos.segments:
+        poses = motion.poses(demo.times)
+        true = {obj: np.hstack(poses[obj]) for obj in OBJECTS}
+        task = task_demo(
+            demo, demos.objects, demos.gaze, smoothing=config.smoothing, rate=config.fps
+        )
+        observations = {"task": task, **true}
+        if watching is not None:
+            pairs = list(frames(dataclasses.replace(watching, times=demo.times)))
+            observations.update({eye: np.array(eye_images) for eye, eye_images in zip(
+                EYES, zip(*pairs, strict=True), strict=True
+            )})
+        n = len(demo.times) - 1
+        yield Episode(
+            observations=observations,
+            actions=np.hstack([true[obj] for obj in OBJECTS])[1:],
+            rewards=np.zeros(n), terminations=np.arange(n) == n - 1,
+            truncations=np.zeros(n, dtype=bool), infos={"time": demo.times}, names=names,
+            dt=1.0 / config.fps,
+        )
+
+
+def _stacked(infos: list[dict]) -> dict[str, np.ndarray]:
+    """Per-step ``infos`` as arrays ``(n + 1,)`` per key; a key the reset's info lacks (the
+    reward terms) is 0 there."""
+    return {key: np.array([info.get(key, 0) for info in infos]) for key in infos[-1]}

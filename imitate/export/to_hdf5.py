@@ -1,0 +1,65 @@
+"""robomimic-style HDF5: ``robot.hdf5`` (one demonstration) and ``teacher.hdf5`` (one per
+demonstration).
+
+Each file: ``data/demo_N/obs/<key>`` and ``next_obs/<key>`` ``(num_samples, ...)``, ``actions``,
+``rewards``, ``dones`` (1 on the last step), ``infos/<key>`` (after each step); the attributes
+``data/demo_N.attrs["num_samples"]`` (and ``seed``, ``options`` as JSON where the episode has a
+reset), ``data.attrs["total"]`` and ``data.attrs["env_args"]``: JSON ``{"env_name", "type",
+"env_kwargs"}`` with robomimic's gym type (2) and ``gym.make``'s arguments, or
+``"env_name": null`` for the teacher. Images are gzip-compressed.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from imitate.export.episodes import Episode
+
+__all__ = ["GYM_TYPE", "write"]
+
+GYM_TYPE = 2  # robomimic's EnvType.GYM_TYPE
+
+
+def write(out: Path, robot: Episode, teacher: Iterable[Episode]) -> None:
+    """Write ``out/robot.hdf5`` and ``out/teacher.hdf5``."""
+    _write(out / "robot.hdf5", [robot])
+    _write(out / "teacher.hdf5", teacher)
+
+
+def _write(path: Path, episodes: Iterable[Episode]) -> None:
+    with h5py.File(path, "w") as f:
+        data = f.create_group("data")
+        total, env = 0, None
+        for i, episode in enumerate(episodes):
+            _write_demo(data.create_group(f"demo_{i}"), episode)
+            total += len(episode)
+            env = episode.env
+        env_args = {"env_name": None, "type": None, "env_kwargs": {}}
+        if env is not None:
+            env_args = {
+                "env_name": env.id, "type": GYM_TYPE,
+                "env_kwargs": {**env.kwargs, "max_episode_steps": env.max_episode_steps},
+            }
+        data.attrs["total"] = total
+        data.attrs["env_args"] = json.dumps(env_args)
+
+
+def _write_demo(demo: h5py.Group, episode: Episode) -> None:
+    for key, values in episode.observations.items():
+        compression = "gzip" if values.dtype == np.uint8 else None
+        demo.create_dataset(f"obs/{key}", data=values[:-1], compression=compression)
+        demo.create_dataset(f"next_obs/{key}", data=values[1:], compression=compression)
+    demo.create_dataset("actions", data=episode.actions)
+    demo.create_dataset("rewards", data=episode.rewards)
+    demo.create_dataset("dones", data=(episode.terminations | episode.truncations).astype(int))
+    for key, values in episode.infos.items():
+        demo.create_dataset(f"infos/{key}", data=values[1:])
+    demo.attrs["num_samples"] = len(episode)
+    if episode.seed is not None:
+        demo.attrs["seed"] = episode.seed
+        demo.attrs["options"] = json.dumps(episode.options)

@@ -1,0 +1,90 @@
+"""Minari datasets (Farama's standard for offline RL): one for the robot, one for the teacher.
+
+Under the root directory (Minari's ``MINARI_DATASETS_PATH``): :data:`ROBOT_ID`, whose env spec is
+``imitate/Pouring-v0`` with the run's kwargs (``dataset.recover_environment()`` makes it), and
+:data:`TEACHER_ID`, which comes from no env (its spaces are stored, its env spec is not).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import warnings
+from collections.abc import Iterable
+from pathlib import Path
+
+import gymnasium as gym
+import minari
+import numpy as np
+from minari.data_collector import EpisodeBuffer
+
+from imitate.envs.observation import EYES
+from imitate.export.episodes import Episode
+
+__all__ = ["ROBOT_ID", "TEACHER_ID", "write"]
+
+ROBOT_ID = "imitate/pouring/robot-v0"
+TEACHER_ID = "imitate/pouring/teacher-v0"
+_METADATA = {"author": "imitate", "algorithm_name": "imitate (Muehlig et al., ICRA 2009)"}
+
+
+def write(root: Path, robot: Episode, teacher: Iterable[Episode]) -> None:
+    """Write both datasets under ``root``."""
+    with _datasets_path(root), warnings.catch_warnings():
+        # Metadata this project has no value for (an e-mail address, a code link, an eval env).
+        warnings.filterwarnings("ignore", message=r"`(author_email|code_permalink|eval_env)`")
+        warnings.filterwarnings("ignore", message="env_spec is None")  # the teacher has no env
+        minari.create_dataset_from_buffers(
+            ROBOT_ID, [_buffer(robot)], env=robot.env, **_METADATA,
+            description="The robot pours from the bottle into the glass: the optimised plan "
+            "replayed in imitate/Pouring-v0. Actions: joint position targets [rad] (float64, as "
+            "given to env.step); the last step is truncated by the spec's time limit.",
+        )
+        episodes = iter(teacher)
+        first = next(episodes)
+        dataset = minari.create_dataset_from_buffers(
+            TEACHER_ID, [_buffer(first)], **_METADATA,
+            observation_space=gym.spaces.Dict({
+                key: _space(value) for key, value in first.observations.items()
+            }),
+            action_space=_space(first.actions),
+            description="The teacher's demonstrations as the robot cut them. Observations: "
+            "task (eq. 1 of the tracked objects), bottle and glass (true frames: position [m], "
+            "quaternion wxyz). Actions: the next frame's true bottle and glass; rewards 0.",
+        )
+        for episode in episodes:  # one at a time: with images an episode is large
+            dataset.update_dataset_from_buffer([_buffer(episode)])
+
+
+def _buffer(episode: Episode) -> EpisodeBuffer:
+    observations = episode.observations
+    if episode.env is not None:  # as the env returns them: a state vector, with images a dict
+        state = np.hstack([v for k, v in observations.items() if k not in EYES])
+        images = {eye: observations[eye] for eye in EYES if eye in observations}
+        observations = {"state": state, **images} if images else state
+    return EpisodeBuffer(
+        seed=episode.seed, options=episode.options, observations=observations,
+        actions=episode.actions, rewards=episode.rewards, terminations=episode.terminations,
+        truncations=episode.truncations, infos=episode.infos,
+    )
+
+
+def _space(values: np.ndarray) -> gym.spaces.Box:
+    """The space of one step of ``values`` ``(n, ...)``: images 0..255, vectors unbounded."""
+    if values.dtype == np.uint8:
+        return gym.spaces.Box(0, 255, values.shape[1:], dtype=np.uint8)
+    return gym.spaces.Box(-np.inf, np.inf, values.shape[1:], dtype=np.float64)
+
+
+@contextlib.contextmanager
+def _datasets_path(root: Path):
+    """Minari's datasets root set to ``root`` while inside."""
+    before = os.environ.get("MINARI_DATASETS_PATH")
+    os.environ["MINARI_DATASETS_PATH"] = str(root.absolute())  # Minari joins a relative one twice
+    try:
+        yield
+    finally:
+        if before is None:
+            del os.environ["MINARI_DATASETS_PATH"]
+        else:
+            os.environ["MINARI_DATASETS_PATH"] = before

@@ -1,0 +1,153 @@
+"""A run directory as typed Python objects: :func:`load_run` -> :class:`Run`.
+
+    run = imitate.load_run("runs/latest")
+    mean, covariance = run.model.predict([0.0, 1.5])    # GMR at any time [s]
+    run.plan.q, run.replay.pour_fraction, run.report["replay"]["success"]
+
+Each member reads its artifact the first time it is used; a missing or corrupt artifact raises
+:class:`~imitate.errors.ImitateError` naming the file and the stage to re-run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from imitate import stages
+from imitate.artifacts import load_json, load_npz
+from imitate.config import RunConfig, load_config
+from imitate.errors import ImitateError
+from imitate.learning import LearnedModel
+from imitate.motion import Plan
+from imitate.perception import Observations, load_observations
+from imitate.segment import Demonstration, load_demos
+
+__all__ = ["Demos", "Recording", "Run", "load_run"]
+
+
+@dataclass(frozen=True, eq=False)
+class Demos:
+    """Contents of ``demos.npz``: the demonstrations cut from the tracks.
+
+    Attributes:
+        segments: One :class:`~imitate.segment.Demonstration` per demonstration, in time order.
+        objects: Object names, the first axis of each segment's arrays.
+        gaze: ``(3, 3)`` gaze frame of the observation (columns right, down, forward).
+    """
+
+    segments: tuple[Demonstration, ...]
+    objects: tuple[str, ...]
+    gaze: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Recording:
+    """Contents of ``replay.npz``: the plan replayed in physics.
+
+    Attributes:
+        qpos: ``(n, nq)`` MuJoCo ``qpos`` of the whole scene every ``state_dt`` [rad, m].
+        mocap_pos: ``(n, n_mocap, 3)`` the teacher's mocap positions [m].
+        mocap_quat: ``(n, n_mocap, 4)`` their orientations, wxyz.
+        state_dt: Time between recorded states [s].
+        task_error: ``(T, 7)`` task state reached in physics minus the plan's, every env step of
+            the plan's part.
+        pour_fraction: Fraction of the particles in the glass at the end.
+        spilled: Particles in neither container at the end.
+        min_distance: Smallest signed distance [m] between geoms that must not touch.
+    """
+
+    qpos: np.ndarray
+    mocap_pos: np.ndarray
+    mocap_quat: np.ndarray
+    state_dt: float
+    task_error: np.ndarray
+    pour_fraction: float
+    spilled: int
+    min_distance: float
+
+    @property
+    def times(self) -> np.ndarray:
+        """``(n,)`` times of the recorded states [s] from the reset."""
+        return np.arange(len(self.qpos)) * self.state_dt
+
+
+class Run:
+    """A run directory (see :func:`load_run`); every member is read lazily, once.
+
+    Attributes:
+        path: The run directory.
+    """
+
+    def __init__(self, path: Path):
+        self.path = Path(path)
+
+    @cached_property
+    def config(self) -> RunConfig:
+        """The settings (``config.json``)."""
+        return load_config(self.path)
+
+    @cached_property
+    def observations(self) -> Observations:
+        """Tracks, camera matrices and ground truth (``observations.npz``)."""
+        return load_observations(self.path / "observations.npz")
+
+    @cached_property
+    def demos(self) -> Demos:
+        """The segmented demonstrations (``demos.npz``)."""
+        segments, objects, gaze = load_demos(self.path / "demos.npz")
+        return Demos(tuple(segments), objects, gaze)
+
+    @cached_property
+    def model(self) -> LearnedModel:
+        """The learned model (``model.npz``): GMM, BIC curve, GMR mean and covariance at its
+        ``times``, and :meth:`~imitate.learning.LearnedModel.predict` at any time."""
+        path = self.path / "model.npz"
+        return LearnedModel.from_arrays(load_npz(path, required=LearnedModel.array_names()))
+
+    @cached_property
+    def plan(self) -> Plan:
+        """The optimised movement (``plan.npz``): ``q(t)``, ``x(t)``, attractors, costs."""
+        return Plan.from_arrays(load_npz(self.path / "plan.npz", required=Plan.array_names()))
+
+    @cached_property
+    def replay(self) -> Recording:
+        """The replay in physics (``replay.npz``)."""
+        a = load_npz(self.path / "replay.npz", required=_RECORDING)
+        return Recording(
+            qpos=a["qpos"], mocap_pos=a["mocap_pos"], mocap_quat=a["mocap_quat"],
+            state_dt=float(a["state_dt"]), task_error=a["task_error"],
+            pour_fraction=float(a["pour_fraction"]), spilled=int(a["spilled"]),
+            min_distance=float(a["min_distance"]),
+        )
+
+    @cached_property
+    def report(self) -> dict:
+        """``report.json``: its keys are documented in the README's "report.json" table."""
+        return load_json(self.path / stages.REPORT)
+
+    def __repr__(self) -> str:
+        return f"Run({str(self.path)!r})"
+
+
+_RECORDING = (
+    "qpos", "mocap_pos", "mocap_quat", "state_dt", "task_error", "pour_fraction", "spilled",
+    "min_distance",
+)
+
+
+def load_run(path: str | Path) -> Run:
+    """The run in directory ``path`` (written by ``imitate run --out PATH``).
+
+    Raises:
+        ImitateError: ``path`` is not a directory.
+    """
+    path = Path(path)
+    if not path.is_dir():
+        raise ImitateError(
+            f"run directory {path} not found; accepted: a directory written by "
+            f"`imitate run --out {path}`"
+        )
+    return Run(path)

@@ -1,0 +1,105 @@
+"""``imitate.load_run``: the README's example, the members, their errors, the report's schema."""
+
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import imitate
+from imitate.config import RunConfig, load_config
+from imitate.learning import LearnedModel
+from imitate.motion import Plan
+from imitate.perception import Observations
+from imitate.run import Demos, Recording
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+MARKER = "<!-- tests/test_api.py runs the next code block -->"
+
+
+def readme_example() -> str:
+    text = README.read_text()
+    match = re.search(re.escape(MARKER) + r"\s*```python\n(.*?)```", text, re.DOTALL)
+    assert match, f"README.md lacks the code block after {MARKER}"
+    return match.group(1)
+
+
+def test_readme_example_runs_as_written(quick_run, tmp_path, monkeypatch):
+    (tmp_path / "runs").mkdir()
+    (tmp_path / "runs" / "latest").symlink_to(quick_run)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MINARI_DATASETS_PATH", "restored after the test")
+    exec(compile(readme_example(), str(README), "exec"), {"__name__": "readme"})
+    assert (tmp_path / "gmr_vs_plan.png").stat().st_size > 0
+    assert (tmp_path / "datasets" / "imitate" / "pouring" / "robot-v0").is_dir()
+
+
+def test_members_are_typed_and_read_lazily(quick_run):
+    run = imitate.load_run(quick_run)
+    assert run.__dict__.keys() == {"path"}  # nothing read yet
+    assert isinstance(run.config, RunConfig) and run.config == load_config(quick_run)
+    assert isinstance(run.observations, Observations)
+    assert isinstance(run.demos, Demos)
+    assert len(run.demos.segments) == run.report["demos"]["detected"]
+    assert isinstance(run.model, LearnedModel) and isinstance(run.plan, Plan)
+    assert isinstance(run.replay, Recording)
+    assert run.replay.pour_fraction == run.report["replay"]["pour_fraction"]
+    assert run.replay.times.shape == (len(run.replay.qpos),)
+    assert run.report["schema"] == 1
+    assert run.model is run.model  # read once
+
+
+def test_predict_is_the_gmr_at_any_time(quick_run):
+    model = imitate.load_run(quick_run).model
+    mean, covariance = model.predict(model.times)
+    np.testing.assert_allclose(mean, model.mean, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(covariance, model.covariance, rtol=0, atol=1e-12)
+    between = (model.times[3] + model.times[4]) / 2
+    mean, covariance = model.predict(between)
+    assert mean.shape == (1, 7) and covariance.shape == (1, 7, 7)
+    assert np.all(np.linalg.eigvalsh(covariance[0]) > 0)
+    for bad in ("soon", [[0.0, 1.0]], [np.nan]):
+        with pytest.raises(imitate.ImitateError, match="t must"):
+            model.predict(bad)
+
+
+def test_missing_artifacts_name_the_file_and_the_stage(quick_run, tmp_path):
+    run_dir = tmp_path / "run"
+    shutil.copytree(quick_run, run_dir, ignore=shutil.ignore_patterns("plan.npz", "*.mp4"))
+    run = imitate.load_run(run_dir)
+    assert run.model.gmm.n_components >= 1
+    with pytest.raises(imitate.ImitateError, match=r"plan\.npz is missing; re-run `imitate optim"):
+        _ = run.plan
+    (run_dir / "report.json").write_text("{")
+    with pytest.raises(imitate.ImitateError, match=r"report\.json is corrupt .*delete it"):
+        _ = run.report
+    with pytest.raises(imitate.ImitateError, match="not found"):
+        imitate.load_run(tmp_path / "nothing")
+
+
+def documented_report_keys() -> set[str]:
+    text = README.read_text()
+    table = text[text.index("### `report.json`"):]
+    table = table[: table.index("\n\n", table.index("| key |"))]
+    return set(re.findall(r"^\| `([^`]+)` \|", table, re.MULTILINE))
+
+
+def report_keys(value, prefix: str = "") -> set[str]:
+    """Dotted keys of a report: ``a.b``, ``a[].b`` in lists; ``timings`` and ``artifacts`` by
+    their documented placeholders."""
+    placeholders = {"timings": "<stage>", "artifacts": "<name>"}
+    if isinstance(value, dict):
+        keys = set()
+        for key, item in value.items():
+            name = placeholders.get(prefix, key)
+            keys |= report_keys(item, f"{prefix}.{name}" if prefix else name)
+        return keys
+    if isinstance(value, list) and value and isinstance(value[0], dict):
+        return set().union(*(report_keys(item, prefix + "[]") for item in value))
+    return {prefix}
+
+
+def test_every_report_key_is_documented(quick_run):
+    report = imitate.load_run(quick_run).report
+    assert report_keys(report) == documented_report_keys()

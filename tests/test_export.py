@@ -1,0 +1,262 @@
+"""``imitate export``: every format read back with its own reader and checked against the run."""
+
+import importlib.util
+import inspect
+import json
+import shutil
+
+import gymnasium as gym
+import h5py
+import imageio.v3 as iio
+import minari
+import mujoco
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+import imitate
+from imitate.cli import main
+from imitate.envs import pouring
+from imitate.envs.rendering import make_renderer
+from imitate.export import export, to_hdf5, to_lerobot, to_minari
+from imitate.export.episodes import OBJECTS, robot_episode, teacher_episodes
+from imitate.models import humanoid
+from imitate.replay import replay
+from imitate.run import load_run
+
+
+@pytest.fixture(scope="module")
+def run(quick_run):
+    return load_run(quick_run)
+
+
+def reset_options(run):
+    return {"bottle_grasp": run.config.bottle_grasp, "glass_grasp": run.config.glass_grasp}
+
+
+def check_robot(run, actions, rewards, pour_fraction, success, dt, atol=1e-12):
+    """The episode is the replay stage's: the plan's targets, the same pour, the same outcome.
+
+    ``pour_fraction`` and ``success`` are those after the last step; the bottle starts full.
+    """
+    plan, defaults = run.plan, inspect.signature(replay).parameters
+    n_approach = round(defaults["approach"].default / dt)
+    n_settle = round(defaults["settle"].default / dt)
+    t_play = np.arange(0.0, plan.times[-1] - plan.times[0] + 1e-9, dt)
+    play = np.column_stack([np.interp(t_play, plan.times - plan.times[0], q) for q in plan.q.T])
+    assert len(actions) == n_approach + len(play) + n_settle
+    np.testing.assert_allclose(actions[n_approach - 1], plan.q_start, rtol=0, atol=atol)
+    np.testing.assert_allclose(actions[n_approach:n_approach + len(play)], play, rtol=0, atol=atol)
+    np.testing.assert_allclose(actions[-n_settle:] - plan.q[-1], 0.0, rtol=0, atol=atol)
+    assert pour_fraction == run.replay.pour_fraction
+    assert run.report["replay"]["min_distance_m"] >= 0.0  # no collision penalty, so:
+    assert rewards.sum() == pytest.approx(pour_fraction, abs=1e-6)
+    assert bool(success) == run.report["replay"]["success"]
+
+
+def check_teacher(run, episodes):
+    """``episodes``: per demonstration ``(observations, actions)``; one frame per camera frame,
+    actions the next frame's object poses."""
+    segments = run.demos.segments
+    assert len(episodes) == len(segments)
+    for (obs, actions), demo in zip(episodes, segments, strict=True):
+        m = len(demo.times)
+        assert {k: v.shape for k, v in obs.items()} == {k: (m, 7) for k in ("task", *OBJECTS)}
+        np.testing.assert_array_equal(actions, np.hstack([obs[o] for o in OBJECTS])[1:])
+        for o in OBJECTS:
+            np.testing.assert_allclose(np.linalg.norm(obs[o][:, 3:], axis=1), 1.0, atol=1e-9)
+        assert np.all(np.isfinite(obs["task"]))
+
+
+def test_minari(run, tmp_path, monkeypatch):
+    root = export(run.path, "minari", tmp_path / "minari")
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(root))
+    robot = minari.load_dataset(to_minari.ROBOT_ID)
+    assert robot.total_episodes == 1
+    episode = robot[0]
+    spec = robot.spec.env_spec
+    assert spec.id == imitate.ENV_ID and spec.entry_point == gym.spec(imitate.ENV_ID).entry_point
+    assert spec.kwargs == {"particles": run.config.particles, "obstacles": []}
+    assert spec.max_episode_steps == len(episode.actions) == robot.total_steps
+    assert episode.observations.shape == (len(episode.actions) + 1, 50)
+    assert episode.truncations[-1] and not episode.truncations[:-1].any()
+    assert not episode.terminations.any()
+    env = robot.recover_environment()
+    check_robot(
+        run, episode.actions, episode.rewards, episode.infos["pour_fraction"][-1],
+        episode.infos["is_success"][-1], env.unwrapped.dt,
+    )
+    assert episode.infos["pour_fraction"][0] == 0.0
+    obs, _ = env.reset(seed=run.config.seed, options=reset_options(run))
+    np.testing.assert_array_equal(obs, episode.observations[0])
+    teacher = minari.load_dataset(to_minari.TEACHER_ID)
+    assert teacher.spec.env_spec is None
+    check_teacher(run, [(e.observations, e.actions) for e in teacher])
+    for episode, demo in zip(teacher, run.demos.segments, strict=True):
+        np.testing.assert_array_equal(episode.infos["time"], demo.times)
+
+
+def test_hdf5(run, tmp_path):
+    out = export(run.path, "hdf5", tmp_path / "hdf5")
+    with h5py.File(out / "robot.hdf5", "r") as f:
+        data = f["data"]
+        env_args = json.loads(data.attrs["env_args"])
+        assert (env_args["env_name"], env_args["type"]) == (imitate.ENV_ID, to_hdf5.GYM_TYPE)
+        demo = data["demo_0"]
+        n = int(demo.attrs["num_samples"])
+        assert list(data) == ["demo_0"] and data.attrs["total"] == n
+        assert (demo.attrs["seed"], json.loads(demo.attrs["options"])) == (
+            run.config.seed, reset_options(run)
+        )
+        assert set(demo["obs"]) == set(demo["next_obs"]) == {"qpos", "qvel", *OBJECTS}
+        for key in demo["obs"]:
+            assert demo["obs"][key].shape[0] == demo["next_obs"][key].shape[0] == n
+            np.testing.assert_array_equal(demo["obs"][key][1:], demo["next_obs"][key][:-1])
+        dones = demo["dones"][()]
+        assert dones[-1] == 1 and not dones[:-1].any()
+        env = gym.make(env_args["env_name"], **env_args["env_kwargs"])
+        assert env.spec.max_episode_steps == n
+        check_robot(
+            run, demo["actions"][()], demo["rewards"][()], demo["infos/pour_fraction"][-1],
+            demo["infos/is_success"][-1], env.unwrapped.dt,
+        )
+    with h5py.File(out / "teacher.hdf5", "r") as f:
+        demos = [f["data"][f"demo_{i}"] for i in range(len(f["data"]))]
+        assert json.loads(f["data"].attrs["env_args"])["env_name"] is None
+        check_teacher(run, [
+            ({k: np.vstack([d["obs"][k], d["next_obs"][k][-1:]]) for k in d["obs"]},
+             d["actions"][()])
+            for d in demos
+        ])
+        for d, segment in zip(demos, run.demos.segments, strict=True):
+            np.testing.assert_array_equal(d["infos/time"], segment.times[1:])
+
+
+def read_lerobot(root):
+    """Checks a LeRobot v2.1 dataset's files against its ``meta/``; returns ``info`` and each
+    episode's columns as arrays."""
+    meta = root / "meta"
+    info = json.loads((meta / "info.json").read_text())
+    episodes = [json.loads(line) for line in (meta / "episodes.jsonl").read_text().splitlines()]
+    stats = [json.loads(line) for line in (meta / "episodes_stats.jsonl").read_text().splitlines()]
+    tasks = [json.loads(line) for line in (meta / "tasks.jsonl").read_text().splitlines()]
+    assert info["codebase_version"] == "v2.1" and info["total_tasks"] == len(tasks) == 1
+    assert info["total_episodes"] == len(episodes) == len(stats)
+    assert info["total_frames"] == sum(e["length"] for e in episodes)
+    features = info["features"]
+    columns = {k for k, f in features.items() if f["dtype"] != "video"}
+    tables, index = [], 0
+    for i, episode in enumerate(episodes):
+        assert episode["episode_index"] == stats[i]["episode_index"] == i
+        assert set(stats[i]["stats"]) == set(features)
+        assert episode["tasks"] == [tasks[0]["task"]]
+        table = pq.read_table(root / info["data_path"].format(episode_chunk=0, episode_index=i))
+        assert set(table.column_names) == columns and table.num_rows == episode["length"]
+        arrays = {}
+        for key in columns:  # a (1,) feature is a column of values, a (k,) one of k-lists
+            column, shape = table[key].combine_chunks(), features[key]["shape"]
+            value_type = pa.from_numpy_dtype(np.dtype(features[key]["dtype"]))
+            if shape == [1]:
+                assert column.type == value_type, key
+                arrays[key] = column.to_numpy(zero_copy_only=False)
+            else:
+                assert column.type == pa.list_(value_type, shape[0]), key
+                arrays[key] = column.flatten().to_numpy().reshape(-1, shape[0])
+        n = episode["length"]
+        np.testing.assert_array_equal(arrays["frame_index"], np.arange(n))
+        np.testing.assert_array_equal(arrays["index"], index + np.arange(n))
+        np.testing.assert_array_equal(arrays["episode_index"], i)
+        np.testing.assert_allclose(np.diff(arrays["timestamp"]), 1 / info["fps"], atol=1e-4)
+        for key, feature in features.items():
+            if feature["dtype"] == "video":
+                path = root / info["video_path"].format(
+                    episode_chunk=0, video_key=key, episode_index=i
+                )
+                assert iio.imread(path).shape == (n, *feature["shape"])
+        tables.append(arrays)
+        index += n
+    return info, tables
+
+
+def test_lerobot(run, tmp_path):
+    out = export(run.path, "lerobot", tmp_path / "lerobot")
+    info, (robot,) = read_lerobot(out / "robot")
+    assert info["fps"] == 50 and info["video_path"] is None
+    assert info["features"]["action"]["names"] == list(humanoid.JOINTS)
+    check_robot(
+        run, robot["action"].astype(float), robot["next.reward"].astype(float),
+        run.replay.pour_fraction, robot["next.success"][-1], 1 / info["fps"], atol=1e-6,
+    )
+    assert robot["next.done"][-1] and not robot["next.done"][:-1].any()
+    info, teacher = read_lerobot(out / "teacher")
+    assert info["fps"] == run.config.fps
+    segments = run.demos.segments
+    assert [len(t["action"]) for t in teacher] == [len(d.times) - 1 for d in segments]
+
+
+def fast_renderer(model, height, width, shadows=True):
+    """``make_renderer`` without shadows and reflections: they cost ``PouringEnv`` ~0.1 s a frame
+    on a CPU, whatever the image size."""
+    renderer = make_renderer(model, height, width, shadows=False)
+    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+    return renderer
+
+
+def test_images_in_every_format(quick_run, tmp_path, monkeypatch):
+    """Both head cameras, at 64x48, rendered fast."""
+    monkeypatch.setattr(pouring, "make_renderer", fast_renderer)
+    run_dir = tmp_path / "run"
+    shutil.copytree(quick_run, run_dir, ignore=shutil.ignore_patterns("*.mp4", "figures"))
+    config = json.loads((run_dir / "config.json").read_text())
+    (run_dir / "config.json").write_text(json.dumps({**config, "width": 64, "height": 48}))
+    run = load_run(run_dir)
+    robot = robot_episode(run, images=True)
+    teacher = list(teacher_episodes(run, images=True))
+    eyes = ("left_eye", "right_eye")
+    for episode in (robot, *teacher):
+        for eye in eyes:
+            images = episode.observations[eye]
+            assert images.shape == (len(episode) + 1, 48, 64, 3) and images.dtype == np.uint8
+            assert images.std() > 5.0  # a scene, not a blank
+    for name, module in (("minari", to_minari), ("hdf5", to_hdf5), ("lerobot", to_lerobot)):
+        (tmp_path / name).mkdir()
+        module.write(tmp_path / name, robot, teacher)
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
+    for dataset_id, episodes in ((to_minari.ROBOT_ID, [robot]), (to_minari.TEACHER_ID, teacher)):
+        for read, episode in zip(minari.load_dataset(dataset_id), episodes, strict=True):
+            assert {eye: read.observations[eye].shape for eye in eyes} == {
+                eye: episode.observations[eye].shape for eye in eyes
+            }
+    with h5py.File(tmp_path / "hdf5" / "robot.hdf5", "r") as f:
+        stored = f["data/demo_0/obs/left_eye"][()]
+    np.testing.assert_array_equal(stored, robot.observations["left_eye"][:-1])
+    for name in ("robot", "teacher"):
+        info, _ = read_lerobot(tmp_path / "lerobot" / name)
+        assert info["total_videos"] == 2 * info["total_episodes"]
+
+
+def test_errors(run, tmp_path, monkeypatch):
+    with pytest.raises(imitate.ImitateError, match=r"format 'csv' unknown; accepted"):
+        export(run.path, "csv")
+    (tmp_path / "taken").mkdir()
+    with pytest.raises(imitate.ImitateError, match="taken exists"):
+        export(run.path, "hdf5", tmp_path / "taken")
+    taken = ["export", str(run.path), "--format", "hdf5", "--out", str(tmp_path / "taken")]
+    assert main(taken) == 1
+    find_spec = importlib.util.find_spec
+
+    def without_minari(name, *args):
+        return None if name == "minari" else find_spec(name, *args)
+
+    monkeypatch.setattr(importlib.util, "find_spec", without_minari)
+    with pytest.raises(imitate.ImitateError, match=r"needs minari: pip install 'imitate\[export"):
+        export(run.path, "minari", tmp_path / "new")
+    assert not (tmp_path / "new").exists()
+
+
+def test_cli_export_and_nothing_half_written(run, tmp_path):
+    out = tmp_path / "cli"
+    assert main(["export", str(run.path), "--format", "hdf5", "--out", str(out)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["robot.hdf5", "teacher.hdf5"]
+    assert [p.name for p in tmp_path.iterdir()] == ["cli"]  # no temporary left
