@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from imitate.cli import main
 from imitate.dtw import align
 from imitate.learning import time_stacked
 from imitate.synthetic import pouring_demos
@@ -16,3 +17,10 @@ def demo_data() -> np.ndarray:
     sd = pouring_demos()
     return time_stacked(list(align(sd.demos).aligned), sd.rate)
 
+
+@pytest.fixture(scope="session")
+def quick_run(tmp_path_factory):
+    """A finished ``imitate run --quick`` directory; tests copy it before changing it."""
+    run_dir = tmp_path_factory.mktemp("quick")
+    assert main(["run", "--quick", "--out", str(run_dir)]) == 0
+    return run_dir

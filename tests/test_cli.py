@@ -21,13 +21,6 @@ FIGURES = (
 )
 
 
-@pytest.fixture(scope="module")
-def quick_run(tmp_path_factory):
-    run_dir = tmp_path_factory.mktemp("quick")
-    assert main(["run", "--quick", "--out", str(run_dir)]) == 0
-    return run_dir
-
-
 def report_of(run_dir):
     return json.loads((run_dir / "report.json").read_text())
 
