@@ -1,8 +1,10 @@
-"""The run's video: the teacher demonstrating, then the robot pouring, from the overview camera.
+"""The run's video and snapshots: the teacher demonstrating, then the robot pouring.
 
 Frames are rendered from kinematic states only (no physics here): the teacher's scripted object
 poses (:mod:`imitate.envs.teacher_motion`) and the states a replay recorded
-(:class:`StateRecorder`). Shadows are off by default: on a CPU (Mesa) they are costly.
+(:class:`StateRecorder`). The teacher is seen from above the robot's left shoulder, with the
+robot's own eye view inset; the robot from the teacher's side, where the stream of liquid shows.
+Shadows are off by default: on a CPU (Mesa) they are costly.
 """
 
 from __future__ import annotations
@@ -17,13 +19,21 @@ import numpy as np
 
 from imitate.artifacts import write_atomic
 from imitate.envs import teacher_motion
-from imitate.envs.assembly import SceneConfig, build_model
+from imitate.envs.assembly import SceneConfig, build_model, clearance_geoms
+from imitate.envs.collision import CollisionPairs, signed_distances
 from imitate.envs.observation import ObservationConfig, watching_scene
 from imitate.envs.pouring import PouringEnv
 from imitate.envs.rendering import make_renderer
+from imitate.models import humanoid, objects
 from imitate.models import scene as scene_names
 
-CLOSE_UP_LOOKAT = (0.25, 0.0, 0.9)  # between the robot's hands at the start [m]
+# What people see of the liquid; only the copy of the model that draws it is changed, so the
+# physics (particle radius objects.PARTICLE_RADIUS, masses, contacts) stays as it is.
+PARTICLE_DRAWN_RADIUS = 0.008  # [m]
+GLASS_DRAWN_ALPHA = 0.3  # the glass is translucent, so the liquid in it shows
+MARK_RGB = (255, 230, 0)  # tracked objects in the robot's eye view
+CAPTION_BOX_RGB = (24, 24, 28)
+FONT = cv2.FONT_HERSHEY_SIMPLEX
 
 
 class StateRecorder:
@@ -51,19 +61,68 @@ class StateRecorder:
 
 
 def teacher_frames(
-    motion: teacher_motion.TeacherMotion, times: np.ndarray, width: int, height: int
+    motion: teacher_motion.TeacherMotion,
+    times: np.ndarray,
+    width: int,
+    height: int,
+    marks: np.ndarray | None = None,
+    projection: np.ndarray | None = None,
+    image_size: tuple[int, int] | None = None,
 ) -> Iterator[np.ndarray]:
-    """The teacher's session at ``times`` [s], robot watching: ``(height, width, 3) uint8``."""
+    """The teacher's session at ``times`` [s] over the robot's shoulder, and the robot's left-eye
+    view inset in the top-right corner: ``(height, width, 3) uint8``.
+
+    Args:
+        marks: ``(len(times), k, 2, 3)`` world points [m]: ``k`` segments (the tracked objects'
+            axes) drawn on the eye view; NaN ones are skipped.
+        projection: ``(3, 4)`` the left eye's projection matrix for images of ``image_size``
+            ``(width, height)`` [px], which the marks are projected with.
+    """
     model, data = watching_scene(ObservationConfig())
+    inset_size = (2 * (width // 6), 2 * (height // 6))
     renderer = make_renderer(model, height, width, shadows=False)
+    model.vis.quality.offsamples = 0  # the eye renders as the robot saw (fast_render), 2x faster
+    eye = make_renderer(model, inset_size[1], inset_size[0], shadows=False)
     try:
-        for t in times:
+        for i, t in enumerate(times):
             poses = motion.poses(np.array([t]))
             teacher_motion.show(model, data, {obj: (p[0], q[0]) for obj, (p, q) in poses.items()})
-            renderer.update_scene(data, scene_names.OVERVIEW)
-            yield renderer.render()
+            renderer.update_scene(data, scene_names.TEACHER_VIEW)
+            frame = renderer.render().copy()
+            eye.update_scene(data, humanoid.LEFT_EYE)
+            view = eye.render().copy()
+            if marks is not None:
+                _draw_marks(view, marks[i], projection, image_size)
+            yield _inset(frame, view)
     finally:
         renderer.close()
+        eye.close()
+
+
+def _draw_marks(view: np.ndarray, segments: np.ndarray, projection, image_size) -> None:
+    """Draw ``segments`` ``(k, 2, 3)`` [m] projected by ``projection`` (for ``image_size``) on
+    ``view``, rescaled to its size."""
+    (w, h), (vw, vh) = image_size, (view.shape[1], view.shape[0])
+    scale = vh / h  # MuJoCo's field of view is vertical; the optical axis is the centre
+    radius, thickness = max(2, vh // 32), max(1, vh // 80)
+    for segment in segments:
+        if not np.isfinite(segment).all():
+            continue
+        pix = np.c_[segment, np.ones(2)] @ np.asarray(projection).T
+        pix = (pix[:, :2] / pix[:, 2:] - ((w - 1) / 2, (h - 1) / 2)) * scale
+        a, b = np.round(pix + ((vw - 1) / 2, (vh - 1) / 2)).astype(int)
+        cv2.line(view, tuple(a), tuple(b), MARK_RGB, thickness, cv2.LINE_AA)
+        cv2.circle(view, tuple((a + b) // 2), radius, MARK_RGB, thickness, cv2.LINE_AA)
+
+
+def _inset(frame: np.ndarray, view: np.ndarray) -> np.ndarray:
+    """``view`` pasted into the top-right corner of ``frame``, framed in white."""
+    margin = max(2, frame.shape[0] // 60)
+    h, w = view.shape[:2]
+    x0, y0 = frame.shape[1] - margin - w, margin
+    cv2.rectangle(frame, (x0 - 2, y0 - 2), (x0 + w + 1, y0 + h + 1), (255, 255, 255), -1)
+    frame[y0 : y0 + h, x0 : x0 + w] = view
+    return frame
 
 
 def replay_frames(
@@ -71,20 +130,18 @@ def replay_frames(
     states: dict[str, np.ndarray],
     width: int,
     height: int,
-    camera: str | mujoco.MjvCamera = scene_names.OVERVIEW,
+    camera: str = scene_names.POUR_VIEW,
     shadows: bool = False,
 ) -> Iterator[np.ndarray]:
     """Recorded replay ``states`` (:meth:`StateRecorder.arrays`) of the scene ``config``, seen
-    from ``camera`` (a named camera or a free one, see :func:`close_up`)."""
+    from ``camera``, the liquid drawn so that it shows."""
     model = build_model(config)
+    _show_liquid(model)
     data = mujoco.MjData(model)
     renderer = make_renderer(model, height, width, shadows=shadows)
     try:
-        for qpos, mocap_pos, mocap_quat in zip(
-            states["qpos"], states["mocap_pos"], states["mocap_quat"], strict=True
-        ):
-            data.qpos[:], data.mocap_pos[:], data.mocap_quat[:] = qpos, mocap_pos, mocap_quat
-            mujoco.mj_kinematics(model, data)
+        for state in _states(states):
+            _pose(model, data, *state)
             mujoco.mj_camlight(model, data)
             renderer.update_scene(data, camera)
             yield renderer.render()
@@ -92,25 +149,86 @@ def replay_frames(
         renderer.close()
 
 
-def close_up() -> mujoco.MjvCamera:
-    """A free camera on the robot's hands, from its front left (paper Fig. 8's view)."""
-    camera = mujoco.MjvCamera()
-    camera.type = mujoco.mjtCamera.mjCAMERA_FREE
-    camera.lookat[:] = CLOSE_UP_LOOKAT
-    camera.distance, camera.azimuth, camera.elevation = 1.1, 215.0, -18.0
-    return camera
+def penetrations(
+    config: SceneConfig, states: dict[str, np.ndarray]
+) -> list[tuple[float, tuple[str, str]]]:
+    """Per recorded state, the smallest signed distance [m] between geoms that must not touch
+    (as ``PouringEnv`` measures it) and the names of that pair."""
+    model = build_model(config)
+    data = mujoco.MjData(model)
+    pairs = CollisionPairs.between(model, clearance_geoms(model))
+    found = []
+    for state in _states(states):
+        _pose(model, data, *state)
+        dist, _ = signed_distances(model, data, pairs)
+        k = int(np.argmin(dist))
+        found.append((float(dist[k]), pairs.names(model, k)))
+    return found
+
+
+def _states(states: dict[str, np.ndarray]):
+    return zip(states["qpos"], states["mocap_pos"], states["mocap_quat"], strict=True)
+
+
+def _pose(model, data, qpos, mocap_pos, mocap_quat) -> None:
+    data.qpos[:], data.mocap_pos[:], data.mocap_quat[:] = qpos, mocap_pos, mocap_quat
+    mujoco.mj_kinematics(model, data)
+
+
+def _show_liquid(model: mujoco.MjModel) -> None:
+    """Draw the particles larger and the glass translucent in ``model`` (for drawing only)."""
+    for g in range(model.ngeom):
+        name = model.geom(g).name
+        if name.startswith(objects.PARTICLE_PREFIX):
+            model.geom_size[g, 0] = PARTICLE_DRAWN_RADIUS
+            model.geom_rbound[g] = PARTICLE_DRAWN_RADIUS
+        elif name == f"{objects.GLASS}_visual":
+            model.geom_rgba[g, 3] = GLASS_DRAWN_ALPHA
+
+
+def caption_layout(width: int, height: int, text: str):
+    """Where :func:`caption` writes ``text`` on a ``width x height`` frame.
+
+    Returns:
+        ``(box, org, scale, thickness)``: the caption box ``(x0, y0, x1, y1)`` [px, inclusive],
+        the text's origin (bottom left) and OpenCV's font scale and line thickness; the text
+        shrinks to fit the width (illegible below 0.35, about 8 px high).
+    """
+    unit = height / 480
+    margin, pad = max(1, round(8 * unit)), max(2, round(6 * unit))
+    scale, thickness = max(0.62 * unit, 0.4), max(1, round(1.5 * unit))
+    text_width = cv2.getTextSize(text, FONT, scale, thickness)[0][0]
+    scale *= min(1.0, (width - 2 * margin - 2 * pad) / text_width)
+    (text_width, text_height), baseline = cv2.getTextSize(text, FONT, scale, thickness)
+    x0, y0 = margin, margin
+    box = (x0, y0, x0 + text_width + 2 * pad, y0 + text_height + baseline + 2 * pad)
+    return box, (x0 + pad, y0 + pad + text_height), scale, thickness
+
+
+def caption(frame: np.ndarray, text: str) -> np.ndarray:
+    """``frame`` with ``text`` in white on a dark box in its top-left corner (written once, so
+    it reads the same with any OpenCV version)."""
+    frame = np.array(frame)  # a copy: OpenCV draws in place
+    box, org, scale, thickness = caption_layout(frame.shape[1], frame.shape[0], text)
+    cv2.rectangle(frame, box[:2], box[2:], CAPTION_BOX_RGB, -1)
+    cv2.putText(frame, text, org, FONT, scale, (255, 255, 255), thickness, cv2.LINE_AA)
+    return frame
+
+
+def caption_error(frame: np.ndarray, text: str) -> float:
+    """Mean absolute difference (0..255) between the caption box of ``frame`` (a decoded video
+    frame, say) and the box :func:`caption` draws for ``text``: small when the caption reads as
+    written, large when it is missing, garbled or elsewhere."""
+    x0, y0, x1, y1 = caption_layout(frame.shape[1], frame.shape[0], text)[0]
+    inside = (slice(y0, y1 + 1), slice(x0, x1 + 1))
+    reference = caption(np.zeros_like(frame), text)
+    return float(np.abs(frame[inside].astype(int) - reference[inside].astype(int)).mean())
 
 
 def captioned(frames: Iterable[np.ndarray], text: str) -> Iterator[np.ndarray]:
-    """``frames`` with ``text`` written in their top-left corner."""
-    for rendered in frames:
-        frame = np.ascontiguousarray(rendered)
-        scale = frame.shape[0] / 480
-        org = (int(12 * scale) + 1, int(30 * scale) + 8)
-        for colour, thickness in (((0, 0, 0), 4), ((255, 255, 255), 1)):
-            cv2.putText(frame, text, org, cv2.FONT_HERSHEY_SIMPLEX, 0.7 * scale, colour,
-                        max(1, int(thickness * scale)), cv2.LINE_AA)
-        yield frame
+    """``frames`` with ``text`` in their top-left corner (:func:`caption`)."""
+    for frame in frames:
+        yield caption(frame, text)
 
 
 def write_video(path: Path, frames: Iterable[np.ndarray], fps: float) -> int:

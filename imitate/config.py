@@ -193,7 +193,7 @@ class RunConfig:
         flag="--collision-weight", low=0, high=MAX_WEIGHT,
     )
     sweep: tuple[float, ...] = _setting(
-        (0.0, 0.1, 1.0), "collision weights of the Fig. 9 sweep, as fractions of "
+        (0.0, 0.03, 0.1, 0.3, 1.0), "collision weights of the Fig. 9 sweep, as fractions of "
         "collision_weight", stage="optimize", low=0, high=1,
     )
     max_iter: int = _setting(

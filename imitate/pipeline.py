@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import re
 import sys
 import time
 from pathlib import Path
@@ -27,7 +28,7 @@ from imitate.envs.teacher_motion import script_demonstrations
 from imitate.envs.video import (
     StateRecorder,
     captioned,
-    close_up,
+    penetrations,
     replay_frames,
     teacher_frames,
     write_video,
@@ -36,17 +37,24 @@ from imitate.errors import ImitateError
 from imitate.learning import LearnedModel, LearningConfig
 from imitate.learning import learn as learn_model
 from imitate.metrics import demo_counts, tracking_errors
-from imitate.models import humanoid
+from imitate.models import humanoid, objects
 from imitate.motion import Plan, PlanConfig, plan_from_model
 from imitate.motion.metrics import deviation, pour_phase_error
 from imitate.observe import observe as watch
 from imitate.oracle import true_demos
-from imitate.perception import load_observations, save_observations
+from imitate.perception import Observations, Tracks, load_observations, save_observations
 from imitate.replay import planning_task
 from imitate.replay import replay as replay_plan
 from imitate.segment import StillnessConfig, load_demos, save_demos, segment, task_demo
 
 __all__ = ["figures", "learn", "observe", "optimize", "replay", "run_stage"]
+
+APPROACH_S = 1.0  # [s] from the reset pose to the plan's start in the replay
+STATE_NAMES = ("qpos", "mocap_pos", "mocap_quat")  # a recorded replay state (StateRecorder)
+SNAPSHOT_SIZE = (480, 360)  # Fig. 8's panels [px]
+TOUCHING_M = 1e-3  # closer than this, parts touch in physics (whose contacts keep them apart)
+TEACHER_CAPTION = "teacher demonstrates ({speedup:g}x); inset: robot's eye, tracking"
+ROBOT_CAPTION = "robot reproduces (collision weight {weight:g})"
 
 
 # --- Stages ------------------------------------------------------------------------------------
@@ -138,6 +146,8 @@ def optimize(run_dir: Path, config: RunConfig) -> dict:
         **main.to_arrays(),
         "sweep_weights": np.array(weights),
         "sweep_x": np.array([plans[w].x for w in weights]),
+        "sweep_q": np.array([plans[w].q for w in weights]),
+        "sweep_clearance": np.array([_clearance(task, plans[w].q) for w in weights]),
         **{f"sweep{i}_cost_total": plans[w].costs["total"] for i, w in enumerate(weights)},
     })
     error_m, error_deg = pour_phase_error(main)
@@ -163,21 +173,20 @@ def optimize(run_dir: Path, config: RunConfig) -> dict:
 
 
 def replay(run_dir: Path, config: RunConfig) -> dict:
-    """The plan drives the robot's actuators in full physics, liquid and all."""
-    plan = Plan.from_arrays(load_npz(run_dir / "plan.npz", required=Plan.array_names()))
-    env = PouringEnv(particles=config.particles, obstacles=config.scene().obstacles)
-    recorder = StateRecorder(every=max(1, round(1.0 / (config.video_fps * env.dt))))
-    options = {"bottle_grasp": config.bottle_grasp, "glass_grasp": config.glass_grasp}
+    """The plan drives the robot's actuators in full physics, liquid and all; so does the plan of
+    the sweep's smallest collision weight (Fig. 8's top row), recorded under ``sweep0_``."""
+    arrays = load_npz(run_dir / "plan.npz", required=(*Plan.array_names(), "sweep_q", "sweep_x"))
+    plan = Plan.from_arrays(arrays)
     gaze = load_npz(run_dir / "model.npz", required=("gaze",))["gaze"]
-    result = replay_plan(
-        plan, env, seed=config.seed, options=options, on_step=recorder, gaze=gaze
-    )
-    env.close()
-    states = recorder.arrays()
+    result, states, state_dt = _physics(plan, config, gaze)
+    q_free = arrays["sweep_q"][0]
+    free = dataclasses.replace(plan, q=q_free, q_start=q_free[0], x=arrays["sweep_x"][0])
+    _, free_states, _ = _physics(free, config, gaze)
     save_npz(run_dir / "replay.npz", {
-        **states, "task_error": result.task_error, "state_dt": recorder.every * env.dt,
+        **states, "task_error": result.task_error, "state_dt": state_dt,
         "pour_fraction": result.pour_fraction, "spilled": result.spilled,
-        "min_distance": result.min_distance,
+        "min_distance": result.min_distance, "plan_start": APPROACH_S,
+        **{f"sweep0_{name}": value for name, value in free_states.items()},
     })
     return {
         "replay": {
@@ -198,14 +207,15 @@ def figures(run_dir: Path, config: RunConfig) -> dict:
         *LearnedModel.array_names(), *LearnedModel.array_names("raw_"), "bic_fast", "bic_full",
     ))
     model, raw = LearnedModel.from_arrays(arrays), LearnedModel.from_arrays(arrays, "raw_")
-    plan = load_npz(
-        run_dir / "plan.npz", required=("times", "mean", "variance", "sweep_weights", "sweep_x")
-    )
-    states = load_npz(
-        run_dir / "replay.npz", required=("qpos", "mocap_pos", "mocap_quat", "state_dt")
-    )
+    plan = load_npz(run_dir / "plan.npz", required=(
+        "times", "mean", "variance", "sweep_weights", "sweep_x", "sweep_clearance",
+    ))
+    states = load_npz(run_dir / "replay.npz", required=(
+        *STATE_NAMES, *(f"sweep0_{name}" for name in STATE_NAMES), "state_dt", "plan_start",
+    ))
     weights = plan["sweep_weights"]
     sweep = dict(zip(weights, plan["sweep_x"], strict=True))
+    clearance = dict(zip(weights, plan["sweep_clearance"], strict=True))
     drawings = {
         "observation": lambda: plots.plot_observation(observations, boundaries),
         "fig4_gmm_dtw": lambda: plots.plot_gmm_with_and_without_dtw(raw, model),
@@ -213,9 +223,9 @@ def figures(run_dir: Path, config: RunConfig) -> dict:
             {"fast (K-means only)": arrays["bic_fast"], "full (EM)": arrays["bic_full"]}
         ),
         "gmr": lambda: plots.plot_gmr(model, list(arrays["aligned"])),
-        "fig8_snapshots": lambda: plots.plot_snapshots(*_snapshots(config, states)),
+        "fig8_snapshots": lambda: plots.plot_snapshots(*_snapshots(config, states, plan)),
         "fig9_collision_sweep": lambda: plots.plot_collision_sweep(
-            plan["times"], plan["mean"], plan["variance"], sweep
+            plan["times"], plan["mean"], plan["variance"], sweep, clearance
         ),
         "costs": lambda: plots.plot_costs(
             {w: plan[f"sweep{i}_cost_total"] for i, w in enumerate(weights)}
@@ -223,7 +233,9 @@ def figures(run_dir: Path, config: RunConfig) -> dict:
     }
     for name in tqdm(stages.FIGURES, desc="figures", unit="figure", disable=None):
         plots.save(drawings[name](), run_dir / "figures" / f"{name}.png")
-    n_frames = write_video(run_dir / "video.mp4", _video_frames(config, states), config.video_fps)
+    n_frames = write_video(
+        run_dir / "video.mp4", _video_frames(config, states, observations), config.video_fps
+    )
     return {"video": {"frames": n_frames, "seconds": n_frames / config.video_fps}}
 
 
@@ -268,24 +280,78 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
 # --- Helpers -----------------------------------------------------------------------------------
 
 
-def _snapshots(config: RunConfig, states: dict[str, np.ndarray], n: int = 6):
-    """``n`` close-up images over the replay and their times [s]."""
-    index = np.linspace(0, len(states["qpos"]) - 1, n + 2).round().astype(int)[1:-1]
-    chosen = {name: states[name][index] for name in ("qpos", "mocap_pos", "mocap_quat")}
-    images = list(replay_frames(config.scene(), chosen, 400, 300, close_up(), shadows=True))
-    return images, index * float(states["state_dt"])
+def _physics(plan: Plan, config: RunConfig, gaze: np.ndarray):
+    """``plan`` replayed in a fresh ``PouringEnv``: the result, the recorded states
+    (:meth:`StateRecorder.arrays`) and their spacing [s]."""
+    env = PouringEnv(particles=config.particles, obstacles=config.scene().obstacles)
+    recorder = StateRecorder(every=max(1, round(1.0 / (config.video_fps * env.dt))))
+    options = {"bottle_grasp": config.bottle_grasp, "glass_grasp": config.glass_grasp}
+    result = replay_plan(
+        plan, env, seed=config.seed, approach=APPROACH_S, options=options, on_step=recorder,
+        gaze=gaze,
+    )
+    env.close()
+    return result, recorder.arrays(), recorder.every * env.dt
 
 
-def _video_frames(config: RunConfig, states: dict[str, np.ndarray]):
+def _clearance(task, q: np.ndarray) -> np.ndarray:
+    """Smallest signed distance [m] between the robot, the objects and the scene at each step of
+    the joint trajectory ``q`` ``(T + 1, n)``; ``(T + 1,)``, negative when penetrating."""
+    distances = []
+    for q_t in q:
+        task.kin.update(q_t)
+        distances.append(task.kin.min_distance()[0])
+    return np.array(distances)
+
+
+def _snapshots(config: RunConfig, states: dict[str, np.ndarray], plan: dict, n: int = 5):
+    """Fig. 8's rows from the physics replays, the sweep's smallest collision weight's and the
+    chosen one's: ``n`` snapshots each at the same plan times [s], one of them where the smallest
+    weight's plan comes closest (collides); parts touching or penetrating are marked."""
+    times = plan["times"] - plan["times"][0]
+    closest = times[np.argmin(plan["sweep_clearance"][0])]
+    at = np.sort(np.r_[np.linspace(0.1, 0.9, n - 1) * times[-1], closest])
+    index = np.round((at + float(states["plan_start"])) / float(states["state_dt"])).astype(int)
+    index = np.minimum(index, len(states["qpos"]) - 1)
+    lowest = float(plan["sweep_weights"][0])
+    rows = []
+    for prefix, weight in (("sweep0_", lowest), ("", config.collision_weight)):
+        shown = {name: states[prefix + name][index] for name in STATE_NAMES}
+        images = list(replay_frames(config.scene(), shown, *SNAPSHOT_SIZE, shadows=True))
+        marks = [_collision(d, pair) for d, pair in penetrations(config.scene(), shown)]
+        cost = "without collision cost" if weight == 0 else "with collision cost"
+        rows.append((f"{cost} (collision weight {weight:g})", images, marks))
+    return rows, at
+
+
+def _collision(distance: float, pair: tuple[str, str]) -> str | None:
+    """What Fig. 8 writes on a snapshot whose closest pair is ``distance`` [m] apart, if they
+    touch: ``"collision: torso_chest / bottle, 2.1 mm deep"``."""
+    if distance >= TOUCHING_M:
+        return None
+    # A geom's name as a reader knows the part: bottle_hull_0 is the bottle.
+    a, b = (re.sub(r"_(hull|wall)_\d+$", "", geom) for geom in pair)
+    return f"collision: {a} / {b}, " + (
+        f"{-1e3 * distance:.1f} mm deep" if distance < 0 else "touching"
+    )
+
+
+def _video_frames(config: RunConfig, states: dict[str, np.ndarray], observations: Observations):
+    """The teacher (the robot's eye view and its tracked objects inset), then the robot."""
     size = (config.video_width, config.video_height)
     motion = script_demonstrations(config.teacher())
     times = np.arange(0.0, motion.duration, config.teacher_speedup / config.video_fps)
+    tracks = observations.tracks
     teacher = captioned(
-        teacher_frames(motion, times, *size), f"teacher demonstrates ({config.teacher_speedup:g}x)"
+        teacher_frames(
+            motion, times, *size, marks=_tracked_axes(tracks, times),
+            projection=observations.projections[0], image_size=observations.image_size,
+        ),
+        TEACHER_CAPTION.format(speedup=config.teacher_speedup),
     )
     robot = captioned(
-        replay_frames(config.scene(), states, *size),
-        f"robot reproduces (collision weight {config.collision_weight:g})",
+        replay_frames(config.scene(), {name: states[name] for name in STATE_NAMES}, *size),
+        ROBOT_CAPTION.format(weight=config.collision_weight),
     )
     total = len(times) + len(states["qpos"])
     return tqdm(
@@ -310,6 +376,16 @@ def _report(
     timings = {s: t for s, t in previous.get("timings", {}).items() if s in done}
     report["timings"] = {**timings, current.name: seconds}
     return report
+
+
+def _tracked_axes(tracks: Tracks, times: np.ndarray) -> np.ndarray:
+    """The tracked objects' axes at ``times`` (the last frame at or before each), as segments
+    ``(len(times), n_objects, 2, 3)`` [m] from bottom to top; NaN where not tracked."""
+    k = np.clip(np.searchsorted(tracks.times, times, side="right") - 1, 0, len(tracks.times) - 1)
+    half = np.array([objects.SHAPES[name].height / 2 for name in tracks.objects])[:, None, None]
+    centre, axis = tracks.position[:, k], tracks.axis[:, k]  # (n_objects, len(times), 3)
+    ends = np.stack([centre - half * axis, centre + half * axis], axis=2)
+    return ends.transpose(1, 0, 2, 3)
 
 
 def _previous_report(run_dir: Path) -> dict:

@@ -1,5 +1,6 @@
 """Figures of a run: tracked against true trajectories, Fig. 4 (GMM with and without DTW),
-Fig. 5 (BIC), GMR bands, Fig. 9 (reproductions over a sweep of collision weights), costs.
+Fig. 5 (BIC), GMR bands, Fig. 8 (snapshots without and with the collision cost), Fig. 9
+(reproductions over a sweep of collision weights), costs.
 
 Every ``plot_*`` function draws on a new matplotlib figure (Agg backend, headless) and returns
 it; :func:`save` writes one atomically and frees it.
@@ -23,7 +24,10 @@ from imitate.gmm import GMM  # noqa: E402
 from imitate.learning import LearnedModel  # noqa: E402
 from imitate.taskspace import TASK_DIMS, TASK_UNITS  # noqa: E402
 
+DPI = 110  # dots per inch of the saved figures; Fig. 8 shows its snapshots at their pixel size
+
 __all__ = [
+    "DPI",
     "plot_bic_curves",
     "plot_collision_sweep",
     "plot_costs",
@@ -172,28 +176,68 @@ def plot_collision_sweep(
     mean: np.ndarray,
     variance: np.ndarray,
     reproductions: dict[float, np.ndarray],
-    dim: int = 2,
+    clearance: dict[float, np.ndarray],
+    n_dims: int = 2,
 ) -> Figure:
-    """Fig. 9: one task dimension over time, GMR mean +- sigma and the reproduction for each
-    collision weight.
+    """Fig. 9: the reproductions over a sweep of collision weights.
+
+    Panels: the ``n_dims`` relative-position dimensions in which the reproductions differ most
+    (against the GMR mean +- 2 sigma); each reproduction's distance from the smallest weight's
+    (against the steps of high GMR variance); each one's clearance. Steps in collision
+    (clearance < 0) are marked on every curve.
 
     Args:
         times: ``(T,)`` [s].
         mean, variance: GMR mean and variance at ``times``, ``(T, 7)``.
         reproductions: ``{collision weight: task states (T, 7)}``.
-        dim: Task dimension (default ``dz``, the paper's).
+        clearance: ``{collision weight: smallest signed distance (T,) [m]}``.
+        n_dims: How many of ``dx, dy, dz`` to show.
     """
-    fig, ax = plt.subplots(figsize=(7, 4), layout="constrained")
-    sd = np.sqrt(variance[:, dim])
-    ax.fill_between(times, mean[:, dim] - sd, mean[:, dim] + sd, color="0.85",
-                    label="GMR mean +- sigma")
-    ax.plot(times, mean[:, dim], "k--", lw=1)
-    for weight, x in reproductions.items():
-        ax.plot(times, x[:, dim], label=f"collision weight {weight:g}")
+    weights = sorted(reproductions)
+    first = reproductions[weights[0]][:, :3]
+    change = {w: 1e3 * np.linalg.norm(reproductions[w][:, :3] - first, axis=1) for w in weights}
+    spread = np.max([np.abs(x[:, :3] - first).max(axis=0) for x in reproductions.values()], axis=0)
+    dims = np.sort(np.argsort(spread)[::-1][:n_dims])
+    colours = dict(zip(weights, plt.cm.viridis(np.linspace(0.0, 0.85, len(weights))), strict=True))
+    fig, axes = plt.subplots(
+        n_dims + 2, 1, figsize=(9, 2.4 * (n_dims + 2)), sharex=True, layout="constrained"
+    )
+    for ax, d in zip(axes, dims, strict=False):
+        sd = np.sqrt(variance[:, d])
+        ax.fill_between(times, mean[:, d] - 2 * sd, mean[:, d] + 2 * sd, color="0.86",
+                        label="GMR mean ± 2σ")
+        ax.plot(times, mean[:, d], "k--", lw=1.2, label="GMR mean")
+        _sweep_curves(ax, times, {w: reproductions[w][:, d] for w in weights}, clearance, colours)
+        ax.set_ylabel(f"{TASK_DIMS[d]} [{TASK_UNITS[d]}]")
+    ax = axes[-2]
+    position_variance = variance[:, :3].sum(axis=1)
+    ax.fill_between(times, 0.0, 1.0, where=position_variance > np.median(position_variance),
+                    color="#d5e5f5", lw=0, transform=ax.get_xaxis_transform(),
+                    label="GMR position variance above its median")
+    _sweep_curves(ax, times, change, clearance, colours)
+    ax.set_ylim(0.0, 1.3 * max(*(c.max() for c in change.values()), 1e-3))
+    ax.set_ylabel(f"distance from\nweight {weights[0]:g} [mm]")
+    ax = axes[-1]
+    ax.axhspan(1.1e3 * min(0.0, *(c.min() for c in clearance.values())), 0.0,
+               color="tab:red", alpha=0.1, lw=0, label="penetration (clearance < 0)")
+    _sweep_curves(ax, times, {w: 1e3 * clearance[w] for w in weights}, clearance, colours)
+    ax.set_ylabel("planned\nclearance [mm]")
     ax.set_xlabel("t [s]")
-    ax.set_ylabel(f"{TASK_DIMS[dim]} [{TASK_UNITS[dim]}]")
-    ax.legend(fontsize=8)
+    handles = {}
+    for a in axes:
+        handles.update(zip(*a.get_legend_handles_labels()[::-1], strict=True))
+    order = sorted(handles, key=lambda label: ("collision" in label, "penetration" in label))
+    fig.legend([handles[k] for k in order], order, loc="outside right center", fontsize=8)
     return fig
+
+
+def _sweep_curves(ax, times, curves: dict, clearance: dict, colours: dict) -> None:
+    """One line per collision weight, its steps in collision marked with red dots."""
+    for weight, y in curves.items():
+        ax.plot(times, y, color=colours[weight], lw=1.6, label=f"collision weight {weight:g}")
+        hit = clearance[weight] < 0.0
+        ax.plot(times[hit], y[hit], "o", color="tab:red", ms=3.5, mec="none",
+                label="in collision (clearance < 0)")
 
 
 def plot_costs(costs: dict[float, np.ndarray]) -> Figure:
@@ -207,19 +251,42 @@ def plot_costs(costs: dict[float, np.ndarray]) -> Figure:
     return fig
 
 
-def plot_snapshots(images: Sequence[np.ndarray], times: Sequence[float]) -> Figure:
-    """Paper Fig. 8: a row of rendered snapshots ``(h, w, 3) uint8``, titled with their time
-    [s]."""
-    fig, axes = plt.subplots(1, len(images), figsize=(2.6 * len(images), 2.3),
-                             layout="constrained")
-    for ax, image, t in zip(np.atleast_1d(axes), images, times, strict=True):
-        ax.imshow(image)
-        ax.set_title(f"t = {t:.1f} s", fontsize=9)
-        ax.set_axis_off()
+def plot_snapshots(
+    rows: Sequence[tuple[str, Sequence[np.ndarray], Sequence[str | None]]],
+    times: Sequence[float],
+) -> Figure:
+    """Paper Fig. 8: rows of rendered snapshots ``(h, w, 3) uint8`` at the same ``times`` [s],
+    shown at their pixel size.
+
+    Args:
+        rows: ``(title, images, marks)`` per row; a panel whose mark is not ``None`` is framed
+            in red with the mark written under it (a collision, say).
+        times: The snapshots' times, titling the columns.
+    """
+    h, w = rows[0][1][0].shape[:2]
+    fig = plt.figure(figsize=(len(times) * w / DPI, len(rows) * (h + 70) / DPI), dpi=DPI)
+    for subfig, (title, images, marks) in zip(fig.subfigures(len(rows), 1), rows, strict=True):
+        subfig.suptitle(title, fontsize=12, fontweight="bold")
+        axes = subfig.subplots(1, len(images), gridspec_kw={
+            "left": 0.003, "right": 0.997, "bottom": 0.005, "top": 1 - 62 / (h + 70),
+            "wspace": 0.02,
+        })
+        for ax, image, mark, t in zip(np.atleast_1d(axes), images, marks, times, strict=True):
+            ax.imshow(image, interpolation="none")
+            ax.set_title(f"t = {t:.1f} s", fontsize=10)
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if mark is not None:
+                ax.spines[:].set(color="tab:red", linewidth=4)
+                ax.text(0.5, 0.03, mark, transform=ax.transAxes, ha="center", va="bottom",
+                        color="white", fontsize=9, fontweight="bold",
+                        bbox={"facecolor": "tab:red", "edgecolor": "none", "pad": 2})
+            else:
+                ax.spines[:].set_visible(False)
     return fig
 
 
-def save(fig: Figure, path, dpi: int = 110) -> None:
+def save(fig: Figure, path, dpi: int = DPI) -> None:
     """Write ``fig`` as a PNG to ``path`` atomically and close it."""
     write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi))
     plt.close(fig)

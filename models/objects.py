@@ -70,7 +70,9 @@ GLASS_SHAPE = ContainerShape(
 SHAPES = {BOTTLE: BOTTLE_SHAPE, GLASS: GLASS_SHAPE}  # the containers by name
 PARTICLE_RADIUS = 0.005  # [m]
 PARTICLE_DENSITY = 1000.0  # [kg/m^3], water
-PARTICLE_RGBA = (0.95, 0.85, 0.45, 1.0)  # pale juice: unsaturated, away from green and blue
+# Red juice: it stands out on the white robot, the grey floor and the beige table, and its hue
+# is far from the bottle's green and the glass's blue.
+PARTICLE_RGBA = (0.82, 0.06, 0.12, 1.0)
 
 
 def container_mesh(shape: ContainerShape) -> trimesh.Trimesh:

@@ -1,6 +1,7 @@
 """Render a short headless video of the scene: the robot holds bottle and glass, its right wrist
-turns, the teacher stands across the table. With ``--check``, decode the file again and verify
-that the frames show both object colours and change over time (exit status 1 if not).
+turns, the teacher stands across the table; a caption on top. With ``--check``, decode the file
+again and verify that the frames show both object colours, change over time and carry the
+caption as written (exit status 1 if not).
 
     python scripts/render_ci_video.py --out runs/ci/video.mp4 --width 160 --height 120 --check
 """
@@ -18,9 +19,11 @@ from tqdm import tqdm
 
 from imitate.artifacts import write_atomic
 from imitate.envs.pouring import PouringEnv
+from imitate.envs.video import caption, caption_error
 from imitate.models import humanoid, objects
 
 WAVING_JOINTS = {"right_wrist_roll": 0.6, "right_wrist_pitch": 0.5, "right_elbow": 0.25}  # [rad]
+CAPTION = "CI video"
 
 
 def render(out: Path, width: int, height: int, seconds: float, fps: int) -> int:
@@ -39,7 +42,7 @@ def render(out: Path, width: int, height: int, seconds: float, fps: int) -> int:
             action[joint_index[name]] += amplitude * phase
         for _ in range(steps_per_frame):
             env.step(action.astype(np.float32))
-        frames.append(env.render())
+        frames.append(caption(env.render(), CAPTION))
     env.close()
     video = np.stack(frames)
     write_atomic(
@@ -73,6 +76,9 @@ def check(path: Path, expected_frames: int) -> list[str]:
     change = np.abs(frames[0].astype(int) - frames[len(frames) // 2].astype(int)).mean()
     if change < 0.2:
         problems.append(f"frames do not change over time (mean abs difference {change:.3f})")
+    error = max(caption_error(frame, CAPTION) for frame in frames)
+    if error > 20.0:
+        problems.append(f"the caption does not read as written (mean abs difference {error:.1f})")
     return problems
 
 
@@ -95,7 +101,7 @@ def main(argv=None) -> int:
             print(f"check failed: {problem}", file=sys.stderr)
         if problems:
             return 1
-        print("check passed: decodes, shows the bottle and the glass, frames change")
+        print("check passed: decodes, shows the bottle and the glass, frames change, caption reads")
     return 0
 
 

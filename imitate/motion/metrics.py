@@ -34,7 +34,8 @@ def deviation(plan: Plan, first: Plan) -> dict[str, float]:
         ``deviation_m2``: squared deviation of the relative position from the GMR mean, summed
         over the steps [m^2]; ``deviation_high_variance_share``: its share in the steps whose
         GMR position variance is above its median; ``change_from_first_m2`` and
-        ``change_high_variance_share``: the same for the change from ``first``'s positions.
+        ``change_high_variance_share``: the same for the change from ``first``'s positions;
+        ``max_deviation_m``: the largest distance between the two relative positions [m].
     """
     dev = np.sum((plan.x[:, :3] - plan.mean[:, :3]) ** 2, axis=1)
     extra = np.sum((plan.x[:, :3] - first.x[:, :3]) ** 2, axis=1)
@@ -45,4 +46,5 @@ def deviation(plan: Plan, first: Plan) -> dict[str, float]:
         "deviation_high_variance_share": float(dev[high].sum() / max(dev.sum(), 1e-12)),
         "change_from_first_m2": float(extra.sum()),
         "change_high_variance_share": float(extra[high].sum() / max(extra.sum(), 1e-12)),
+        "max_deviation_m": float(np.sqrt(extra.max())),
     }

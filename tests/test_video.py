@@ -1,0 +1,109 @@
+"""What a viewer sees: captions that read with any OpenCV version, and the liquid in the video."""
+
+import cv2
+import imageio.v3 as iio
+import mujoco
+import numpy as np
+import pytest
+
+from imitate.artifacts import load_npz
+from imitate.config import load_config
+from imitate.envs.assembly import build_model
+from imitate.envs.observation import camera_parameters
+from imitate.envs.video import CAPTION_BOX_RGB, FONT, caption, caption_error, caption_layout
+from imitate.models import objects
+from imitate.models import scene as scene_names
+from imitate.pipeline import ROBOT_CAPTION, STATE_NAMES, TEACHER_CAPTION
+
+LONG = "teacher demonstrates (3x); inset: robot's eye, tracking"
+
+
+@pytest.mark.parametrize(
+    ("width", "height", "text"),
+    [(160, 120, "CI video"), (320, 240, LONG), (640, 480, LONG), (1280, 720, LONG)],
+)
+def test_caption_is_white_text_once_on_its_box(width, height, text):
+    frame = np.random.default_rng(0).integers(60, 200, (height, width, 3), dtype=np.uint8)
+    drawn = caption(frame.copy(), text)
+    (x0, y0, x1, y1), org, scale, thickness = caption_layout(width, height, text)
+    changed = np.argwhere((drawn != frame).any(axis=2))
+    assert changed[:, 1].min() >= x0 and changed[:, 1].max() <= x1 <= width - 1
+    assert changed[:, 0].min() >= y0 and changed[:, 0].max() <= y1 <= height - 1
+    box = drawn[y0 : y1 + 1, x0 : x1 + 1].astype(int)
+    white = (box > 200).all(axis=2)
+    dark = (np.abs(box - CAPTION_BOX_RGB) <= 2).all(axis=2)
+    assert 0.03 < white.mean() < 0.5 and dark.mean() > 0.4
+    assert scale >= 0.35  # letters at least 8 px high
+    # Every white pixel lies inside the text's own extent (OpenCV's getTextSize for the same
+    # font, scale and thickness): no shadow or outline drawn at another thickness.
+    (tw, th), baseline = cv2.getTextSize(text, FONT, scale, thickness)
+    rows, cols = np.nonzero(white)
+    assert cols.min() + x0 >= org[0] - 1 and cols.max() + x0 <= org[0] + tw + 1
+    assert rows.min() + y0 >= org[1] - th - 1 and rows.max() + y0 <= org[1] + baseline + 1
+
+
+def test_caption_error_tells_a_legible_caption_from_a_garbled_one():
+    frame = np.full((240, 320, 3), 150, np.uint8)
+    text = LONG
+    assert caption_error(caption(frame, text), text) == 0.0
+    assert caption_error(caption(frame, text.upper()), text) > 25.0
+    assert caption_error(frame, text) > 100.0
+
+
+def test_video_captions_read_after_encoding(quick_run):
+    config = load_config(quick_run)
+    video = iio.imread(quick_run / "video.mp4")
+    n_robot = len(load_npz(quick_run / "replay.npz")["qpos"])
+    teacher = TEACHER_CAPTION.format(speedup=config.teacher_speedup)
+    robot = ROBOT_CAPTION.format(weight=config.collision_weight)
+    assert caption_error(video[0], teacher) < 20.0
+    assert caption_error(video[-n_robot], robot) < 20.0
+
+
+def test_video_shows_liquid_in_the_glass_while_pouring(quick_run):
+    config = load_config(quick_run)
+    video = iio.imread(quick_run / "video.mp4")
+    states = load_npz(quick_run / "replay.npz")
+    robot = video[len(video) - len(states["qpos"]) :]  # the video ends with the replay
+    model = build_model(config.scene())
+    data = mujoco.MjData(model)
+    height, width = robot.shape[1:3]
+    counts = []
+    for frame, *state in zip(robot, *(states[name] for name in STATE_NAMES), strict=True):
+        data.qpos[:], data.mocap_pos[:], data.mocap_quat[:] = state
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_camlight(model, data)
+        if data.body(objects.BOTTLE).xmat[8] > 0.0:  # the bottle's axis points up: not pouring
+            continue
+        counts.append(np.count_nonzero(_liquid(frame) & _glass_region(model, data, width, height)))
+    assert counts, "the replay never tilts the bottle past horizontal"
+    assert max(counts) >= 10, counts
+
+
+def _liquid(frame: np.ndarray) -> np.ndarray:
+    """Pixels ``(h, w) bool`` with the liquid's hue, saturated and not dark."""
+    hsv = cv2.cvtColor(frame, cv2.COLOR_RGB2HSV).astype(int)
+    rgb = np.uint8([[np.array(objects.PARTICLE_RGBA[:3]) * 255]])
+    hue = int(cv2.cvtColor(rgb, cv2.COLOR_RGB2HSV)[0, 0, 0])
+    gap = np.abs(hsv[..., 0] - hue)
+    return (np.minimum(gap, 180 - gap) < 10) & (hsv[..., 1] > 120) & (hsv[..., 2] > 60)
+
+
+def _glass_region(model, data, width: int, height: int) -> np.ndarray:
+    """Pixels ``(h, w) bool`` of the glass and just above its rim, seen from the pour camera."""
+    k, rotation, position = camera_parameters(model, data, scene_names.POUR_VIEW, width, height)
+    glass = data.body(objects.GLASS)
+    shape = objects.GLASS_SHAPE
+    ring = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+    local = [
+        (r * np.cos(a), r * np.sin(a), z)
+        for r, z in ((shape.profile[0][0], 0.0), (shape.profile[-1][0], shape.height + 0.03))
+        for a in ring
+    ]
+    world = glass.xpos + np.array(local) @ glass.xmat.reshape(3, 3).T
+    pix = (world - position) @ rotation.T @ k.T
+    pix = pix[:, :2] / pix[:, 2:]
+    hull = cv2.convexHull(np.round(pix).astype(np.int32))
+    mask = np.zeros((height, width), np.uint8)
+    cv2.fillConvexPoly(mask, hull, 1)
+    return mask.astype(bool)
