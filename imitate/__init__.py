@@ -1,17 +1,16 @@
 """imitate: task-level imitation learning on a simulated humanoid (Muehlig et al., ICRA 2009).
 
 Importing the package registers the Gymnasium environment ``imitate/Pouring-v0``
-(``gym.make("imitate:imitate/Pouring-v0")`` imports it for you) and selects the headless OpenGL
-backend before MuJoCo is first imported.
+(``gym.make("imitate:imitate/Pouring-v0")`` imports it for you) and sets nothing else: no
+environment variable, no matplotlib backend (see :mod:`imitate.envs.rendering`).
 """
 
 import gymnasium as gym
 
-from imitate.envs import rendering  # noqa: F401  (sets MUJOCO_GL before anything imports mujoco)
 from imitate.errors import ImitateError
 
 __all__ = ["ENV_ID", "ImitateError"]
-__version__ = "0.1.0"
+__version__ = "0.1.0"  # the package's version (pyproject.toml reads it)
 
 ENV_ID = "imitate/Pouring-v0"
 

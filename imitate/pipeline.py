@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import logging
 import sys
 import time
 from pathlib import Path
@@ -48,6 +49,8 @@ from imitate.segment import StillnessConfig, load_demos, save_demos, segment, ta
 
 __all__ = ["figures", "learn", "observe", "optimize", "replay", "run_stage"]
 
+log = logging.getLogger(__name__)
+
 
 # --- Stages ------------------------------------------------------------------------------------
 
@@ -59,7 +62,8 @@ def observe(run_dir: Path, config: RunConfig) -> dict:
         fps=config.fps, width=config.width, height=config.height,
     )
     timing = {}
-    observations = watch(watching, timing=timing, progress=sys.stderr.isatty())
+    progress = log.isEnabledFor(logging.INFO) and sys.stderr.isatty()
+    observations = watch(watching, timing=timing, progress=progress)
     demos = segment(observations.tracks, StillnessConfig())
     save_observations(run_dir / "observations.npz", observations)
     save_demos(run_dir / "demos.npz", demos, observations.tracks)
@@ -126,7 +130,7 @@ def optimize(run_dir: Path, config: RunConfig) -> dict:
     chosen = config.collision_weight
     weights = sorted({chosen * s for s in config.sweep} | {chosen})
     plans, seconds = {}, {}
-    for w in tqdm(weights, desc="optimize", unit="plan", disable=None):
+    for w in tqdm(weights, desc="optimize", unit="plan", disable=_bars()):
         start = time.perf_counter()
         plans[w] = plan_from_model(
             task, model, q0=humanoid.rest_pose(),
@@ -221,7 +225,7 @@ def figures(run_dir: Path, config: RunConfig) -> dict:
             {w: plan[f"sweep{i}_cost_total"] for i, w in enumerate(weights)}
         ),
     }
-    for name in tqdm(stages.FIGURES, desc="figures", unit="figure", disable=None):
+    for name in tqdm(stages.FIGURES, desc="figures", unit="figure", disable=_bars()):
         plots.save(drawings[name](), run_dir / "figures" / f"{name}.png")
     n_frames = write_video(run_dir / "video.mp4", _video_frames(config, states), config.video_fps)
     return {"video": {"frames": n_frames, "seconds": n_frames / config.video_fps}}
@@ -250,7 +254,7 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
     if problems and not force:
         raise ImitateError(f"{problems[0]}, or add --force to go on anyway")
     for problem in problems:
-        print(f"warning: {problem}; going on anyway (--force)", file=sys.stderr)
+        log.warning("%s; going on anyway (--force)", problem)
     with staged(run_dir) as staging:
         start = time.perf_counter()
         sections = current.run(run_dir, config)
@@ -262,6 +266,7 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
         save_json(run_dir / "config.json", config.to_json())
         save_json(run_dir / provenance.MANIFEST, manifest)
         save_json(run_dir / stages.REPORT, report)
+    log.debug("%s wrote %s in %.1f s", stage, ", ".join(sorted(outputs)), seconds)
     return report
 
 
@@ -289,8 +294,14 @@ def _video_frames(config: RunConfig, states: dict[str, np.ndarray]):
     )
     total = len(times) + len(states["qpos"])
     return tqdm(
-        itertools.chain(teacher, robot), desc="video", unit="frame", total=total, disable=None
+        itertools.chain(teacher, robot), desc="video", unit="frame", total=total,
+        disable=_bars(),
     )
+
+
+def _bars() -> bool | None:
+    """tqdm's ``disable``: progress bars on a terminal (None), none below INFO (``-q``)."""
+    return None if log.isEnabledFor(logging.INFO) else True
 
 
 def _report(
