@@ -2,11 +2,12 @@
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
+LOWEST := .venv-lowest
 RUN ?= runs/latest
 MUJOCO_GL ?= egl
 export MUJOCO_GL
 
-.PHONY: setup setup-test run test lint clean
+.PHONY: setup setup-test run test test-lowest lint clean
 
 # System libraries, the virtual environment and the package (what `make run` needs).
 $(BIN)/.installed: pyproject.toml scripts/install_system_deps.sh
@@ -35,5 +36,17 @@ test: setup-test lint
 lint: setup-test
 	$(BIN)/ruff check .
 
+# The lowest versions pyproject.toml allows (every lower bound pinned, wheels only) on the env
+# and scene tests and a whole quick run; numba's cache of them kept apart from .venv's.
+test-lowest:
+	bash scripts/install_system_deps.sh
+	rm -rf $(LOWEST)
+	$(PYTHON) -m venv $(LOWEST)
+	$(PYTHON) scripts/lowest_requirements.py > $(LOWEST)/requirements.txt
+	$(LOWEST)/bin/pip install --quiet --only-binary :all: -r $(LOWEST)/requirements.txt pytest
+	$(LOWEST)/bin/pip install --quiet --no-deps -e .
+	NUMBA_CACHE_DIR=$(LOWEST)/numba $(LOWEST)/bin/python -m pytest -q tests/test_env.py tests/test_scene.py
+	NUMBA_CACHE_DIR=$(LOWEST)/numba $(LOWEST)/bin/imitate run --quick --out runs/lowest
+
 clean:
-	rm -rf $(VENV) runs build *.egg-info
+	rm -rf $(VENV) $(LOWEST) runs build *.egg-info

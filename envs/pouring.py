@@ -13,8 +13,12 @@ order, clipped to the joint ranges.
 ## Observation space
 ``obs_type="state"``: ``Box((50,), float64)``, see ``observation_structure``: robot joint
 angles (18) [rad] and velocities (18) [rad/s], bottle and glass poses (position [m] and
-quaternion wxyz, 7 each). ``obs_type="stereo"`` adds the two head-camera images:
-``Dict(state, left_eye, right_eye)`` with images ``(height, width, 3) uint8``.
+quaternion wxyz, 7 each). The robot's head cameras, keyed as LeRobot's environments key theirs
+(and gym-aloha its ``pixels_agent_pos``): ``obs_type="pixels"``:
+``{"pixels": {"left_eye": image, "right_eye": image}}``; ``obs_type="pixels_agent_pos"``: that
+and ``"agent_pos"``, the joint angles ``(18,) float64`` [rad]; ``obs_type="state_pixels"``: the
+``"state"`` vector and the ``"pixels"`` (what ``imitate export --images`` records). Images are
+``(height, width, 3) uint8`` RGB.
 
 ## Rewards
 ``reward_pour``: ``pour_weight`` times the increase of the fraction of particles in the glass
@@ -33,15 +37,18 @@ False otherwise.
 | argument | default | meaning |
 |---|---|---|
 | render_mode | None | None or ``"rgb_array"`` |
-| obs_type | ``"state"`` | ``"state"`` or ``"stereo"`` |
+| obs_type | ``"state"`` | ``"state"``, ``"pixels"``, ``"pixels_agent_pos"`` or ``"state_pixels"`` |
 | camera | ``"overview"`` | camera for ``render()``: overview, left_eye or right_eye |
-| width, height | 640, 480 | image size of ``render()`` and of the stereo images [px] |
+| width, height | 640, 480 | image size of ``render()`` and of the head cameras' images [px] |
 | particles | 60 | liquid spheres in the bottle, 0..120 |
 | obstacles | () | ``assembly.Obstacle``s (or keyword dicts) on the table, clear of the robot |
 | teacher | True | include the teacher mannequin |
-| frame_skip | 10 | physics steps (2 ms each) per env step |
+| frame_skip | 10 | physics steps (2 ms each) per env step; ``metadata["render_fps"]`` = 1 / dt |
 | reset_noise_scale | 0.01 | half-width of the uniform noise on the initial joint angles [rad] |
 | pour_weight, collision_weight | 1.0, 1.0 | reward weights |
+
+``gym.make("imitate/Pouring-v0", **kwargs)`` passes these on; it also takes Gymnasium's own,
+such as ``max_episode_steps`` (500 by default: 10 s at the default frame_skip).
 
 ## Reset options
 ``bottle_grasp`` and ``glass_grasp``: where the hand holds each object, height above its bottom
@@ -65,6 +72,7 @@ import numpy as np
 
 from imitate.envs import assembly
 from imitate.envs.collision import CollisionPairs, signed_distances
+from imitate.envs.observation import EYES
 from imitate.envs.rendering import make_renderer
 from imitate.envs.teacher_motion import pose_arm, shoulder_position
 from imitate.errors import ImitateError
@@ -72,7 +80,7 @@ from imitate.models import humanoid, objects
 from imitate.models import scene as scene_names
 from imitate.models import teacher as teacher_names
 
-OBS_TYPES = ("state", "stereo")
+OBS_TYPES = ("state", "pixels", "pixels_agent_pos", "state_pixels")
 RESET_OPTIONS = ("bottle_grasp", "glass_grasp")
 # MuJoCo's warnings that it found the state diverged (it then resets it).
 DIVERGENCE = (
@@ -88,7 +96,7 @@ TEACHER_HAND_DROP = 0.53
 class PouringEnv(gym.Env):
     """The pouring task in full physics (see the module docstring)."""
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 50}  # 1 / dt at the default frame_skip
 
     def __init__(
         self,
@@ -132,6 +140,7 @@ class PouringEnv(gym.Env):
         self.model = assembly.build_model(self.config)
         self.data = mujoco.MjData(self.model)
         self.dt = self.model.opt.timestep * frame_skip
+        self.metadata = {**self.metadata, "render_fps": 1.0 / self.dt}
         self._joint_qpos = np.array([self.model.joint(j).qposadr[0] for j in humanoid.JOINTS])
         self._joint_dof = np.array([self.model.joint(j).dofadr[0] for j in humanoid.JOINTS])
         self._object_qpos = {
@@ -153,13 +162,17 @@ class PouringEnv(gym.Env):
         state = gym.spaces.Box(
             -np.inf, np.inf, (sum(self.observation_structure.values()),), dtype=np.float64
         )
-        if obs_type == "state":
-            self.observation_space = state
-        else:
-            image = gym.spaces.Box(0, 255, (height, width, 3), dtype=np.uint8)
-            self.observation_space = gym.spaces.Dict(
-                {"state": state, humanoid.LEFT_EYE: image, humanoid.RIGHT_EYE: image}
-            )
+        image = gym.spaces.Box(0, 255, (height, width, 3), dtype=np.uint8)
+        pixels = gym.spaces.Dict({eye: image for eye in EYES})
+        self.observation_space = {
+            "state": state,
+            "pixels": gym.spaces.Dict({"pixels": pixels}),
+            "pixels_agent_pos": gym.spaces.Dict({
+                "pixels": pixels,
+                "agent_pos": gym.spaces.Box(-np.inf, np.inf, (n,), dtype=np.float64),
+            }),
+            "state_pixels": gym.spaces.Dict({"state": state, "pixels": pixels}),
+        }[obs_type]
 
     # ---------------------------------------------------------------- gym API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -285,21 +298,25 @@ class PouringEnv(gym.Env):
         return float(dist.min())
 
     def _get_obs(self):
+        if self.obs_type == "state":
+            return self._state()
+        obs = {"pixels": {eye: self._render(eye) for eye in EYES}}
+        if self.obs_type == "pixels_agent_pos":
+            obs["agent_pos"] = self.joint_positions()
+        elif self.obs_type == "state_pixels":
+            obs["state"] = self._state()
+        return obs
+
+    def _state(self) -> np.ndarray:
+        """The ``"state"`` observation, see ``observation_structure``."""
         d = self.data
-        state = np.concatenate(
+        return np.concatenate(
             [
                 d.qpos[self._joint_qpos],
                 d.qvel[self._joint_dof],
                 *(d.qpos[adr : adr + 7] for adr in self._object_qpos.values()),
             ]
         )
-        if self.obs_type == "state":
-            return state
-        return {
-            "state": state,
-            humanoid.LEFT_EYE: self._render(humanoid.LEFT_EYE),
-            humanoid.RIGHT_EYE: self._render(humanoid.RIGHT_EYE),
-        }
 
     def _get_info(self, min_distance: float) -> dict[str, Any]:
         in_glass, in_bottle = self._particle_fractions()

@@ -1,59 +1,107 @@
-"""Headless OpenGL backend selection and off-screen rendering.
+"""Headless OpenGL backends and off-screen rendering.
 
-The default is Mesa's EGL, which renders on a CPU-only machine (and fast on a GPU); OSMesa is
-the fallback when no EGL library is found. MuJoCo reads ``MUJOCO_GL`` once, when it is first
-imported, so ``imitate/__init__.py`` imports this module first; :func:`make_renderer` also
-hands MuJoCo's renderer the selected backend's context explicitly, so a script that imported
-``mujoco`` before ``imitate`` still renders headless.
+Importing this module sets nothing and loads neither MuJoCo nor OpenGL. The backend is chosen
+when the first renderer is made (:func:`make_renderer`): the one ``MUJOCO_GL`` names, or with
+``MUJOCO_GL`` unset Mesa's EGL (renders on a CPU-only machine, fast on a GPU) and OSMesa where
+no EGL library is installed. :func:`make_renderer` hands MuJoCo that backend's context itself,
+so a library user renders headless whether ``mujoco`` was imported first or not, with
+``MUJOCO_GL`` unset or set.
+
+MuJoCo reads ``MUJOCO_GL`` once, when ``mujoco`` is imported, and a value whose library is
+missing breaks that import; the ``imitate`` command calls :func:`import_mujoco` before anything
+else imports it.
 """
 
 from __future__ import annotations
 
 import ctypes.util
+import functools
+import logging
 import os
+import sys
+from typing import TYPE_CHECKING
 
 from imitate.errors import ImitateError
 
-BACKENDS = ("egl", "osmesa")
+if TYPE_CHECKING:
+    import mujoco
+
+log = logging.getLogger(__name__)
+
+BACKENDS = ("egl", "osmesa")  # headless, in order of preference
 _LIBRARIES = {"egl": "EGL", "osmesa": "OSMesa"}
-_INSTALL_HINT = (
-    "install Mesa's EGL (apt-get install libegl1 libgl1-mesa-dri) and use MUJOCO_GL=egl, "
-    "or OSMesa (apt-get install libosmesa6) and use MUJOCO_GL=osmesa"
-)
+_INSTALL = {
+    "egl": "install Mesa's EGL (apt-get install libegl1 libgl1-mesa-dri)",
+    "osmesa": "install OSMesa (apt-get install libosmesa6)",
+}
 
 
-def select_backend() -> str:
-    """Set ``MUJOCO_GL`` to a usable headless backend and return it.
+@functools.cache
+def _installed(backend: str) -> bool:
+    return ctypes.util.find_library(_LIBRARIES[backend]) is not None
 
-    Keeps a valid user choice; otherwise picks the first of ``BACKENDS`` whose library is found.
+
+def backend() -> str:
+    """The backend to render with: ``MUJOCO_GL``'s, or with it unset the first of
+    :data:`BACKENDS` whose library is installed.
 
     Raises:
-        ImitateError: ``MUJOCO_GL`` names a backend other than ``egl``, ``osmesa`` or ``glfw``.
+        ImitateError: ``MUJOCO_GL`` names a backend other than ``egl``, ``osmesa`` or
+            ``glfw``, or one whose library is not installed, or none is installed; the message
+            names the fix.
     """
     chosen = os.environ.get("MUJOCO_GL", "").strip().lower()
-    if chosen:
-        if chosen not in (*BACKENDS, "glfw"):
+    if chosen and chosen not in (*BACKENDS, "glfw"):
+        raise ImitateError(
+            f"MUJOCO_GL={chosen!r} is not a usable backend; accepted: 'egl' (default, "
+            f"headless, CPU or GPU), 'osmesa' (headless fallback) or 'glfw' (needs a display)"
+        )
+    if chosen in BACKENDS and not _installed(chosen):
+        others = [b for b in BACKENDS if b != chosen and _installed(b)]
+        instead = f", or unset MUJOCO_GL to render with {others[0]}" if others else ""
+        raise ImitateError(
+            f"MUJOCO_GL={chosen!r} but lib{_LIBRARIES[chosen]} is not installed: "
+            f"{_INSTALL[chosen]}{instead}"
+        )
+    if not chosen:
+        found = [b for b in BACKENDS if _installed(b)]
+        if not found:
             raise ImitateError(
-                f"MUJOCO_GL={chosen!r} is not a usable backend; accepted: 'egl' (default, "
-                f"headless, CPU or GPU), 'osmesa' (headless fallback) or 'glfw' (needs a display)"
+                f"no headless OpenGL library (libEGL or libOSMesa) is installed: "
+                f"{_INSTALL['egl']}, or {_INSTALL['osmesa']} and set MUJOCO_GL=osmesa"
             )
-        return chosen
-    found = [b for b in BACKENDS if ctypes.util.find_library(_LIBRARIES[b])]
-    os.environ["MUJOCO_GL"] = found[0] if found else BACKENDS[0]
-    return os.environ["MUJOCO_GL"]
+        chosen = found[0]
+    return chosen
 
 
-BACKEND = select_backend()
+def import_mujoco() -> None:
+    """Import MuJoCo for a program (the ``imitate`` command) with ``MUJOCO_GL`` set to
+    :func:`backend`. Without a usable backend MuJoCo is imported without OpenGL and
+    ``MUJOCO_GL`` left as it was: what does not render works (``--help``, most stages) and
+    the first :func:`make_renderer` reports the problem.
+    """
+    given = os.environ.get("MUJOCO_GL")
+    try:
+        chosen = backend()
+    except ImitateError:
+        chosen = None
+    os.environ["MUJOCO_GL"] = chosen or "disable"
+    import mujoco  # noqa: F401
 
-import mujoco  # noqa: E402  (must follow the backend selection)
-from mujoco.rendering.classic import gl_context  # noqa: E402
+    if chosen is None:  # as it was, for make_renderer to report
+        del os.environ["MUJOCO_GL"]
+        if given is not None:
+            os.environ["MUJOCO_GL"] = given
 
 
+@functools.cache
 def _context_class() -> type:
-    """MuJoCo's OpenGL context class of the selected backend."""
-    if BACKEND == "egl":
+    """MuJoCo's OpenGL context class of :func:`backend` (fixed once the first is made)."""
+    chosen = backend()
+    log.debug("rendering with MUJOCO_GL=%s", chosen)
+    if chosen == "egl":
         from mujoco.egl import GLContext
-    elif BACKEND == "osmesa":
+    elif chosen == "osmesa":
         from mujoco.osmesa import GLContext
     else:
         from mujoco.glfw import GLContext
@@ -72,22 +120,27 @@ def make_renderer(
     as large; ``imitate.envs.assembly`` sets it.
 
     Raises:
-        ImitateError: the size is not positive or exceeds the off-screen buffer, or no OpenGL
-            context could be created with the selected backend.
+        ImitateError: the size is not positive or exceeds the off-screen buffer, no backend is
+            usable (see :func:`backend`), or no OpenGL context could be created with it.
     """
+    import mujoco
+
     max_h, max_w = model.vis.global_.offheight, model.vis.global_.offwidth
     if not (0 < height <= max_h and 0 < width <= max_w):
         raise ImitateError(
             f"image size {width}x{height} is not accepted: width must be in 1..{max_w} "
             f"and height in 1..{max_h} (the model's off-screen buffer)"
         )
+    chosen = backend()
     try:
-        gl_context.GLContext = _context_class()
+        # The module of mujoco.Renderer (mujoco.renderer in 3.x) creates the context it names.
+        sys.modules[mujoco.Renderer.__module__].gl_context.GLContext = _context_class()
         renderer = mujoco.Renderer(model, height=height, width=width)
     except Exception as err:  # the GL libraries raise a zoo of types (RuntimeError, OSError, ...)
         raise ImitateError(
-            f"could not create an OpenGL context with MUJOCO_GL={BACKEND!r} ({err}); "
-            + _INSTALL_HINT
+            f"could not create an OpenGL context with MUJOCO_GL={chosen!r} ({err}); "
+            f"{_INSTALL['egl']} and use MUJOCO_GL=egl, or {_INSTALL['osmesa']} and use "
+            f"MUJOCO_GL=osmesa"
         ) from err
     renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = shadows
     return renderer

@@ -1,23 +1,23 @@
 """imitate: task-level imitation learning on a simulated humanoid (Muehlig et al., ICRA 2009).
 
 Importing the package registers the Gymnasium environment ``imitate/Pouring-v0``
-(``gym.make("imitate:imitate/Pouring-v0")`` imports it for you) and selects the headless OpenGL
-backend before MuJoCo is first imported. ``imitate.load_run(path)`` reads a run directory as
-typed objects (:mod:`imitate.run`; imported on first use, it loads the learner and the planner).
+(``gym.make("imitate:imitate/Pouring-v0")`` imports it for you) and sets nothing else: no
+environment variable, no matplotlib backend (see :mod:`imitate.envs.rendering`).
+``imitate.load_run(path)`` reads a run directory as typed objects (:mod:`imitate.run`; imported
+on first use, it loads the learner and the planner).
 """
 
 from typing import TYPE_CHECKING
 
 import gymnasium as gym
 
-from imitate.envs import rendering  # noqa: F401  (sets MUJOCO_GL before anything imports mujoco)
 from imitate.errors import ImitateError
 
 if TYPE_CHECKING:
     from imitate.run import Run, load_run
 
 __all__ = ["ENV_ID", "ImitateError", "Run", "load_run"]
-__version__ = "0.1.0"
+__version__ = "0.1.0"  # the package's version (pyproject.toml reads it)
 
 ENV_ID = "imitate/Pouring-v0"
 

@@ -14,11 +14,14 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
+from imitate import numba_cache
 from imitate._em import _e_step, _factor, _sorted_transposed
 from imitate._validation import check_n_components, check_samples
 from imitate.errors import ImitateError
 from imitate.gmm import GMM, _bic, _not_positive_definite
 from imitate.kmeans import _cluster_parameters, _kmeans_sweep, kmeans_parameters
+
+numba_cache.ensure_writable()  # before the kernels below are declared
 
 __all__ = ["BIC_METHODS", "DEFAULT_BIC", "BicSweep", "bic_sweep"]
 

@@ -12,11 +12,17 @@ Each stage reads the previous stage's artifacts in the run directory (see
 ``--force`` (see :mod:`imitate.provenance`). Errors are one line on stderr: exit status 1, 2
 for a bad flag, 130 for Ctrl-C and 143 for SIGTERM; a stage that does not finish changes
 nothing.
+
+Progress goes to stderr through :mod:`logging` (the ``imitate`` logger, configured here only):
+``-q`` leaves warnings and errors, ``-v`` adds debug lines. MuJoCo renders headless (see
+:func:`imitate.envs.rendering.import_mujoco`) and matplotlib draws with Agg.
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
+import logging.handlers
 import signal
 import sys
 import threading
@@ -25,12 +31,27 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from imitate.config import RunConfig, Setting, load_config, settings
-from imitate.errors import ImitateError
-from imitate.rundir import locked
-from imitate.stages import NAMES, RUN_HELP, STAGES
+import matplotlib
+
+from imitate import __version__, numba_cache
+from imitate.envs import rendering
+
+# Before the imports below load MuJoCo and the kernels: what the library logs while it loads
+# (numba's cache moved) waits for -v/-q in _LOADING.
+_LOADING = logging.handlers.BufferingHandler(capacity=1000)
+logging.getLogger("imitate").addHandler(_LOADING)
+logging.getLogger("imitate").setLevel(logging.DEBUG)
+rendering.import_mujoco()
+matplotlib.use("Agg")
+
+from imitate.config import RunConfig, Setting, load_config, settings  # noqa: E402
+from imitate.errors import ImitateError  # noqa: E402
+from imitate.rundir import locked  # noqa: E402
+from imitate.stages import NAMES, RUN_HELP, STAGES  # noqa: E402
 
 __all__ = ["main"]
+
+log = logging.getLogger(__name__)
 
 DEFAULT_RUN = Path("runs/latest")
 
@@ -41,10 +62,13 @@ def build_parser() -> argparse.ArgumentParser:
         description="Task-level imitation learning of pouring (Muehlig et al., ICRA 2009), "
         "end to end in MuJoCo.",
     )
+    parser.add_argument("--version", action="version", version=f"imitate {__version__}")
+    _add_verbosity(parser, logging.INFO)
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     helps = {**{s.name: s.help for s in STAGES}, "run": RUN_HELP}
     for command, text in helps.items():
         sub = commands.add_parser(command, help=text, description=text)
+        _add_verbosity(sub, argparse.SUPPRESS)
         sub.add_argument("run_dir", nargs="?", type=Path, metavar="RUN_DIR",
                          help=f"run directory (default {DEFAULT_RUN}); same as --out")
         sub.add_argument("--out", type=Path, metavar="DIR", help="run directory")
@@ -91,6 +115,17 @@ def export_command(args: argparse.Namespace) -> int:
         return 1
     print(out)
     return 0
+
+
+def _add_verbosity(parser: argparse.ArgumentParser, default) -> None:
+    """``-v`` and ``-q``, before or after the sub-command (there the default is ``SUPPRESS``,
+    so as not to undo one given before it)."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("-v", "--verbose", dest="log_level", action="store_const",
+                       const=logging.DEBUG, default=default, help="also print debug lines")
+    group.add_argument("-q", "--quiet", dest="log_level", action="store_const",
+                       const=logging.WARNING, default=default,
+                       help="print only warnings and errors (and the summary on stdout)")
 
 
 def _add_settings(group, declared: list[tuple[str, Setting, Any]]) -> None:
@@ -145,6 +180,7 @@ def config_for(args: argparse.Namespace, base: RunConfig) -> RunConfig:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    _log_to_stderr(args.log_level)
     if args.command == "export":
         return export_command(args)
     if args.run_dir and args.out and args.run_dir != args.out:
@@ -162,8 +198,12 @@ def main(argv: list[str] | None = None) -> int:
                 config = config_for(args, base)
             except ImitateError as err:
                 parser.error(str(err))
+            log.debug("run directory %s, settings %s", run_dir, config.to_json())
             for stage in stages:
-                print(f"== {stage}", file=sys.stderr, flush=True)
+                log.info("== %s", stage)
+                notice = numba_cache.compile_notice(stage)
+                if notice:
+                    log.info(notice)
                 report = pipeline.run_stage(stage, run_dir, config, force=args.force)
     except ImitateError as err:
         return _fail(args.command, str(err), 1)
@@ -175,6 +215,41 @@ def main(argv: list[str] | None = None) -> int:
         return _fail(args.command, _stopped("terminated (SIGTERM)", stage, run_dir), 143)
     print(summary(report, stages, run_dir))
     return 0
+
+
+class _Lines(logging.Formatter):
+    """A record as its message; a debug line, warning or error prefixed with its level."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        text = super().format(record)
+        return text if record.levelno == logging.INFO else f"{record.levelname.lower()}: {text}"
+
+
+class _Stderr(logging.Handler):
+    """Writes to the ``sys.stderr`` of the moment (tests replace it)."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            print(self.format(record), file=sys.stderr, flush=True)
+        except Exception:
+            self.handleError(record)
+
+
+_STDERR = _Stderr()
+_STDERR.setFormatter(_Lines())
+
+
+def _log_to_stderr(level: int) -> None:
+    """The ``imitate`` logger's records from ``level`` up on stderr, those kept while the
+    library loaded first."""
+    logger = logging.getLogger("imitate")
+    logger.removeHandler(_LOADING)
+    logger.addHandler(_STDERR)
+    logger.setLevel(level)
+    for record in _LOADING.buffer:
+        if record.levelno >= level:
+            _STDERR.handle(record)
+    _LOADING.buffer.clear()
 
 
 class _Terminated(BaseException):

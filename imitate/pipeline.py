@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import logging
 import re
 import sys
 import time
@@ -49,6 +50,8 @@ from imitate.segment import StillnessConfig, load_demos, save_demos, segment, ta
 
 __all__ = ["figures", "learn", "observe", "optimize", "replay", "run_stage"]
 
+log = logging.getLogger(__name__)
+
 APPROACH_S = 1.0  # [s] from the reset pose to the plan's start in the replay
 STATE_NAMES = ("qpos", "mocap_pos", "mocap_quat")  # a recorded replay state (StateRecorder)
 SNAPSHOT_SIZE = (480, 360)  # Fig. 8's panels [px]
@@ -67,7 +70,8 @@ def observe(run_dir: Path, config: RunConfig) -> dict:
         fps=config.fps, width=config.width, height=config.height,
     )
     timing = {}
-    observations = watch(watching, timing=timing, progress=sys.stderr.isatty())
+    progress = log.isEnabledFor(logging.INFO) and sys.stderr.isatty()
+    observations = watch(watching, timing=timing, progress=progress)
     demos = segment(observations.tracks, StillnessConfig())
     save_observations(run_dir / "observations.npz", observations)
     save_demos(run_dir / "demos.npz", demos, observations.tracks)
@@ -134,7 +138,7 @@ def optimize(run_dir: Path, config: RunConfig) -> dict:
     chosen = config.collision_weight
     weights = sorted({chosen * s for s in config.sweep} | {chosen})
     plans, seconds = {}, {}
-    for w in tqdm(weights, desc="optimize", unit="plan", disable=None):
+    for w in tqdm(weights, desc="optimize", unit="plan", disable=_bars()):
         start = time.perf_counter()
         plans[w] = plan_from_model(
             task, model, q0=humanoid.rest_pose(),
@@ -231,7 +235,7 @@ def figures(run_dir: Path, config: RunConfig) -> dict:
             {w: plan[f"sweep{i}_cost_total"] for i, w in enumerate(weights)}
         ),
     }
-    for name in tqdm(stages.FIGURES, desc="figures", unit="figure", disable=None):
+    for name in tqdm(stages.FIGURES, desc="figures", unit="figure", disable=_bars()):
         plots.save(drawings[name](), run_dir / "figures" / f"{name}.png")
     n_frames = write_video(
         run_dir / "video.mp4", _video_frames(config, states, observations), config.video_fps
@@ -262,7 +266,7 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
     if problems and not force:
         raise ImitateError(f"{problems[0]}, or add --force to go on anyway")
     for problem in problems:
-        print(f"warning: {problem}; going on anyway (--force)", file=sys.stderr)
+        log.warning("%s; going on anyway (--force)", problem)
     with staged(run_dir) as staging:
         start = time.perf_counter()
         sections = current.run(run_dir, config)
@@ -274,6 +278,7 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
         save_json(run_dir / "config.json", config.to_json())
         save_json(run_dir / provenance.MANIFEST, manifest)
         save_json(run_dir / stages.REPORT, report)
+    log.debug("%s wrote %s in %.1f s", stage, ", ".join(sorted(outputs)), seconds)
     return report
 
 
@@ -355,8 +360,14 @@ def _video_frames(config: RunConfig, states: dict[str, np.ndarray], observations
     )
     total = len(times) + len(states["qpos"])
     return tqdm(
-        itertools.chain(teacher, robot), desc="video", unit="frame", total=total, disable=None
+        itertools.chain(teacher, robot), desc="video", unit="frame", total=total,
+        disable=_bars(),
     )
+
+
+def _bars() -> bool | None:
+    """tqdm's ``disable``: progress bars on a terminal (None), none below INFO (``-q``)."""
+    return None if log.isEnabledFor(logging.INFO) else True
 
 
 def _report(

@@ -2,27 +2,24 @@
 Fig. 5 (BIC), GMR bands, Fig. 8 (snapshots without and with the collision cost), Fig. 9
 (reproductions over a sweep of collision weights), costs.
 
-Every ``plot_*`` function draws on a new matplotlib figure (Agg backend, headless) and returns
-it; :func:`save` writes one atomically and frees it.
+Every ``plot_*`` function draws on a new matplotlib figure and returns it; :func:`save` writes
+one atomically and frees it. The backend is matplotlib's choice (Agg where there is no display);
+the ``imitate`` command sets Agg.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.patches import Ellipse
 
-matplotlib.use("Agg")
-
-import matplotlib.pyplot as plt  # noqa: E402  (the backend must be chosen first)
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-from matplotlib.patches import Ellipse  # noqa: E402
-
-from imitate.artifacts import write_atomic  # noqa: E402
-from imitate.gmm import GMM  # noqa: E402
-from imitate.learning import LearnedModel  # noqa: E402
-from imitate.taskspace import TASK_DIMS, TASK_UNITS  # noqa: E402
+from imitate.artifacts import write_atomic
+from imitate.gmm import GMM
+from imitate.learning import LearnedModel
+from imitate.taskspace import TASK_DIMS, TASK_UNITS
 
 DPI = 110  # dots per inch of the saved figures; Fig. 8 shows its snapshots at their pixel size
 

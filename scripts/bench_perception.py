@@ -23,8 +23,8 @@ import cv2
 import mujoco
 import numpy as np
 
-import imitate  # noqa: F401  (selects the headless GL backend before MuJoCo is imported)
 from imitate.envs.observation import ObservationConfig, frames, session
+from imitate.envs.rendering import backend
 from imitate.envs.teacher_motion import TeacherConfig
 from imitate.observe import cameras, ground_truth
 from imitate.perception import (
@@ -95,7 +95,7 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     print(
         f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores; "
-        f"MUJOCO_GL={os.environ['MUJOCO_GL']}; mujoco {mujoco.__version__}; opencv "
+        f"MUJOCO_GL={backend()}; mujoco {mujoco.__version__}; opencv "
         f"{cv2.__version__}; {args.width}x{args.height}, 30 Hz"
     )
     rows = [run_seed(seed, args.width, args.height, args.out) for seed in args.seeds]

@@ -18,7 +18,7 @@ import mujoco
 
 from imitate.envs.observation import ObservationConfig, frames, session
 from imitate.envs.pouring import PouringEnv
-from imitate.envs.rendering import make_renderer
+from imitate.envs.rendering import backend, make_renderer
 from imitate.models import humanoid
 
 
@@ -70,7 +70,7 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     print(
         f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores; "
-        f"MUJOCO_GL={os.environ['MUJOCO_GL']}; mujoco {mujoco.__version__}"
+        f"MUJOCO_GL={backend()}; mujoco {mujoco.__version__}"
     )
     print(f"{'measurement':<40} {'rate':>12} {'real time':>10}")
     for particles in (0, 60):

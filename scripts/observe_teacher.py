@@ -12,7 +12,6 @@ from pathlib import Path
 
 import numpy as np
 
-import imitate  # noqa: F401  (selects the headless GL backend before MuJoCo is imported)
 from imitate.envs.observation import ObservationConfig
 from imitate.envs.teacher_motion import TeacherConfig
 from imitate.observe import observe

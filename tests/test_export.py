@@ -225,7 +225,8 @@ def test_images_in_every_format(quick_run, tmp_path, monkeypatch):
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
     for dataset_id, episodes in ((to_minari.ROBOT_ID, [robot]), (to_minari.TEACHER_ID, teacher)):
         for read, episode in zip(minari.load_dataset(dataset_id), episodes, strict=True):
-            assert {eye: read.observations[eye].shape for eye in eyes} == {
+            images = read.observations.get("pixels", read.observations)  # robot: as the env keys
+            assert {eye: images[eye].shape for eye in eyes} == {
                 eye: episode.observations[eye].shape for eye in eyes
             }
     with h5py.File(tmp_path / "hdf5" / "robot.hdf5", "r") as f:

@@ -7,7 +7,6 @@ import mujoco
 import numpy as np
 import pytest
 
-import imitate  # noqa: F401  (selects the headless GL backend)
 from imitate.envs import observation
 from imitate.envs.assembly import SceneConfig, build_model
 from imitate.envs.teacher_motion import TeacherConfig

@@ -4,7 +4,6 @@ import mujoco
 import numpy as np
 import pytest
 
-import imitate  # noqa: F401  (selects the headless GL backend)
 from imitate.envs.assembly import SceneConfig, build_spec
 from imitate.envs.observation import EYES, camera_parameters
 from imitate.envs.rendering import make_renderer

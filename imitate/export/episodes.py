@@ -107,9 +107,9 @@ class Recorder(gym.Wrapper):
 def robot_episode(run: Run, images: bool = False) -> Episode:
     """The run's plan replayed in ``PouringEnv`` as the replay stage does, recorded.
 
-    The env gets the run's settings as its kwargs (with ``images``, ``obs_type="stereo"`` at the
-    run's camera size); the episode's spec is ``imitate/Pouring-v0``'s with these kwargs and the
-    episode's length as its time limit, so its last step is truncated, as that ``TimeLimit``
+    The env gets the run's settings as its kwargs (with ``images``, ``obs_type="state_pixels"`` at
+    the run's camera size); the episode's spec is ``imitate/Pouring-v0``'s with these kwargs and
+    the episode's length as its time limit, so its last step is truncated, as that ``TimeLimit``
     truncates it.
 
     Args:
@@ -122,7 +122,7 @@ def robot_episode(run: Run, images: bool = False) -> Episode:
         "obstacles": [dataclasses.asdict(o) for o in config.scene().obstacles],
     }
     if images:
-        kwargs.update(obs_type="stereo", width=config.width, height=config.height)
+        kwargs.update(obs_type="state_pixels", width=config.width, height=config.height)
     gaze = load_npz(run.path / "model.npz", required=("gaze",))["gaze"]
     env = Recorder(PouringEnv(**kwargs))
     options = {"bottle_grasp": config.bottle_grasp, "glass_grasp": config.glass_grasp}
@@ -140,7 +140,9 @@ def robot_episode(run: Run, images: bool = False) -> Episode:
         for name, start, stop in zip(structure, bounds[:-1], bounds[1:], strict=True)
     }
     if images:
-        observations.update({eye: np.array([o[eye] for o in env.observations]) for eye in EYES})
+        observations.update(
+            {eye: np.array([o["pixels"][eye] for o in env.observations]) for eye in EYES}
+        )
     names = {
         "qpos": humanoid.JOINTS, "qvel": humanoid.JOINTS,
         **{obj: POSE for obj in OBJECTS}, "action": humanoid.JOINTS,

@@ -61,7 +61,7 @@ def _buffer(episode: Episode) -> EpisodeBuffer:
     if episode.env is not None:  # as the env returns them: a state vector, with images a dict
         state = np.hstack([v for k, v in observations.items() if k not in EYES])
         images = {eye: observations[eye] for eye in EYES if eye in observations}
-        observations = {"state": state, **images} if images else state
+        observations = {"state": state, "pixels": images} if images else state
     return EpisodeBuffer(
         seed=episode.seed, options=episode.options, observations=observations,
         actions=episode.actions, rewards=episode.rewards, terminations=episode.terminations,

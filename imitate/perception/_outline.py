@@ -8,6 +8,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from imitate import numba_cache
+
+numba_cache.ensure_writable()  # before the kernels below are declared
+
 
 @numba.njit(cache=True)
 def _extremes(outline: np.ndarray, origin: np.ndarray, direction: np.ndarray) -> np.ndarray:

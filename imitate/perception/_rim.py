@@ -12,6 +12,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from imitate import numba_cache
+
+numba_cache.ensure_writable()  # before the kernels below are declared
+
 _RIM_POINTS = 24
 _RIM_PHASES = np.linspace(0.0, 2 * np.pi, _RIM_POINTS, endpoint=False)
 _RIM_COS, _RIM_SIN = np.cos(_RIM_PHASES), np.sin(_RIM_PHASES)

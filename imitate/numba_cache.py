@@ -1,0 +1,123 @@
+"""numba's on-disk cache of the compiled kernels (``dtw``, ``kmeans``, ``_em``, ``bic``,
+``perception/_rim``, ``perception/_outline``).
+
+numba compiles a kernel at its first call and caches it on disk: in ``NUMBA_CACHE_DIR`` if set,
+else in the ``__pycache__`` beside the module, else in the user's cache (``~/.cache/numba``).
+Where none of them is writable (a read-only install and home), numba refuses to import a
+module with cached kernels; each kernel module therefore calls :func:`ensure_writable` before
+declaring them, which then moves the cache to a private directory in the temporary folder and
+says so (one INFO line). The ``imitate`` command prints :func:`compile_notice` before a stage.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import importlib
+import logging
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+from imitate.errors import ImitateError
+
+log = logging.getLogger(__name__)
+
+PACKAGE = Path(__file__).parent
+# The kernel modules each stage compiles on its first run, and about how long that takes on
+# the 2-core CI machine [s] (first `imitate run --quick`, less a later one).
+STAGE_KERNELS = {
+    "observe": (("imitate.perception._rim", "imitate.perception._outline"), 10),
+    "learn": (("imitate.dtw", "imitate.kmeans", "imitate._em", "imitate.bic"), 30),
+}
+
+
+def cache_dir(source: Path) -> Path | None:
+    """Where numba caches the kernels of the module file ``source``; None if nowhere."""
+    parent = os.path.dirname(os.path.abspath(source))
+    subpath = f"{os.path.basename(parent)}_{hashlib.sha1(parent.encode()).hexdigest()}"
+    user = os.environ.get("XDG_CACHE_HOME", os.path.expanduser("~/.cache"))
+    candidates = [Path(parent, "__pycache__"), Path(user, "numba", subpath)]
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        candidates.insert(0, Path(os.environ["NUMBA_CACHE_DIR"], subpath))
+    return next((path for path in candidates if _writable(path)), None)
+
+
+@functools.cache
+def ensure_writable() -> None:
+    """Set ``NUMBA_CACHE_DIR`` to a private temporary directory if numba has nowhere to cache
+    the kernels (see the module docstring); call before ``@numba.njit(cache=True)``.
+
+    Raises:
+        ImitateError: that directory cannot be used either.
+    """
+    modules = [name for names, _ in STAGE_KERNELS.values() for name in names]
+    sources = [Path(PACKAGE, *name.split(".")[1:]).with_suffix(".py") for name in modules]
+    if all(cache_dir(source) for source in sources):
+        return
+    fallback = Path(tempfile.gettempdir(), f"imitate-numba-{os.getuid()}")
+    if not _private(fallback):
+        raise ImitateError(
+            f"numba cannot cache the compiled kernels: neither {sources[0].parent}, the user's "
+            f"cache nor {fallback} is writable; set NUMBA_CACHE_DIR to a writable directory"
+        )
+    os.environ["NUMBA_CACHE_DIR"] = str(fallback)
+    import numba
+
+    numba.config.CACHE_DIR = str(fallback)  # numba read the environment when imported
+    log.info("the kernels' default cache is not writable; numba caches them in %s", fallback)
+
+
+def compile_notice(stage: str) -> str | None:
+    """A line saying that ``stage`` compiles its kernels, else None: when numba's cache has
+    no index file (``*.nbi``) for any kernel of one of its modules as declared now (the name
+    holds the kernel's line)."""
+    if stage not in STAGE_KERNELS:
+        return None
+    modules, seconds = STAGE_KERNELS[stage]
+    uncached = set()
+    for module in map(importlib.import_module, modules):
+        where = cache_dir(Path(module.__file__))
+        if where is None or not any((where / name).exists() for name in _index_names(module)):
+            uncached.add(str(where))
+    if not uncached:
+        return None
+    return (
+        f"compiling the {stage} kernels once (about {seconds} s); later runs load them from "
+        f"the cache at {', '.join(sorted(uncached))}"
+    )
+
+
+def _index_names(module) -> list[str]:
+    """The names of the index files numba writes for the kernels declared in ``module``."""
+    from numba.core.dispatcher import Dispatcher
+
+    version = f"py{sys.version_info[0]}{sys.version_info[1]}{sys.abiflags}"
+    names = []
+    for kernel in vars(module).values():
+        if isinstance(kernel, Dispatcher) and kernel.py_func.__module__ == module.__name__:
+            code, qualname = kernel.py_func.__code__, kernel.py_func.__qualname__
+            stem = Path(code.co_filename).stem
+            names.append(f"{stem}.{qualname}-{code.co_firstlineno}.{version}.nbi")
+    return names
+
+
+def _writable(path: Path) -> bool:
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=path).close()
+    except OSError:
+        return False
+    return True
+
+
+def _private(path: Path) -> bool:
+    """Whether ``path`` is (made) a writable directory of this user's that no one else can
+    write to (the cache holds code that is loaded and run)."""
+    try:
+        path.mkdir(mode=0o700, exist_ok=True)
+        info = path.stat()
+    except OSError:
+        return False
+    return info.st_uid == os.getuid() and not info.st_mode & 0o022 and _writable(path)
