@@ -32,6 +32,7 @@ run: setup
 test: setup-test lint
 	$(BIN)/python -m pytest
 	$(BIN)/python scripts/render_ci_video.py --out runs/ci/video.mp4 --width 160 --height 120 --check
+	$(MAKE) test-lowest
 
 lint: setup-test
 	$(BIN)/ruff check .
