@@ -45,7 +45,30 @@ def build_parser() -> argparse.ArgumentParser:
                          help="small images, 3 demonstrations, short optimisation (tests)")
         for stage in _stages(command):
             _add_settings(sub.add_argument_group(f"{stage} settings"), settings([stage]))
+    _add_eval(commands)
     return parser
+
+
+def _add_eval(commands) -> None:
+    """The ``eval`` sub-command's arguments (see :mod:`imitate.evaluation`)."""
+    text = "reproduce a run's learned model in seeded variations (obstacles, grasps, physics)"
+    sub = commands.add_parser("eval", help=text, description=text)
+    sub.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="run directory with model.npz")
+    sub.add_argument("--suite", type=Path, metavar="FILE",
+                     help="suite of variations, .toml or .json (default: the built-in one)")
+    sub.add_argument("--n", type=int, metavar="N",
+                     help="variations to run (default: the suite's 'variations', 100 built in)")
+    sub.add_argument("--seed", type=int, default=0, metavar="S",
+                     help="seed the variations are drawn with (default 0)")
+    sub.add_argument("--workers", type=int, metavar="W",
+                     help="local worker processes (default: one per core)")
+    sub.add_argument("--ray", metavar="ADDRESS",
+                     help="run the variations as Ray tasks on the cluster at ADDRESS ('auto': "
+                     "the one Ray finds); needs imitate[ray]")
+    sub.add_argument("--collision-weight", type=float, metavar="W",
+                     help="replaces the suite's collision_weight")
+    sub.add_argument("--videos", type=int, default=3, metavar="K",
+                     help="videos of the first K failures (default 3)")
 
 
 def _add_settings(group, declared: list[tuple[str, Setting, Any]]) -> None:
@@ -100,6 +123,8 @@ def config_for(args: argparse.Namespace, run_dir: Path) -> RunConfig:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if args.command == "eval":
+        return _eval(args)
     if args.run_dir and args.out and args.run_dir != args.out:
         parser.error(f"two run directories given: {args.run_dir} and --out {args.out}; give one")
     run_dir = args.out or args.run_dir or DEFAULT_RUN
@@ -118,6 +143,25 @@ def main(argv: list[str] | None = None) -> int:
         print(f"imitate {args.command}: error: {err}", file=sys.stderr)
         return 1
     print(summary(report, stages, run_dir))
+    return 0
+
+
+def _eval(args: argparse.Namespace) -> int:
+    """``imitate eval``: the evaluation of ``args.run_dir``; prints its summary."""
+    from imitate import evaluation  # MuJoCo and the planner: once the arguments are fine
+
+    try:
+        suite = evaluation.load_suite(args.suite) if args.suite else evaluation.Suite.default()
+        if args.collision_weight is not None:
+            suite = suite.replace(collision_weight=args.collision_weight)
+        summary = evaluation.evaluate(
+            args.run_dir, suite, n=args.n, seed=args.seed, workers=args.workers,
+            ray=args.ray, videos=args.videos,
+        )
+    except ImitateError as err:
+        print(f"imitate eval: error: {err}", file=sys.stderr)
+        return 1
+    print(evaluation.text(summary, args.run_dir / "eval"))
     return 0
 
 
