@@ -44,11 +44,11 @@ def _run_dir(tmp_path: Path, arrays: dict) -> Path:
 
 def _without_timings(records: list[dict]) -> list[dict]:
     out = []
-    for r in sorted(records, key=lambda r: r["id"]):
-        r = json.loads(json.dumps(r))
-        r.pop("seconds")
-        r["plan"].pop("seconds")
-        out.append(r)
+    for record in sorted(records, key=lambda r: r["id"]):
+        copy = json.loads(json.dumps(record))
+        copy.pop("seconds")
+        copy["plan"].pop("seconds")
+        out.append(copy)
     return out
 
 
