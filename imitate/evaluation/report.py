@@ -89,8 +89,8 @@ def text(summary: dict, out: Path) -> str:
     gap, seconds = summary["clearance_gap_mm"], summary["seconds_per_variation"]
     return "\n".join([
         f"eval: {n} variations ({run['ran']} run now on {where} in {run['wall_seconds']:.1f} s, "
-        f"load average {' '.join(f'{v:.2f}' for v in run['load_average'])}), suite digest "
-        f"{summary['suite_digest']}",
+        f"1-min load average {run['load_average_start'][0]:.1f} at the start, "
+        f"{run['load_average_end'][0]:.1f} at the end), suite digest {summary['suite_digest']}",
         f"success: {successes}/{n} = {summary['success_rate']:.3f} (95 % Wilson interval "
         f"{low:.3f}..{high:.3f})",
         "outcomes: " + ", ".join(f"{o} {c}" for o, c in summary["outcomes"].items()),

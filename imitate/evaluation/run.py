@@ -65,7 +65,7 @@ def evaluate(
     variations = [draw(suite, seed, i, path) for i in range(n)]
     records = {r["id"]: r for r in read_records(out / RESULTS, digest) if r["id"] < n}
     pending = [v for v in variations if v.id not in records]
-    start = time.perf_counter()
+    start, load = time.perf_counter(), os.getloadavg()
     finished = (
         run_ray(arrays, pending, ray) if ray else run_local(arrays, pending, min(workers, n))
     ) if pending else iter(())
@@ -90,7 +90,7 @@ def evaluate(
         "run": {
             "ran": len(pending), "wall_seconds": wall, "backend": "ray" if ray else "local",
             "workers": None if ray else min(workers, n),
-            "load_average": list(os.getloadavg()),
+            "load_average_start": list(load), "load_average_end": list(os.getloadavg()),
         },
     }
     save_json(out / "summary.json", summary)
