@@ -108,7 +108,7 @@ def plot_outcomes(records: Sequence[dict], path: np.ndarray) -> Figure:
     """Top view of the front of the table: each obstacle's footprint (filled: placed in the
     path), edged by its outcome, over the weight-0 path points ``path`` (P, 3); beside it the
     outcome counts by where the obstacle is."""
-    figure = Figure(figsize=(12, 5), layout="constrained")
+    figure = Figure(figsize=(11, 5), layout="constrained")
     top, bars = figure.subplots(1, 2, width_ratios=(3, 2))
     for r in records:
         obstacle = r["settings"]["obstacle"]
@@ -127,7 +127,7 @@ def plot_outcomes(records: Sequence[dict], path: np.ndarray) -> Figure:
     top.axvline(TABLE_X[0], color="0.4", lw=1, ls="--", label="table edge")
     handles = [Patch(color=COLOURS[o], label=o) for o in OUTCOMES]
     top.legend(handles=[*top.get_legend_handles_labels()[0], *handles], fontsize=8,
-               loc="upper right")
+               loc="upper left", bbox_to_anchor=(1.02, 1.0))
     top.set(xlim=(TABLE_X[0] - 0.1, 0.85), ylim=(-0.45, 0.45), aspect="equal", xlabel="x [m]",
             ylabel="y [m]", title="obstacles by outcome (filled: placed in the path)")
     bottom = np.zeros(len(PLACES))
