@@ -65,7 +65,7 @@ def _add_eval(commands) -> None:
     sub.add_argument("--ray", metavar="ADDRESS",
                      help="run the variations as Ray tasks on the cluster at ADDRESS ('auto': "
                      "the one Ray finds); needs imitate[ray]")
-    sub.add_argument("--collision-weight", type=float, metavar="W",
+    sub.add_argument("--collision-weight", type=float, metavar="W", dest="weight",
                      help="replaces the suite's collision_weight")
     sub.add_argument("--videos", type=int, default=3, metavar="K",
                      help="videos of the first K failures (default 3)")
@@ -152,8 +152,8 @@ def _eval(args: argparse.Namespace) -> int:
 
     try:
         suite = evaluation.load_suite(args.suite) if args.suite else evaluation.Suite.default()
-        if args.collision_weight is not None:
-            suite = suite.replace(collision_weight=args.collision_weight)
+        if args.weight is not None:
+            suite = suite.replace(collision_weight=args.weight)
         summary = evaluation.evaluate(
             args.run_dir, suite, n=args.n, seed=args.seed, workers=args.workers,
             ray=args.ray, videos=args.videos,

@@ -151,7 +151,7 @@ def _commands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentPar
 def test_cli_knows_every_stage_in_order():
     from imitate.stages import NAMES
 
-    assert tuple(_commands(build_parser())) == (*NAMES, "run")
+    assert tuple(_commands(build_parser())) == (*NAMES, "run", "eval")
 
 
 def test_config_round_trips_through_json():

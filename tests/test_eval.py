@@ -161,7 +161,7 @@ def test_tiny_evaluation_same_on_one_worker_after_a_resume(tmp_path, model_array
     records = read_records(run_dir / "eval" / RESULTS, summary["suite_digest"])
     assert len(records) == 3
     assert _without_timings(records) == _without_timings(two_workers[0])
-    failures = sorted((run_dir / "eval" / "failures").iterdir())
+    failures = sorted((run_dir / "eval" / "failures" / summary["suite_digest"]).glob("*"))
     assert len(failures) == min(1, 3 - summary["outcomes"]["success"])
     assert all(p.suffix == ".mp4" and p.stat().st_size > 0 for p in failures)
     assert (run_dir / "eval" / "outcomes.png").stat().st_size > 0

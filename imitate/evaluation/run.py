@@ -1,8 +1,9 @@
 """``imitate eval``: a run's learned model reproduced in the variations of a suite.
 
 Writes under ``RUN_DIR/eval/``: ``results.jsonl`` (one record per variation, appended and
-synced as each finishes, with the suite digest and the exact settings), ``summary.json``,
-``outcomes.png`` and ``failures/<id>-<outcome>.mp4`` for the first failures. An interrupted
+synced as each finishes, with the suite digest and the exact settings), ``summary.json`` and
+``outcomes.png`` (of the last evaluation) and ``failures/<digest>/<id>-<outcome>.mp4`` for the
+first failures. An interrupted
 evaluation continues where it stopped: variations whose id already has a record under the same
 digest (suite, seed, learned model) are not run again.
 """
@@ -97,7 +98,7 @@ def evaluate(
     plots.save(plot_outcomes(ordered, path), out / "outcomes.png")
     failures = [r for r in ordered if r["outcome"] != "success"][:videos]
     for record in tqdm(failures, desc="failure videos", unit="video", disable=not progress):
-        video = out / "failures" / f"{record['id']:04d}-{record['outcome']}.mp4"
+        video = out / "failures" / digest / f"{record['id']:04d}-{record['outcome']}.mp4"
         if not video.exists():
             failure_video(video, learned, arrays["gaze"], record)
     return summary
