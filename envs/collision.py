@@ -1,8 +1,10 @@
 """Pairs of geoms that must not touch, and their signed distances from ``mj_geomDistance``.
 
 A pair is kept once, at construction, when MuJoCo would not already ignore it for the robot:
-geoms of the same body, of a parent and its child, of bodies welded together, and pairs the
-model excludes explicitly (a hand and the object it holds) are dropped.
+geoms of the same body, of bodies welded together, of a parent and its child (unless one of
+them is welded to the world: a free object still collides with the table and the obstacles,
+as in MuJoCo's parent filter), and pairs the model excludes explicitly (a hand and the object
+it holds) are dropped.
 """
 
 from __future__ import annotations
@@ -46,7 +48,8 @@ class CollisionPairs:
             for g2 in ids[i + 1 :]:
                 b1, b2 = int(geom_body[g1]), int(geom_body[g2])
                 w1, w2 = int(weld[b1]), int(weld[b2])
-                if w1 == w2 or parent[w1] == w2 or parent[w2] == w1:
+                p1, p2 = int(weld[parent[w1]]), int(weld[parent[w2]])
+                if w1 == w2 or (w1 and w2 and (p1 == w2 or p2 == w1)):
                     continue
                 # MuJoCo's exclude signature packs the two body ids as (min << 16) + max.
                 if (min(b1, b2) << 16) + max(b1, b2) in excluded:

@@ -81,6 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
         for stage in _stages(command):
             _add_settings(sub.add_argument_group(f"{stage} settings"), settings([stage]))
     add_export(commands)
+    _add_eval(commands)
     return parser
 
 
@@ -126,6 +127,28 @@ def _add_verbosity(parser: argparse.ArgumentParser, default) -> None:
     group.add_argument("-q", "--quiet", dest="log_level", action="store_const",
                        const=logging.WARNING, default=default,
                        help="print only warnings and errors (and the summary on stdout)")
+
+
+def _add_eval(commands) -> None:
+    """The ``eval`` sub-command's arguments (see :mod:`imitate.evaluation`)."""
+    text = "reproduce a run's learned model in seeded variations (obstacles, grasps, physics)"
+    sub = commands.add_parser("eval", help=text, description=text)
+    sub.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="run directory with model.npz")
+    sub.add_argument("--suite", type=Path, metavar="FILE",
+                     help="suite of variations, .toml or .json (default: the built-in one)")
+    sub.add_argument("--n", type=int, metavar="N",
+                     help="variations to run (default: the suite's 'variations', 100 built in)")
+    sub.add_argument("--seed", type=int, default=0, metavar="S",
+                     help="seed the variations are drawn with (default 0)")
+    sub.add_argument("--workers", type=int, metavar="W",
+                     help="local worker processes (default: one per core)")
+    sub.add_argument("--ray", metavar="ADDRESS",
+                     help="run the variations as Ray tasks on the cluster at ADDRESS ('auto': "
+                     "the one Ray finds); needs imitate[ray]")
+    sub.add_argument("--collision-weight", type=float, metavar="W", dest="weight",
+                     help="replaces the suite's collision_weight")
+    sub.add_argument("--videos", type=int, default=3, metavar="K",
+                     help="videos of the first K failures (default 3)")
 
 
 def _add_settings(group, declared: list[tuple[str, Setting, Any]]) -> None:
@@ -183,6 +206,8 @@ def main(argv: list[str] | None = None) -> int:
     _log_to_stderr(args.log_level)
     if args.command == "export":
         return export_command(args)
+    if args.command == "eval":
+        return _eval(args)
     if args.run_dir and args.out and args.run_dir != args.out:
         parser.error(f"two run directories given: {args.run_dir} and --out {args.out}; give one")
     run_dir = args.out or args.run_dir or DEFAULT_RUN
@@ -288,6 +313,25 @@ def _fail(command: str, message: str, status: int) -> int:
 def _starts_run(command: str) -> bool:
     """Whether ``command`` starts a run (from the defaults, making the directory)."""
     return command in ("run", "observe")
+
+
+def _eval(args: argparse.Namespace) -> int:
+    """``imitate eval``: the evaluation of ``args.run_dir``; prints its summary."""
+    from imitate import evaluation  # MuJoCo and the planner: once the arguments are fine
+
+    try:
+        suite = evaluation.load_suite(args.suite) if args.suite else evaluation.Suite.default()
+        if args.weight is not None:
+            suite = suite.replace(collision_weight=args.weight)
+        summary = evaluation.evaluate(
+            args.run_dir, suite, n=args.n, seed=args.seed, workers=args.workers,
+            ray=args.ray, videos=args.videos,
+        )
+    except ImitateError as err:
+        print(f"imitate eval: error: {err}", file=sys.stderr)
+        return 1
+    print(evaluation.text(summary, args.run_dir / "eval"))
+    return 0
 
 
 def summary(report: dict, stages: tuple[str, ...], run_dir: Path) -> str:

@@ -54,8 +54,9 @@ def test_quick_run_report(quick_run):
     weights = [entry["weight"] for entry in opt["sweep"]]
     assert weights == sorted(weights) and opt["collision_weight"] in weights
     assert 0.0 <= r["replay"]["pour_fraction"] <= 1.0
+    assert r["replay"]["pour_fraction_min"] <= r["replay"]["pour_fraction_mean"] <= 1.0
     assert r["replay"]["success"] == (
-        r["replay"]["pour_fraction"] >= 0.9 and r["replay"]["min_distance_m"] >= 0.0
+        r["replay"]["pour_fraction_min"] >= 0.9 and r["replay"]["min_distance_m"] >= 0.0
     )
     assert set(r["timings"]) == {"observe", "learn", "optimize", "replay", "figures"}
     for name in r["artifacts"].values():
@@ -146,7 +147,7 @@ def _commands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentPar
 def test_cli_knows_every_stage_in_order():
     from imitate.stages import NAMES
 
-    assert tuple(_commands(build_parser())) == (*NAMES, "run", "export")
+    assert tuple(_commands(build_parser())) == (*NAMES, "run", "export", "eval")
 
 
 def test_config_round_trips_through_json():

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from imitate.envs import assembly
+from imitate.envs.collision import CollisionPairs
 from imitate.errors import ImitateError
 from imitate.models import humanoid, objects
 from imitate.models import scene as names
@@ -170,3 +171,44 @@ def test_obstacle_touching_the_robot_at_the_start_is_refused():
         assembly.check_clearance(assembly.SceneConfig(obstacles=(on_hand,)))
     clear = assembly.Obstacle("box", (0.55, 0.0, 0.70), (0.03, 0.03, 0.05))  # the README's
     assembly.check_clearance(assembly.SceneConfig(obstacles=(_box(), clear)))
+
+
+def test_held_objects_keep_clear_of_table_and_obstacles(model):
+    """A held object is a free body, child of the world: its pairs with the world-fixed table
+    and obstacles are checked (MuJoCo's parent filter skips the world too)."""
+    pairs = CollisionPairs.between(model, assembly.clearance_geoms(model))
+    found = {frozenset(pairs.names(model, i)) for i in range(len(pairs))}
+    for hull in ("glass_hull_0", "bottle_hull_0"):
+        for other in (names.TABLE_TOP, f"{names.OBSTACLE_PREFIX}0"):
+            assert frozenset((hull, other)) in found
+
+
+@pytest.mark.parametrize("obj", [objects.BOTTLE, objects.GLASS])
+def test_hulls_enclose_the_collision_geoms(model, obj):
+    """Every corner of the walls' boxes and every rim point of the floor lies in a hull, so the
+    distance between hulls never overstates the physical clearance."""
+    body = model.body(obj).id
+    geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] == body]
+    hulls = [g for g in geoms if "_hull_" in model.geom(g).name]
+    points = []
+    for g in geoms:
+        if not model.geom_contype[g]:
+            continue
+        size, rot = model.geom_size[g], np.zeros(9)
+        mujoco.mju_quat2Mat(rot, model.geom_quat[g])
+        if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
+            local = np.array(np.meshgrid(*[[-s, s] for s in size])).reshape(3, -1).T
+        else:  # the floor cylinder: points around both rims
+            angle = np.linspace(0, 2 * np.pi, 36, endpoint=False)
+            rim = np.column_stack((size[0] * np.cos(angle), size[0] * np.sin(angle)))
+            local = np.vstack([np.column_stack((rim, np.full(36, z))) for z in (-size[1], size[1])])
+        points.append(model.geom_pos[g] + local @ rot.reshape(3, 3).T)
+    points = np.vstack(points)
+    inside = np.zeros(len(points), dtype=bool)
+    for h in hulls:  # upright cylinders in the body frame
+        radius, half = model.geom_size[h][:2]
+        centre = model.geom_pos[h]
+        inside |= (np.hypot(*(points[:, :2] - centre[:2]).T) <= radius + 1e-9) & (
+            np.abs(points[:, 2] - centre[2]) <= half + 1e-9
+        )
+    assert inside.all(), f"{(~inside).sum()} of {len(points)} points outside the hulls"

@@ -91,6 +91,10 @@ class Rollout:
         frames: ``T`` :class:`TaskFrame` at ``q_0 .. q_{T-1}``.
         distances: ``T + 1`` :class:`Distances` (with gradients) of the pairs closer than the
             rollout's ``distmax``; empty if it was 0.
+        between: ``T`` :class:`Distances` at the midpoints ``(q_t + q_{t+1}) / 2``: the robot
+            moves between the steps along the straight line in joint space (the replay
+            interpolates so), where it can come closer than at either step; empty if
+            ``distmax`` was 0.
         clipped: Number of joint-angle clips to the joint ranges.
     """
 
@@ -102,6 +106,7 @@ class Rollout:
     solved: np.ndarray
     frames: tuple[TaskFrame, ...]
     distances: tuple[Distances, ...]
+    between: tuple[Distances, ...]
     clipped: int
 
 
@@ -121,7 +126,7 @@ def rollout(
 
     Args:
         distmax: Compute the signed distances (and their gradients) of pairs closer than this
-            [m] at every step; 0 for none.
+            [m] at every step and midway between steps; 0 for none.
     """
     kin = task.kin
     T = len(target) - 1
@@ -133,7 +138,7 @@ def rollout(
     pinv = np.empty((T, n, m))
     solved = np.empty((T, m))
     unclipped = np.empty((T, n))
-    frames, distances = [], []
+    frames, distances, between = [], [], []
     q[0] = q0
     damped = config.damping * np.eye(m)
     rhs = np.empty((m, n + 1))
@@ -159,9 +164,14 @@ def rollout(
         np.minimum(np.maximum(unclipped[t], kin.lower, out=q[t + 1]), kin.upper, out=q[t + 1])
         jac[t], pinv[t] = J, Jp
         frames.append(frame)
+        if distmax > 0:
+            kin.update(0.5 * (q[t] + q[t + 1]))
+            between.append(kin.distances(distmax, jacobian=True))
     hess = limits(q[:T])[2]
     clipped = int(np.count_nonzero(np.any(q[1:] != unclipped, axis=1)))
-    return Rollout(q, x, jac, pinv, hess, solved, tuple(frames), tuple(distances), clipped)
+    return Rollout(
+        q, x, jac, pinv, hess, solved, tuple(frames), tuple(distances), tuple(between), clipped
+    )
 
 
 def _solve_spd(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:

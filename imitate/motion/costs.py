@@ -8,7 +8,8 @@ rollout is :func:`imitate.motion.control.backward`.
 - :class:`Similarity`: eqs. 20-22, ``c = sum_t (x_t - mu_t)^T W_t (x_t - mu_t) dt`` with
   ``W_t`` from the GMR variances by eq. 21's ramp.
 - :class:`Collision`: CHOMP's potential of ``d - margin`` for every pair closer than
-  ``margin + epsilon``: ``(d' - eps)^2 / (2 eps)`` for ``0 <= d' < eps``, ``eps/2 - d'`` below 0.
+  ``margin + epsilon``: ``(d' - eps)^2 / (2 eps)`` for ``0 <= d' < eps``, ``eps/2 - d'`` below 0,
+  at every step and midway between steps (each sample standing for half a step).
 - :class:`JointLimits`: the border cost ``H`` of :class:`imitate.motion.control.JointLimitCost`.
 - :class:`PathLength`: the joint-space trajectory length as ``sum_t |q_{t+1} - q_t|^2 / dt``
   (squared so it is differentiable at rest).
@@ -95,8 +96,15 @@ class Collision:
             if len(dist.dist):
                 value, slope = potential(dist.dist - self.margin, self.epsilon)
                 total += float(value.sum())
-                gq[t] = slope @ dist.jac
-        return self.dt * total, self.dt * gq, np.zeros_like(x)
+                gq[t] += slope @ dist.jac
+        for t, dist in enumerate(result.between):  # at (q_t + q_{t+1}) / 2
+            if len(dist.dist):
+                value, slope = potential(dist.dist - self.margin, self.epsilon)
+                total += float(value.sum())
+                half = 0.5 * (slope @ dist.jac)
+                gq[t] += half
+                gq[t + 1] += half
+        return 0.5 * self.dt * total, 0.5 * self.dt * gq, np.zeros_like(x)
 
 
 class JointLimits:

@@ -328,8 +328,10 @@ def plan_from_model(
 
 
 def _min_distance(kin: Kinematics, q: np.ndarray) -> tuple[float, tuple[str, str] | None]:
+    """Smallest distance and its pair over the steps ``q`` ``(T + 1, n)`` and the midpoints
+    between them (the path the robot takes)."""
     best, pair = np.inf, None
-    for qt in q:
+    for qt in (*q, *(0.5 * (q[:-1] + q[1:]))):
         kin.update(qt)
         d, names = kin.min_distance()
         if d < best:

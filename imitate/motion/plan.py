@@ -25,7 +25,8 @@ class Plan:
         mean, variance, weights: GMR mean, variance and eq. 21 weights at ``times``, ``(T+1, m)``.
         costs: ``{term: (n_iter + 1,)}`` weighted cost per iteration of the accepted iterate,
             and ``"total"``.
-        min_distance: Smallest signed distance [m] over the trajectory and all pairs.
+        min_distance: Smallest signed distance [m] over the trajectory (its steps and the
+            midpoints between them) and all pairs.
         closest: Geom names of that pair (``None`` if none is within 0.2 m).
         converged: Whether the stopping rule was met within ``max_iter``.
         clipped: Joint-angle clips in the best rollout.

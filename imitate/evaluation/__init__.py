@@ -1,0 +1,13 @@
+"""``imitate eval``: a learned model reproduced in seeded variations of the scene and physics.
+
+:mod:`~imitate.evaluation.suite` (the distribution), :mod:`~imitate.evaluation.variation` (one
+drawn variation), :mod:`~imitate.evaluation.trial` (plan, replays, outcome),
+:mod:`~imitate.evaluation.parallel` (worker processes or Ray), :mod:`~imitate.evaluation.report`
+(summary, figure, videos), :mod:`~imitate.evaluation.run` (the whole evaluation, resumable).
+"""
+
+from imitate.evaluation.report import text
+from imitate.evaluation.run import evaluate
+from imitate.evaluation.suite import Suite, load_suite
+
+__all__ = ["Suite", "evaluate", "load_suite", "text"]

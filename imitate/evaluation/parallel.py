@@ -1,0 +1,97 @@
+"""Variations in parallel: local worker processes or Ray tasks, results yielded as they finish.
+
+Each variation's record depends on its settings alone (``run_variation`` seeds everything from
+them), so the two back-ends and any number of workers give the same records, timings aside.
+Local workers are spawned, not forked (MuJoCo's rendering contexts and fork do not mix), set
+``MUJOCO_GL`` and run single-threaded BLAS unless told otherwise.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+
+import numpy as np
+
+from imitate.errors import ImitateError
+from imitate.evaluation.trial import run_variation
+from imitate.evaluation.variation import Variation
+from imitate.learning import LearnedModel
+
+__all__ = ["run_local", "run_ray"]
+
+# Thread counts of the numerical libraries in each worker: one, the workers fill the cores.
+_SINGLE_THREAD = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+_worker: dict = {}  # a local worker's learned model and gaze, set once by _start
+
+
+def run_local(
+    arrays: dict[str, np.ndarray], variations: Sequence[Variation], workers: int
+) -> Iterator[dict]:
+    """Records of ``variations`` from ``workers`` spawned processes, in the order they finish;
+    ``arrays`` are ``model.npz``'s. Pending variations are cancelled if the caller stops."""
+    for name in _SINGLE_THREAD:  # inherited by the spawned workers
+        os.environ.setdefault(name, "1")
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(
+        workers, mp_context=context, initializer=_start, initargs=(arrays,)
+    ) as pool:
+        futures = [pool.submit(_run, v.to_json()) for v in variations]
+        try:
+            for future in as_completed(futures):
+                yield future.result()
+        finally:
+            for future in futures:
+                future.cancel()
+
+
+def run_ray(
+    arrays: dict[str, np.ndarray], variations: Sequence[Variation], address: str
+) -> Iterator[dict]:
+    """As :func:`run_local`, one Ray task (one CPU) per variation, on the Ray instance this
+    process is connected to, or else on the cluster at ``address`` (``"auto"``: the one Ray
+    finds). The workers need ``imitate`` installed.
+
+    Raises:
+        ImitateError: Ray is not installed, or no cluster answers at ``address``.
+    """
+    try:
+        import ray
+    except ImportError:
+        raise ImitateError(
+            "--ray needs Ray, which is not installed: pip install 'imitate[ray]'"
+        ) from None
+    if not ray.is_initialized():
+        try:
+            ray.init(address=address, log_to_driver=False)
+        except (ConnectionError, RuntimeError, ValueError) as err:
+            raise ImitateError(f"no Ray cluster at --ray {address}: {err}") from None
+    task = ray.remote(num_cpus=1)(_run_with)
+    shared = ray.put(arrays)
+    pending = [task.remote(shared, v.to_json()) for v in variations]
+    try:
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            yield ray.get(done[0])
+    finally:
+        for ref in pending:
+            ray.cancel(ref)
+
+
+def _start(arrays: dict[str, np.ndarray]) -> None:
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    _worker.update(learned=LearnedModel.from_arrays(arrays), gaze=arrays["gaze"])
+
+
+def _run(variation: dict) -> dict:
+    return run_variation(_worker["learned"], _worker["gaze"], Variation.from_json(variation))
+
+
+def _run_with(arrays: dict[str, np.ndarray], variation: dict) -> dict:
+    """A Ray task: one variation with the learned model of ``arrays`` (a Ray worker may serve
+    several evaluations, so nothing is kept)."""
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    learned = LearnedModel.from_arrays(arrays)
+    return run_variation(learned, arrays["gaze"], Variation.from_json(variation))

@@ -1,0 +1,163 @@
+"""What an evaluation reports: the summary (success rate with its Wilson interval, outcome
+counts, pours, clearances, timings), the outcome figure and the videos of failures."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle, Patch, Rectangle
+
+from imitate.envs.video import StateRecorder, captioned, replay_frames, write_video
+from imitate.evaluation.trial import OUTCOMES, physics, plan_variation, replay_once
+from imitate.evaluation.variation import Variation
+from imitate.learning import LearnedModel
+from imitate.models.scene import TABLE_X
+
+__all__ = ["failure_video", "plot_outcomes", "summarize", "text", "wilson"]
+
+COLOURS = {
+    "success": "tab:green", "plan_collision": "tab:red", "physics_contact": "tab:orange",
+    "spill": "tab:purple", "low_pour": "tab:blue", "diverged": "black",
+}
+PLACES = ("none", "random", "in_path")  # where a variation's obstacle was placed
+
+
+def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """Wilson score interval ``(low, high)`` of a success rate (95 % for ``z = 1.96``)."""
+    if n == 0:
+        return 0.0, 1.0
+    p, z2 = successes / n, z * z
+    centre = (p + z2 / (2 * n)) / (1 + z2 / n)
+    half = z * math.sqrt(p * (1 - p) / n + z2 / (4 * n * n)) / (1 + z2 / n)
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def place(record: dict) -> str:
+    """Where the record's obstacle is: one of :data:`PLACES`."""
+    settings = record["settings"]
+    if settings["obstacle"] is None:
+        return "none"
+    return "in_path" if settings["in_path"] else "random"
+
+
+def summarize(records: Sequence[dict]) -> dict:
+    """``summary.json``'s numbers over ``records`` (``results.jsonl`` lines)."""
+    n = len(records)
+    outcomes = [r["outcome"] for r in records]
+    successes = outcomes.count("success")
+    low, high = wilson(successes, n)
+    seconds = np.array([r["seconds"] for r in records])
+    clear = [r for r in records if r["plan"]["min_distance_m"] >= 0]
+    gap = {"plans": len(clear)}  # plan minus physics [mm], over the plans that keep clear
+    if clear:
+        values = np.array([r["clearance_gap_m"] for r in clear]) * 1000
+        gap.update(median=float(np.median(values)), p95=float(np.percentile(values, 95)),
+                   max=float(values.max()))
+    by_place = {
+        p: {o: sum(place(r) == p and r["outcome"] == o for r in records) for o in OUTCOMES}
+        for p in PLACES
+    }
+    return {
+        "variations": n,
+        "success_rate": successes / n,
+        "success_wilson95": [low, high],
+        "outcomes": {o: outcomes.count(o) for o in OUTCOMES},
+        "outcomes_by_obstacle": by_place,
+        "pour_mean": float(np.mean([r["pour_mean"] for r in records])),
+        "pour_min": float(np.min([r["pour_min"] for r in records])),
+        "clearance_gap_mm": gap,
+        "seconds_per_variation": {
+            "mean": float(seconds.mean()), "median": float(np.median(seconds)),
+            "max": float(seconds.max()),
+        },
+    }
+
+
+def text(summary: dict, out: Path) -> str:
+    """The summary in a few lines (what ``imitate eval`` prints); ``out``: the eval folder."""
+    n, run = summary["variations"], summary["run"]
+    low, high = summary["success_wilson95"]
+    successes = summary["outcomes"]["success"]
+    where = f"{run['workers']} workers" if run["backend"] == "local" else "Ray"
+    by_place = ", ".join(
+        f"{p} {c['success']}/{sum(c.values())}" for p, c in summary["outcomes_by_obstacle"].items()
+    )
+    gap, seconds = summary["clearance_gap_mm"], summary["seconds_per_variation"]
+    return "\n".join([
+        f"eval: {n} variations ({run['ran']} run now on {where} in {run['wall_seconds']:.1f} s, "
+        f"1-min load average {run['load_average_start'][0]:.1f} at the start, "
+        f"{run['load_average_end'][0]:.1f} at the end), suite digest {summary['suite_digest']}",
+        f"success: {successes}/{n} = {summary['success_rate']:.3f} (95 % Wilson interval "
+        f"{low:.3f}..{high:.3f})",
+        "outcomes: " + ", ".join(f"{o} {c}" for o, c in summary["outcomes"].items()),
+        f"successes by obstacle: {by_place}",
+        f"pour over the replays: mean {summary['pour_mean']:.3f}, min {summary['pour_min']:.3f}",
+        f"plan - physics clearance over the {gap['plans']} plans that keep clear [mm]: "
+        + ", ".join(f"{k} {v:.2f}" for k, v in gap.items() if k != "plans"),
+        f"seconds per variation: mean {seconds['mean']:.1f}, median {seconds['median']:.1f}, "
+        f"max {seconds['max']:.1f}",
+        f"results: {out / 'results.jsonl'}, {out / 'summary.json'}, {out / 'outcomes.png'}",
+    ])
+
+
+def plot_outcomes(records: Sequence[dict], path: np.ndarray) -> Figure:
+    """Top view of the front of the table: each obstacle's footprint (filled: placed in the
+    path), edged by its outcome, over the weight-0 path points ``path`` (P, 3); beside it the
+    outcome counts by where the obstacle is."""
+    figure = Figure(figsize=(11, 5), layout="constrained")
+    top, bars = figure.subplots(1, 2, width_ratios=(3, 2))
+    for r in records:
+        obstacle = r["settings"]["obstacle"]
+        if obstacle is None:
+            continue
+        (x, y, _), size = obstacle["pos"], obstacle["size"]
+        colour = COLOURS[r["outcome"]]
+        style = dict(edgecolor=colour, facecolor=colour if r["settings"]["in_path"] else "none",
+                     alpha=0.8, lw=1.2)
+        if obstacle["shape"] == "box":
+            top.add_patch(Rectangle((x - size[0], y - size[1]), 2 * size[0], 2 * size[1], **style))
+        else:
+            top.add_patch(Circle((x, y), size[0], **style))
+    if len(path):
+        top.plot(path[:, 0], path[:, 1], ".", ms=3, color="0.3", label="held objects at weight 0")
+    top.axvline(TABLE_X[0], color="0.4", lw=1, ls="--", label="table edge")
+    handles = [Patch(color=COLOURS[o], label=o) for o in OUTCOMES]
+    top.legend(handles=[*top.get_legend_handles_labels()[0], *handles], fontsize=8,
+               loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    top.set(xlim=(TABLE_X[0] - 0.1, 0.85), ylim=(-0.45, 0.45), aspect="equal", xlabel="x [m]",
+            ylabel="y [m]", title="obstacles by outcome (filled: placed in the path)")
+    bottom = np.zeros(len(PLACES))
+    for outcome in OUTCOMES:
+        counts = np.array(
+            [sum(place(r) == p and r["outcome"] == outcome for r in records) for p in PLACES]
+        )
+        bars.bar(PLACES, counts, bottom=bottom, color=COLOURS[outcome], label=outcome)
+        bottom += counts
+    bars.set(ylabel="variations", title="outcomes by obstacle")
+    return figure
+
+
+def failure_video(
+    path: Path, learned: LearnedModel, gaze: np.ndarray, record: dict, fps: float = 25.0
+) -> int:
+    """Video of a failed variation's worst replay (the one with the smallest pour, or the
+    first that touched), replayed again from its settings; returns the number of frames."""
+    variation = Variation.from_json(record["settings"])
+    replays = record["replays"]
+    touched = [r for r in replays if r["min_distance_m"] < 0]
+    worst = touched[0] if touched else min(replays, key=lambda r: r["pour_fraction"])
+    plan = plan_variation(learned, gaze, variation)
+    env = physics(variation)
+    recorder = StateRecorder(every=max(1, round(1.0 / (fps * env.dt))))
+    try:
+        replay_once(plan, env, variation, worst["seed"], gaze, on_step=recorder)
+    finally:
+        env.close()
+    caption = f"variation {variation.id}: {record['outcome'].replace('_', ' ')}"
+    states = recorder.arrays()
+    frames = captioned(replay_frames(variation.scene(), states, 640, 480), caption)
+    return write_video(path, frames, fps)

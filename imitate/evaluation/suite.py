@@ -1,0 +1,216 @@
+"""The evaluation suite: the distribution the variations of ``imitate eval`` are drawn from.
+
+A suite is a TOML or JSON file of top-level keys, each optional (the built-in default suite
+fills the rest); :data:`KEYS` declares every key once with its default, range and meaning. A
+range key takes ``[low, high]`` (drawn uniformly) or one number (fixed). Unknown keys,
+out-of-range values, ``low > high`` and an empty file are refused with an ``ImitateError``
+naming the entry.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from imitate.envs.assembly import GRASP_RANGE, MAX_PARTICLES, OBSTACLE_SHAPES
+from imitate.errors import ImitateError
+from imitate.models import objects
+from imitate.models.scene import TABLE_X, TABLE_Y
+from imitate.motion import PlanConfig
+
+__all__ = ["KEYS", "Key", "Suite", "load_suite"]
+
+
+@dataclass(frozen=True)
+class Key:
+    """One suite key: its default, what it accepts and what it means.
+
+    Attributes:
+        default: The default suite's value; a ``(low, high)`` tuple for a range key.
+        help: What it is, with its unit.
+        low, high: Accepted values (each end of a range), inclusive.
+        integer: Whole numbers only.
+        choices: For a list of names: the accepted names.
+    """
+
+    default: Any
+    help: str
+    low: float = 0.0
+    high: float = float("inf")
+    integer: bool = False
+    choices: tuple[str, ...] | None = None
+
+    @property
+    def is_range(self) -> bool:
+        return isinstance(self.default, tuple) and self.choices is None
+
+    def accepted(self) -> str:
+        """What the key accepts, in words."""
+        if self.choices is not None:
+            return f"a non-empty list of {list(self.choices)}"
+        kind = "whole numbers" if self.integer else "numbers"
+        bounds = f"{self.low:g}..{self.high:g}" if self.high != float("inf") else f">= {self.low:g}"
+        if self.is_range:
+            return f"[low, high] or one value, {kind} in {bounds}"
+        return f"{'a whole number' if self.integer else 'a number'} in {bounds}"
+
+    def check(self, name: str, value: Any, source: str = "suite") -> Any:
+        """``value`` as the suite stores it (a range as a ``(low, high)`` tuple of floats or
+        ints).
+
+        Raises:
+            ImitateError: naming ``source``, ``name``, ``value`` and what is accepted.
+        """
+        refused = f"{source}: entry {name}={value!r} not accepted: {self.accepted()}"
+        if self.choices is not None:
+            if (
+                not isinstance(value, list)
+                or not value
+                or any(v not in self.choices for v in value)
+            ):
+                raise ImitateError(refused)
+            return tuple(dict.fromkeys(value))
+        values = value if self.is_range and isinstance(value, list) else [value]
+        if (
+            (self.is_range and len(values) not in (1, 2))
+            or (not self.is_range and isinstance(value, list))
+            or not all(self._number(v) for v in values)
+            or values[0] > values[-1]
+        ):
+            raise ImitateError(refused)
+        kind = int if self.integer else float
+        if self.is_range:
+            return kind(values[0]), kind(values[-1])
+        return kind(values[0])
+
+    def _number(self, v: Any) -> bool:
+        if isinstance(v, bool) or not isinstance(v, int | float):
+            return False
+        if self.integer and v != int(v):
+            return False
+        return self.low <= v <= self.high
+
+
+_BOTTLE, _GLASS = GRASP_RANGE[objects.BOTTLE], GRASP_RANGE[objects.GLASS]
+KEYS: dict[str, Key] = {
+    "variations": Key(100, "variations drawn when --n is not given", 1, 100_000, integer=True),
+    "collision_weight": Key(PlanConfig.collision_weight, "weight of the collision cost"),
+    "max_iter": Key(PlanConfig.max_iter, "optimiser iteration limit", 1, 10_000, integer=True),
+    "replays": Key(
+        3, "physics replays per variation, each from its own seed of the initial-state noise "
+        "(joint angles +-0.01 rad, particle jitter)", 1, 20, integer=True,
+    ),
+    "obstacle_share": Key(0.9, "share of variations with one obstacle on the table", 0, 1),
+    "in_path_share": Key(
+        0.5, "share of the obstacles placed in the path of the held objects (their plan at "
+        "collision weight 0), the others at random", 0, 1,
+    ),
+    "shapes": Key(OBSTACLE_SHAPES, "obstacle shapes, drawn uniformly", choices=OBSTACLE_SHAPES),
+    "obstacle_x": Key((0.40, 0.75), "centre x of an obstacle placed at random [m]", *TABLE_X),
+    "obstacle_y": Key((-0.35, 0.35), "centre y of an obstacle placed at random [m]", *TABLE_Y),
+    "obstacle_size": Key(
+        (0.015, 0.05), "an obstacle's half width: each half extent of a box's footprint, a "
+        "cylinder's radius [m]", 0.005, 0.2,
+    ),
+    "obstacle_half_height": Key(
+        (0.02, 0.10), "half height of an obstacle placed at random (it stands on the table) [m]",
+        0.005, 0.3,
+    ),
+    "path_overlap": Key(
+        (0.005, 0.03), "how far an obstacle in the path rises above the bottom of the held "
+        "object it stands under [m]", 0.0, 0.2,
+    ),
+    "bottle_grasp": Key(_BOTTLE, "where the hand holds the bottle, above its bottom [m]", *_BOTTLE),
+    "glass_grasp": Key(_GLASS, "where the hand holds the glass, above its bottom [m]", *_GLASS),
+    "particles": Key((30, 60), "liquid spheres", 1, MAX_PARTICLES, integer=True),
+    "friction_scale": Key(
+        (0.8, 1.25), "factor on every geom's sliding friction in physics", 0.1, 10
+    ),
+    "damping_scale": Key((0.8, 1.25), "factor on the robot's joint damping in physics", 0.1, 10),
+    "mass_scale": Key(
+        (0.8, 1.25), "factor on the masses and inertias of the bottle, the glass and the "
+        "liquid in physics", 0.1, 10,
+    ),
+}
+
+
+@dataclass(frozen=True)
+class Suite:
+    """A suite: one value per :data:`KEYS` entry (ranges as ``(low, high)``)."""
+
+    values: dict[str, Any]
+
+    @classmethod
+    def default(cls) -> Suite:
+        return cls({name: key.default for name, key in KEYS.items()})
+
+    @classmethod
+    def from_dict(cls, entries: dict[str, Any], source: str = "suite") -> Suite:
+        """The default suite with ``entries`` replacing its values.
+
+        Raises:
+            ImitateError: an empty ``entries``, an unknown key or a value out of range.
+        """
+        if not isinstance(entries, dict) or not entries:
+            raise ImitateError(
+                f"{source} is empty: give at least one of the keys {sorted(KEYS)}"
+            )
+        unknown = sorted(set(entries) - set(KEYS))
+        if unknown:
+            raise ImitateError(
+                f"{source}: unknown entry {unknown[0]!r}; accepted: {sorted(KEYS)}"
+            )
+        values = dict(cls.default().values)
+        for name, value in entries.items():
+            values[name] = KEYS[name].check(name, value, source)
+        return cls(values)
+
+    def replace(self, **changes: Any) -> Suite:
+        """This suite with some values changed (checked like a file's)."""
+        return Suite.from_dict({**self.to_json(), **changes})
+
+    def __getitem__(self, name: str) -> Any:
+        return self.values[name]
+
+    def to_json(self) -> dict[str, Any]:
+        """The values as a file would give them (ranges as lists)."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in self.values.items()}
+
+    def digest(self, seed: int, model: bytes) -> str:
+        """Identifies the variations this suite draws: sha256 (16 hex digits) of its values
+        (but ``variations``: a longer evaluation extends a shorter one), ``seed`` and the learned
+        model's bytes."""
+        values = {k: v for k, v in self.to_json().items() if k != "variations"}
+        text = json.dumps({"suite": values, "seed": seed}, sort_keys=True)
+        return hashlib.sha256(text.encode() + hashlib.sha256(model).digest()).hexdigest()[:16]
+
+
+def load_suite(path: Path) -> Suite:
+    """The suite in ``path`` (``.toml`` or ``.json``).
+
+    Raises:
+        ImitateError: an unreadable file, another format, or bad entries (see :class:`Suite`).
+    """
+    path = Path(path)
+    if path.suffix not in (".toml", ".json"):
+        raise ImitateError(f"suite {path} not accepted: a .toml or .json file")
+    try:
+        text = path.read_text()
+    except OSError as err:
+        raise ImitateError(f"suite {path} cannot be read: {err.strerror}") from None
+    if path.suffix == ".json":
+        try:
+            entries = json.loads(text) if text.strip() else {}
+        except json.JSONDecodeError as err:
+            raise ImitateError(f"suite {path} is not valid JSON: {err}") from None
+    else:
+        import tomllib  # Python 3.11 and later
+
+        try:
+            entries = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as err:
+            raise ImitateError(f"suite {path} is not valid TOML: {err}") from None
+    return Suite.from_dict(entries, f"suite {path}")

@@ -1,0 +1,194 @@
+"""``imitate eval``: the suite's checks, drawing variations, outcomes, and a tiny evaluation that
+gives the same records on 1 and 2 local workers, after a resume, and on Ray."""
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from imitate.artifacts import save_npz
+from imitate.cli import main
+from imitate.errors import ImitateError
+from imitate.evaluation import Suite, evaluate, load_suite
+from imitate.evaluation.report import wilson
+from imitate.evaluation.run import RESULTS, read_records
+from imitate.evaluation.suite import KEYS
+from imitate.evaluation.trial import classify
+from imitate.evaluation.variation import Variation, draw
+from imitate.learning import LearningConfig
+from imitate.models.scene import TABLE_HEIGHT
+from imitate.oracle import oracle_model
+from imitate.replay import planning_task
+
+README = Path(__file__).parents[1] / "README.md"
+# Three variations that run in seconds: few particles, a short optimisation, two replays.
+TINY = {
+    "variations": 3, "max_iter": 3, "replays": 2, "particles": [4, 6], "obstacle_share": 1.0,
+    "in_path_share": 0.5,
+}
+
+
+@pytest.fixture(scope="module")
+def model_arrays():
+    gaze = planning_task().gaze
+    learned = oracle_model(gaze, learning=LearningConfig(k_max=6), rate=20.0)
+    return {**learned.to_arrays(), "gaze": gaze}
+
+
+def _run_dir(tmp_path: Path, arrays: dict) -> Path:
+    save_npz(tmp_path / "model.npz", arrays)
+    return tmp_path
+
+
+def _without_timings(records: list[dict]) -> list[dict]:
+    out = []
+    for record in sorted(records, key=lambda r: r["id"]):
+        copy = json.loads(json.dumps(record))
+        copy.pop("seconds")
+        copy["plan"].pop("seconds")
+        out.append(copy)
+    return out
+
+
+@pytest.mark.parametrize(
+    "text, suffix, match",
+    [
+        ("replay = 1\n", ".toml", "unknown entry 'replay'"),
+        ("particles = [50, 500]\n", ".toml", r"entry particles=\[50, 500\] not accepted"),
+        ("bottle_grasp = [0.1, 0.06]\n", ".toml", "entry bottle_grasp="),
+        ("replays = 1.5\n", ".toml", "entry replays=1.5 not accepted: a whole number"),
+        ("obstacle_share = true\n", ".toml", "entry obstacle_share=True"),
+        ('{"shapes": ["box", "sphere"]}', ".json", r"entry shapes=\['box', 'sphere'\]"),
+        ('{"shapes": []}', ".json", "entry shapes="),
+        ("", ".toml", "is empty"),
+        ("", ".json", "is empty"),
+        ("{", ".json", "not valid JSON"),
+        ("replays =", ".toml", "not valid TOML"),
+        ("replays: 1", ".yaml", "a .toml or .json file"),
+    ],
+)
+def test_bad_suite_refused_in_one_line(tmp_path, text, suffix, match):
+    path = tmp_path / f"suite{suffix}"
+    path.write_text(text)
+    with pytest.raises(ImitateError, match=match) as err:
+        load_suite(path)
+    assert "\n" not in str(err.value)
+
+
+def test_suite_reads_toml_and_json_alike(tmp_path):
+    (tmp_path / "a.toml").write_text('particles = 40\nshapes = ["box"]\nobstacle_x = [0.5, 0.6]\n')
+    (tmp_path / "a.json").write_text(
+        json.dumps({"particles": 40, "shapes": ["box"], "obstacle_x": [0.5, 0.6]})
+    )
+    a, b = load_suite(tmp_path / "a.toml"), load_suite(tmp_path / "a.json")
+    assert a == b and a["particles"] == (40, 40) and a["shapes"] == ("box",)
+    assert a.digest(0, b"m") == b.digest(0, b"m") != a.digest(1, b"m") != a.digest(0, b"n")
+    assert a.replace(variations=7).digest(0, b"m") == a.digest(0, b"m")  # n may grow
+
+
+def test_default_suite_and_readme_document_every_key():
+    assert Suite.default()["variations"] >= 100
+    section = README.read_text().split("## Evaluation")[1].split("\n## ")[0]
+    documented = set(re.findall(r"^\| `(\w+)` \|", section, re.MULTILINE))
+    assert documented == set(KEYS)
+
+
+def test_variations_are_drawn_per_id_and_round_trip():
+    suite = Suite.default().replace(in_path_share=1.0, obstacle_share=1.0)
+    path = np.array([[0.44, 0.0, 0.68], [0.45, 0.02, 0.67]])
+    first = [draw(suite, 3, i, path) for i in range(20)]
+    assert first[7] == draw(suite, 3, 7, path) != draw(suite, 4, 7, path)
+    for v in first:
+        assert Variation.from_json(json.loads(json.dumps(v.to_json()))) == v
+        assert v.in_path and len(v.replay_seeds) == suite["replays"]
+        o = v.obstacle
+        top = o.pos[2] + o.size[-1]
+        assert o.pos[2] - o.size[-1] == pytest.approx(TABLE_HEIGHT)
+        held = [
+            p for p in path
+            if top >= p[2] + suite["path_overlap"][0] - 1e-9
+            and (np.all(np.abs(p[:2] - o.pos[:2]) <= o.size[:2]) if o.shape == "box"
+                 else np.hypot(*(p[:2] - o.pos[:2])) <= o.size[0])
+        ]
+        assert held, f"obstacle {o} holds no path point"
+    assert all(draw(suite, 3, i, np.empty((0, 3))).in_path is False for i in range(5))
+
+
+def test_wilson_interval():
+    assert wilson(0, 10) == pytest.approx((0.0, 0.2775), abs=1e-4)
+    assert wilson(5, 10) == pytest.approx((0.2366, 0.7634), abs=1e-4)
+    assert wilson(10, 10)[1] == 1.0
+
+
+def _replay(pour, spilled=0, distance=0.01, diverged=False):
+    return {"pour_fraction": pour, "spilled": spilled, "min_distance_m": distance,
+            "diverged": diverged}
+
+
+@pytest.mark.parametrize(
+    "plan, replays, outcome",
+    [
+        (0.01, [_replay(1.0), _replay(0.95)], "success"),
+        (0.01, [_replay(1.0), _replay(0.85, spilled=3)], "spill"),
+        (0.01, [_replay(1.0), _replay(0.85, spilled=1)], "low_pour"),
+        (0.01, [_replay(1.0), _replay(1.0, distance=-0.001)], "physics_contact"),
+        (-0.002, [_replay(1.0, distance=-0.001)], "plan_collision"),
+        (-0.002, [_replay(1.0, diverged=True)], "diverged"),
+    ],
+)
+def test_classify(plan, replays, outcome):
+    assert classify(plan, replays, particles=20) == outcome
+
+
+@pytest.fixture(scope="module")
+def two_workers(tmp_path_factory, model_arrays):
+    """The tiny suite's records on two local workers, and its summary."""
+    run_dir = _run_dir(tmp_path_factory.mktemp("two"), model_arrays)
+    summary = evaluate(run_dir, Suite.from_dict(TINY), workers=2, videos=0)
+    return read_records(run_dir / "eval" / RESULTS, summary["suite_digest"]), summary
+
+
+def test_tiny_evaluation_same_on_one_worker_after_a_resume(tmp_path, model_arrays, two_workers):
+    suite = Suite.from_dict(TINY)
+    run_dir = _run_dir(tmp_path, model_arrays)
+    evaluate(run_dir, suite, n=2, workers=1, videos=0)
+    with open(run_dir / "eval" / RESULTS, "a") as f:
+        f.write('{"digest": "cut sh')  # an interrupted write
+    summary = evaluate(run_dir, suite, workers=1, videos=1)
+    assert summary["run"]["ran"] == 1 and summary["variations"] == 3
+    records = read_records(run_dir / "eval" / RESULTS, summary["suite_digest"])
+    assert len(records) == 3
+    assert _without_timings(records) == _without_timings(two_workers[0])
+    failures = sorted((run_dir / "eval" / "failures" / summary["suite_digest"]).glob("*"))
+    assert len(failures) == min(1, 3 - summary["outcomes"]["success"])
+    assert all(p.suffix == ".mp4" and p.stat().st_size > 0 for p in failures)
+    assert (run_dir / "eval" / "outcomes.png").stat().st_size > 0
+    saved = json.loads((run_dir / "eval" / "summary.json").read_text())
+    assert sum(saved["outcomes"].values()) == 3
+    assert saved["suite_digest"] == summary["suite_digest"] == two_workers[1]["suite_digest"]
+
+
+def test_tiny_evaluation_same_on_ray(tmp_path, model_arrays, two_workers):
+    ray = pytest.importorskip("ray")
+    run_dir = _run_dir(tmp_path, model_arrays)
+    ray.init(num_cpus=2, include_dashboard=False)
+    try:
+        summary = evaluate(run_dir, Suite.from_dict(TINY), ray="auto", videos=0)
+    finally:
+        ray.shutdown()
+    records = read_records(run_dir / "eval" / RESULTS, summary["suite_digest"])
+    assert _without_timings(records) == _without_timings(two_workers[0])
+
+
+def test_eval_command_errors(tmp_path, model_arrays, capsys):
+    run_dir = _run_dir(tmp_path, model_arrays)
+    (tmp_path / "bad.toml").write_text("replays = 0\n")
+    assert main(["eval", str(run_dir), "--suite", str(tmp_path / "bad.toml")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("imitate eval: error:") and "replays=0" in err and "\n" not in err
+    assert main(["eval", str(tmp_path / "nowhere"), "--n", "1"]) == 1
+    assert "model.npz is missing" in capsys.readouterr().err
+    assert main(["eval", str(run_dir), "--n", "0"]) == 1
+    assert "--n 0 not accepted" in capsys.readouterr().err
