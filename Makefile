@@ -25,7 +25,7 @@ $(BIN)/.installed-test: $(BIN)/.installed
 setup: $(BIN)/.installed
 setup-test: $(BIN)/.installed-test
 
-# The whole pipeline on the default settings: watch, learn, optimise, pour, figures, video.
+# The whole pipeline on the default settings: watch, learn, optimize, pour, figures, video.
 run: setup
 	$(BIN)/imitate run --out $(RUN)
 

@@ -1,6 +1,6 @@
 """The ``imitate`` command: one sub-command per stage of a run, and ``run`` for all of them.
 
-    imitate run --out runs/latest             # watch, learn, optimise, pour, plot
+    imitate run --out runs/latest             # watch, learn, optimize, pour, plot
     imitate run --quick --out runs/quick      # small images, 3 demonstrations: under a minute
     imitate optimize runs/latest --collision-weight 30   # re-plan with the learned model
     imitate replay runs/latest && imitate figures runs/latest
@@ -74,7 +74,7 @@ def build_parser() -> argparse.ArgumentParser:
         sub.add_argument("--out", type=Path, metavar="DIR", help="run directory")
         _add_settings(sub, settings([None]))
         sub.add_argument("--quick", action="store_true",
-                         help="small images, 3 demonstrations, short optimisation (tests)")
+                         help="small images, 3 demonstrations, short optimization (tests)")
         sub.add_argument("--force", action="store_true",
                          help="use input artifacts that are stale or from another run (see "
                          "manifest.json) instead of refusing them")

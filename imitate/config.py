@@ -119,7 +119,7 @@ def _setting(default: Any, help: str, **declaration: Any) -> Any:
 
 
 # Largest collision weight, over 300 times the default of 3000: it keeps the weighted costs and
-# the optimiser's arithmetic far from overflow.
+# the optimizer's arithmetic far from overflow.
 MAX_WEIGHT = 1e6
 # Video sizes are multiples of the encoder's macro block [px] (``envs/video.py``'s
 # ``write_video``): others would be padded up to one.
@@ -197,7 +197,7 @@ class RunConfig:
         "collision_weight", stage="optimize", low=0, high=1,
     )
     max_iter: int = _setting(
-        PlanConfig.max_iter, "optimiser iteration limit", stage="optimize", flag="--max-iter",
+        PlanConfig.max_iter, "optimizer iteration limit", stage="optimize", flag="--max-iter",
         low=1, high=10_000,
     )
     bottle_grasp: float = _setting(
@@ -248,7 +248,7 @@ class RunConfig:
 
     @classmethod
     def quick(cls, **overrides) -> RunConfig:
-        """Small images, 3 demonstrations, short optimisation: the whole run in well under
+        """Small images, 3 demonstrations, short optimization: the whole run in well under
         a minute (for tests)."""
         values = dict(
             n_demos=3, width=320, height=240, fps=20.0, k_max=10, max_iter=30, particles=30,

@@ -135,7 +135,7 @@ def learn(run_dir: Path, config: RunConfig) -> dict:
 
 
 def optimize(run_dir: Path, config: RunConfig) -> dict:
-    """Whole-body attractor optimisation at ``collision_weight``, and the Fig. 9 sweep."""
+    """Whole-body attractor optimization at ``collision_weight``, and the Fig. 9 sweep."""
     arrays = load_npz(run_dir / "model.npz", required=(*LearnedModel.array_names(), "gaze"))
     model = LearnedModel.from_arrays(arrays)
     task = planning_task(config.scene(), arrays["gaze"])

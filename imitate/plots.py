@@ -238,7 +238,7 @@ def _sweep_curves(ax, times, curves: dict, clearance: dict, colours: dict) -> No
 
 
 def plot_costs(costs: dict[float, np.ndarray]) -> Figure:
-    """Total cost per optimiser iteration, ``{collision weight: (n_iter + 1,)}``."""
+    """Total cost per optimizer iteration, ``{collision weight: (n_iter + 1,)}``."""
     fig, ax = plt.subplots(figsize=(7, 4), layout="constrained")
     for weight, total in costs.items():
         ax.semilogy(total, label=f"collision weight {weight:g}")

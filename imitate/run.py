@@ -109,7 +109,7 @@ class Run:
 
     @cached_property
     def plan(self) -> Plan:
-        """The optimised movement (``plan.npz``): ``q(t)``, ``x(t)``, attractors, costs."""
+        """The optimized movement (``plan.npz``): ``q(t)``, ``x(t)``, attractors, costs."""
         return Plan.from_arrays(load_npz(self.path / "plan.npz", required=Plan.array_names()))
 
     @cached_property

@@ -78,7 +78,7 @@ STAGES = (
     ),
     Stage(
         "optimize",
-        "whole-body attractor optimisation of the reproduction, Fig. 9 sweep",
+        "whole-body attractor optimization of the reproduction, Fig. 9 sweep",
         "imitate.pipeline:optimize",
         ("model.npz",),
         ("plan.npz",),
@@ -86,7 +86,7 @@ STAGES = (
     ),
     Stage(
         "replay",
-        "the optimised movement in full physics: pour fraction, spill, clearance",
+        "the optimized movement in full physics: pour fraction, spill, clearance",
         "imitate.pipeline:replay",
         ("plan.npz", "model.npz"),
         ("replay.npz",),

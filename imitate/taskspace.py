@@ -32,7 +32,7 @@ side an ``angle_ref`` picks the ``2 pi`` branch nearest to it.
 Singularity: when the axis is (nearly) parallel to the gaze its projection
 ``rho = hypot(a . r, a . d)`` vanishes and the angle is undefined. Below ``SINGULAR_TOL`` the
 demonstration map holds the last defined angle (the first defined one before it, 0 if none is
-defined), and the robot map returns ``angle_ref`` with a zero Jacobian row, so an optimiser
+defined), and the robot map returns ``angle_ref`` with a zero Jacobian row, so an optimizer
 neither chases nor is thrown by an undefined quantity; the ``a . f`` component stays defined
 and keeps its exact Jacobian.
 

@@ -1,4 +1,4 @@
-"""Benchmark of the movement optimisation: total time and per-iteration breakdown.
+"""Benchmark of the movement optimization: total time and per-iteration breakdown.
 
 Usage: ``python scripts/bench_motion.py [--repeats 3] [--max-iter 100]
 [--collision-weight 3000]``.

@@ -23,7 +23,7 @@ from imitate.oracle import oracle_model
 from imitate.replay import planning_task
 
 README = Path(__file__).parents[1] / "README.md"
-# Three variations that run in seconds: few particles, a short optimisation, two replays.
+# Three variations that run in seconds: few particles, a short optimization, two replays.
 TINY = {
     "variations": 3, "max_iter": 3, "replays": 2, "particles": [4, 6], "obstacle_share": 1.0,
     "in_path_share": 0.5,

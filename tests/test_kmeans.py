@@ -24,12 +24,12 @@ def test_lloyd_with_bounds_converges_like_plain_lloyd(demo_data, k):
     # clustering is scikit-learn's plain Lloyd result.
     x = demo_data - demo_data.mean(axis=0)  # as scikit-learn centres it
     init = x[np.random.default_rng(k).choice(len(x), k, replace=False)]
-    centers = init.copy()
+    centres = init.copy()
     labels, upper, lower = np.empty(len(x), dtype=np.intp), np.empty(len(x)), np.empty(len(x))
-    _assign_all(x, centers, labels, upper, lower)
-    inertia, _ = _lloyd(x, centers, labels, upper, lower, 1000, 0.0)
+    _assign_all(x, centres, labels, upper, lower)
+    inertia, _ = _lloyd(x, centres, labels, upper, lower, 1000, 0.0)
     ref = KMeans(k, init=init, n_init=1, max_iter=1000, tol=0.0, algorithm="lloyd").fit(x)
     np.testing.assert_array_equal(labels, ref.labels_)
     np.testing.assert_allclose(inertia, ref.inertia_, rtol=1e-9)
-    np.testing.assert_allclose(centers, ref.cluster_centers_, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(centres, ref.cluster_centers_, rtol=1e-9, atol=1e-12)
 

@@ -98,7 +98,7 @@ _BOTTLE, _GLASS = GRASP_RANGE[objects.BOTTLE], GRASP_RANGE[objects.GLASS]
 KEYS: dict[str, Key] = {
     "variations": Key(100, "variations drawn when --n is not given", 1, 100_000, integer=True),
     "collision_weight": Key(PlanConfig.collision_weight, "weight of the collision cost"),
-    "max_iter": Key(PlanConfig.max_iter, "optimiser iteration limit", 1, 10_000, integer=True),
+    "max_iter": Key(PlanConfig.max_iter, "optimizer iteration limit", 1, 10_000, integer=True),
     "replays": Key(
         3, "physics replays per variation, each from its own seed of the initial-state noise "
         "(joint angles +-0.01 rad, particle jitter)", 1, 20, integer=True,

@@ -1,4 +1,4 @@
-"""One variation, start to end: optimise the reproduction, replay it in perturbed physics from
+"""One variation, start to end: optimize the reproduction, replay it in perturbed physics from
 each of its seeds, classify the outcome.
 
 Outcomes, the first that applies: ``diverged`` (a replay's physics blew up), ``plan_collision``

@@ -47,7 +47,7 @@ class Variation:
         friction_scale, damping_scale, mass_scale: Physics perturbations (see the suite keys).
         replay_seeds: Seeds of the physics replays (initial-state noise), one per replay.
         collision_weight: Weight of the planner's collision cost.
-        max_iter: Optimiser iteration limit.
+        max_iter: Optimizer iteration limit.
     """
 
     id: int

@@ -36,7 +36,7 @@ def write(root: Path, robot: Episode, teacher: Iterable[Episode]) -> None:
         warnings.filterwarnings("ignore", message="env_spec is None")  # the teacher has no env
         minari.create_dataset_from_buffers(
             ROBOT_ID, [_buffer(robot)], env=robot.env, **_METADATA,
-            description="The robot pours from the bottle into the glass: the optimised plan "
+            description="The robot pours from the bottle into the glass: the optimized plan "
             "replayed in imitate/Pouring-v0. Actions: joint position targets [rad] (float64, as "
             "given to env.step); the last step is truncated by the spec's time limit.",
         )

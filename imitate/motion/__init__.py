@@ -1,4 +1,4 @@
-r"""Motion generation (paper section V): attractor-based whole-body movement optimisation.
+r"""Motion generation (paper section V): attractor-based whole-body movement optimization.
 
 Notation (the paper's; each formula is stated and derived in the docstring of the module
 that implements it):

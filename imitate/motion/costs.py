@@ -1,4 +1,4 @@
-r"""Cost terms of the movement optimisation, each with its explicit analytic gradient.
+r"""Cost terms of the movement optimization, each with its explicit analytic gradient.
 
 Every term maps a rollout (``q_{0:T}``, distances) and the target trajectory ``x_{0:T}`` to a
 value and its explicit gradients ``(gq (T+1, n), gx (T+1, m))``; per-step costs are integrated

@@ -1,11 +1,11 @@
-"""Attractor optimisation: find the attractor points whose rollout minimises the total cost.
+"""Attractor optimization: find the attractor points whose rollout minimises the total cost.
 
 :func:`plan_from_model` resamples the learned GMR mean and variance to the planning step, moves
 the robot's start posture onto the learned start (by RMR), fits one attractor per GMM component
 to the GMR mean in least squares (:func:`setup`) and then minimises ``Phi(a) = sum_i w_i c_i``
 by iRprop- (default; sign-based, so it tolerates the gradient's neglected ``dJ#/dq`` terms) or
 L-BFGS (scipy). It returns a frozen :class:`Plan` with the best attractors found, whether or not
-the optimiser converged.
+the optimizer converged.
 """
 
 from __future__ import annotations
@@ -177,7 +177,7 @@ class Problem:
 
 @dataclass(frozen=True)
 class Setup:
-    """The optimisation of :func:`plan_from_model` before its first iteration.
+    """The optimization of :func:`plan_from_model` before its first iteration.
 
     Attributes:
         times: ``(T + 1,)`` planning steps [s], ``dt`` apart from the first GMR time.
@@ -199,7 +199,7 @@ class Setup:
 def setup(
     task: TaskMap, model: LearnedModel, *, q0: np.ndarray, config: PlanConfig = PlanConfig()
 ) -> Setup:
-    """The problem :func:`plan_from_model` optimises: resampled GMR, eq. 21 weights, attractor
+    """The problem :func:`plan_from_model` optimizes: resampled GMR, eq. 21 weights, attractor
     dynamics with one attractor per GMM component (soft switching by the components' time
     spread and priors), the start posture, the least-squares attractors.
 
@@ -257,7 +257,7 @@ def setup(
 def plan_from_model(
     task: TaskMap, model: LearnedModel, *, q0: np.ndarray, config: PlanConfig = PlanConfig()
 ) -> Plan:
-    """Optimises a whole-body movement that reproduces the learned task (paper section V).
+    """Optimizes a whole-body movement that reproduces the learned task (paper section V).
 
     Args:
         task: Task map of the robot (kinematics, objects, gaze).

@@ -1,4 +1,4 @@
-"""The optimised movement (:class:`Plan`) and its storage as named arrays (``plan.npz``)."""
+"""The optimized movement (:class:`Plan`) and its storage as named arrays (``plan.npz``)."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ class Plan:
 
     Attributes:
         times: ``(T + 1,)`` [s].
-        attractors: ``(K, m)`` optimised attractor points, sorted by time.
+        attractors: ``(K, m)`` optimized attractor points, sorted by time.
         target: ``(T + 1, m)`` attractor trajectory ``x_t`` (what RMR tracks).
         x: ``(T + 1, m)`` task state reached, ``phi(q_t)``.
         q: ``(T + 1, n)`` joint angles [rad] in ``Kinematics.joints`` order.
