@@ -159,10 +159,17 @@ def _add_centre(
 
 @numba.njit(cache=True)
 def _move_sample(sums: np.ndarray, x_i: np.ndarray, source: int, target: int) -> None:
-    """Moves one sample between the cluster sums ``sums`` (K, D); ``source = -1``: only adds."""
+    """Moves one sample between the cluster sums ``sums`` (K, D)."""
     for e in range(x_i.shape[0]):
-        if source >= 0:
-            sums[source, e] -= x_i[e]
+        sums[source, e] -= x_i[e]
+        sums[target, e] += x_i[e]
+
+
+@numba.njit(cache=True)
+def _add_sample(sums: np.ndarray, x_i: np.ndarray, target: int) -> None:
+    """Adds one sample to the cluster sums ``sums`` (K, D) (a constant ``source`` of
+    :func:`_move_sample` would compile it a second time, for that constant)."""
+    for e in range(x_i.shape[0]):
         sums[target, e] += x_i[e]
 
 
@@ -196,7 +203,7 @@ def _lloyd(
     counts = np.zeros(k, dtype=np.intp)
     for i in range(n):
         counts[labels[i]] += 1
-        _move_sample(sums, x[i], -1, labels[i])
+        _add_sample(sums, x[i], labels[i])
     moved = np.empty(k)
     half_gap = np.empty(k)
     order = np.empty(k, dtype=np.intp)
@@ -274,7 +281,7 @@ def _lloyd(
     # Exact centres (no drift from the incremental sums), distances and inertia.
     sums[:] = 0.0
     for i in range(n):
-        _move_sample(sums, x[i], -1, labels[i])
+        _add_sample(sums, x[i], labels[i])
     for c in range(k):
         if counts[c] > 0:
             for e in range(d):
