@@ -22,7 +22,8 @@ N_POINTS = 4
 
 
 @numba.njit(cache=True)
-def _task_state(xpos, xmat, bodies, gaze, angle_ref, singular_rho2, points, proj, inv, x, rows):
+def _task_state(xpos, xmat, bodies, gaze, angle_ref, singular_rho2, points, proj, inv, x, rows,
+                axes):
     """Eq. 1 on the held objects at MuJoCo's kinematics ``xpos (nbody, 3)``, ``xmat (nbody,
     9)``, and what the Jacobian needs; all outputs are written.
 
@@ -37,12 +38,14 @@ def _task_state(xpos, xmat, bodies, gaze, angle_ref, singular_rho2, points, proj
         x: ``(7,)`` the task state.
         rows: ``(2, 3)`` the gradients of the two angles with respect to the axes, ``C``'s
             first rows times ``R_gaze^T``: ``(-p_d r + p_r d) / rho^2``.
+        axes: ``(2, 3)`` the long axes ``a``.
     """
     for o in range(2):
         b = bodies[o]
         for c in range(3):
+            axes[o, c] = xmat[b, 3 * c + 2]
             points[o, c] = xpos[b, c]
-            points[2 + o, c] = xpos[b, c] + xmat[b, 3 * c + 2]
+            points[2 + o, c] = xpos[b, c] + axes[o, c]
         for c in range(3):
             total = 0.0
             for k in range(3):
@@ -68,84 +71,90 @@ def _task_state(xpos, xmat, bodies, gaze, angle_ref, singular_rho2, points, proj
 
 
 @numba.njit(cache=True)
-def _task_jacobian(jac, rows, gaze, mask, J, axis_jac):
-    """The task Jacobian ``J (7, n)`` and the axes' Jacobians ``axis_jac (2, 3, n)`` from the
-    points' Jacobians ``jac (4, 3, n)`` (written); columns where ``mask (n,)`` is 0 are 0 in
-    ``J``."""
-    n = jac.shape[2]
+def _task_jacobian(jac, dof, axes, rows, gaze, mask, J, axis_jac, rot_jac):
+    """The task Jacobian ``J (7, n)``, the axes' Jacobians ``axis_jac (2, 3, n)`` (``da/dq``)
+    and the objects' rotational Jacobians ``rot_jac (2, 3, n)``, all written, from MuJoCo's
+    ``jac (2, 2, 3, nv)`` (per object, translational and rotational Jacobian of its origin; the
+    planned joints are the columns ``dof (n,)``); ``da/dq_j = omega_j x a``. Columns where
+    ``mask (n,)`` is 0 are 0 in ``J``."""
+    n = dof.shape[0]
     for j in range(n):
+        col = dof[j]
         for c in range(3):
-            J[c, j] = (jac[0, c, j] - jac[1, c, j]) * mask[j]
+            J[c, j] = (jac[0, 0, c, col] - jac[1, 0, c, col]) * mask[j]
         for o in range(2):
-            angle = 0.0
-            forward = 0.0
-            for c in range(3):
-                a = jac[2 + o, c, j] - jac[o, c, j]
-                axis_jac[o, c, j] = a
-                angle += rows[o, c] * a
-                forward += gaze[c, 2] * a
-            J[3 + 2 * o, j] = angle * mask[j]
-            J[4 + 2 * o, j] = forward * mask[j]
+            r0, r1, r2 = jac[o, 1, 0, col], jac[o, 1, 1, col], jac[o, 1, 2, col]
+            a0, a1, a2 = axes[o, 0], axes[o, 1], axes[o, 2]
+            da0, da1, da2 = r1 * a2 - r2 * a1, r2 * a0 - r0 * a2, r0 * a1 - r1 * a0
+            rot_jac[o, 0, j], rot_jac[o, 1, j], rot_jac[o, 2, j] = r0, r1, r2
+            axis_jac[o, 0, j], axis_jac[o, 1, j], axis_jac[o, 2, j] = da0, da1, da2
+            J[3 + 2 * o, j] = (rows[o, 0] * da0 + rows[o, 1] * da1 + rows[o, 2] * da2) * mask[j]
+            J[4 + 2 * o, j] = (gaze[0, 2] * da0 + gaze[1, 2] * da1 + gaze[2, 2] * da2) * mask[j]
 
 
 @numba.njit(cache=True)
-def _point_weights(a, rows, gaze, out):
-    """``a^T`` times the map from the points' Jacobians to ``J``: the weights ``out (4, 3)`` of
-    each point's Jacobian in ``a^T J`` for a task vector ``a (7,)``."""
-    for c in range(3):
-        out[0, c] = a[c]
-        out[1, c] = -a[c]
-    for o in range(2):
-        for c in range(3):
-            w = a[3 + 2 * o] * rows[o, c] + a[4 + 2 * o] * gaze[c, 2]
-            out[2 + o, c] = w
-            out[o, c] -= w
+def _cross(u, v, out):
+    """``out = u x v`` for ``(3,)`` vectors."""
+    out[0] = u[1] * v[2] - u[2] * v[1]
+    out[1] = u[2] * v[0] - u[0] * v[2]
+    out[2] = u[0] * v[1] - u[1] * v[0]
 
 
 @numba.njit(cache=True)
-def _curvature(a, b, c, d, rates, rows, proj, inv, axis_jac, gaze, mask, out):
+def _curvature(a, b, c, d, rates, dof, axes, rows, proj, inv, axis_jac, rot_jac, gaze, mask,
+               out):
     """``a^T D_b J + c^T D_d J`` into ``out (n,)`` (see :meth:`TaskMap.curvature`).
 
     Args:
         a, c: ``(7,)`` task vectors.
         b, d: ``(n,)`` joint directions.
-        rates: ``(2, 4, 3, n)`` the points' Jacobian rates along ``b`` and along ``d``.
-        rows, proj, inv, axis_jac: the task frame.
+        rates: ``(2, 2, 2, 3, nv)`` per direction (``b``, ``d``) and object, the derivatives of
+            its origin's translational and rotational Jacobian (columns ``dof (n,)``).
+        axes, rows, proj, inv, axis_jac, rot_jac: the task frame.
         gaze: ``R_gaze``; mask: ``(n,)`` as in :func:`_task_jacobian`.
+
+    With ``A = omega x a`` per joint, ``D_b A = omega' x a + omega x a'`` and ``a' = A b``; a
+    row ``w`` of ``C R_gaze^T`` weighs it as ``w . (omega' x a) = omega' . (a x w)`` and
+    ``w . (omega x a') = omega . (a' x w)``.
     """
     n = out.shape[0]
-    weights = np.empty((2, N_POINTS, 3))
-    _point_weights(a, rows, gaze, weights[0])
-    _point_weights(c, rows, gaze, weights[1])
-    # C' (the angle rows' own derivative), for the two objects and the two directions:
-    # d(-p_d s, p_r s) with s = 1 / rho^2 and p' = R^T A b.
-    coef = np.zeros((2, 3))  # per object, the weight of its axis Jacobian's rows
-    for o in range(2):
-        pr, pd, s = proj[o, 0], proj[o, 1], inv[o]
-        cr = 0.0
-        cd = 0.0
-        for k in range(2):
-            direction = b if k == 0 else d
-            weight = a[3 + 2 * o] if k == 0 else c[3 + 2 * o]
-            dpr = 0.0
-            dpd = 0.0
+    w = np.empty(3)
+    moved = np.empty(3)
+    across = np.empty((2, 2, 2, 3))  # direction, object, (a x w, a' x w)
+    coef = np.zeros((2, 3))  # C' (the angle rows' own derivative): per object, on A's rows
+    for k in range(2):
+        vector = a if k == 0 else c
+        direction = b if k == 0 else d
+        for o in range(2):
             for e in range(3):
-                moved = 0.0
+                w[e] = vector[3 + 2 * o] * rows[o, e] + vector[4 + 2 * o] * gaze[e, 2]
+                total = 0.0
                 for j in range(n):
-                    moved += axis_jac[o, e, j] * direction[j]
-                dpr += gaze[e, 0] * moved
-                dpd += gaze[e, 1] * moved
+                    total += axis_jac[o, e, j] * direction[j]
+                moved[e] = total  # a' = A direction
+            _cross(axes[o], w, across[k, o, 0])
+            _cross(moved, w, across[k, o, 1])
+            # C': d(-p_d s, p_r s) with s = 1 / rho^2 and p' = R^T a'.
+            pr, pd, s = proj[o, 0], proj[o, 1], inv[o]
+            dpr = gaze[0, 0] * moved[0] + gaze[1, 0] * moved[1] + gaze[2, 0] * moved[2]
+            dpd = gaze[0, 1] * moved[0] + gaze[1, 1] * moved[1] + gaze[2, 1] * moved[2]
             ds = -2.0 * (pr * dpr + pd * dpd) * s * s
-            cr += weight * (-dpd * s - pd * ds)
-            cd += weight * (dpr * s + pr * ds)
-        for e in range(3):
-            coef[o, e] = cr * gaze[e, 0] + cd * gaze[e, 1]
+            weight = vector[3 + 2 * o]
+            cr = weight * (-dpd * s - pd * ds)
+            cd = weight * (dpr * s + pr * ds)
+            for e in range(3):
+                coef[o, e] += cr * gaze[e, 0] + cd * gaze[e, 1]
     for j in range(n):
+        col = dof[j]
         total = 0.0
         for k in range(2):
-            for p in range(N_POINTS):
+            vector = a if k == 0 else c
+            for e in range(3):
+                total += vector[e] * (rates[k, 0, 0, e, col] - rates[k, 1, 0, e, col])
+            for o in range(2):
                 for e in range(3):
-                    total += weights[k, p, e] * rates[k, p, e, j]
+                    total += across[k, o, 0, e] * rates[k, o, 1, e, col]
+                    total += across[k, o, 1, e] * rot_jac[o, e, j]
         for o in range(2):
             for e in range(3):
                 total += coef[o, e] * axis_jac[o, e, j]

@@ -203,6 +203,25 @@ class Kinematics:
             mujoco.mj_jac(m, d, jacp[k], None, p, owner[b])
         return jacp[: len(bodies)].take(self.dof_adr, axis=2, out=out)
 
+    def frame_jacobians(
+        self, bodies: Sequence[int], points: np.ndarray, out: np.ndarray, qdot=None
+    ) -> np.ndarray:
+        """Translational and rotational Jacobians of ``k`` points ``(k, 3)`` [m] fixed to
+        ``bodies`` (ids; held objects move with their hands), all ``nv`` columns, into ``out``
+        ``(k, 2, 3, nv)``; with ``qdot`` ``(n,)`` [rad/s] their derivatives along it
+        (``mj_comVel``, ``mj_jacDot``) instead. The planned joints are the columns
+        :attr:`dof_adr`."""
+        m, d, owner = self.model, self.data, self._owners
+        if qdot is None:
+            for k, b in enumerate(bodies):
+                mujoco.mj_jac(m, d, out[k, 0], out[k, 1], points[k], owner[b])
+            return out
+        self._qvel[self._dof_index] = qdot
+        mujoco.mj_comVel(m, d)
+        for k, b in enumerate(bodies):
+            mujoco.mj_jacDot(m, d, out[k, 0], out[k, 1], points[k], owner[b])
+        return out
+
     def point_jacobian_rates(
         self,
         bodies: Sequence[int],

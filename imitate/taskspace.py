@@ -210,7 +210,9 @@ class TaskMap:
     (``p = R_gaze^T a``, ``rho^2 = p_r^2 + p_d^2``). ``A = da/dq`` ``(3, n)`` is the Jacobian of
     the point ``o + a`` minus that of the origin ``o``, so every row of ``J`` and of its
     derivative along ``b`` (:meth:`rates`: ``C' R_gaze^T A + C R_gaze^T A'``) comes from
-    ``mj_jac`` and ``mj_jacDot`` of the four points ``o_b, o_g, o_b + a_b, o_g + a_g``. The
+    ``mj_jac`` and ``mj_jacDot`` of the four points ``o_b, o_g, o_b + a_b, o_g + a_g`` (the
+    compiled :meth:`evaluate` and :meth:`curvature` get ``A`` as ``omega x a`` from the
+    rotational Jacobians of ``o_b`` and ``o_g`` instead: two MuJoCo calls, not four). The
     objects' frames give ``o`` (origin) and ``a`` (``z`` axis), as for :func:`task_space`. It
     runs in the planner's inner loop: :meth:`evaluate` and :meth:`curvature` are compiled
     (:mod:`imitate._planner`) around MuJoCo's Jacobians.
@@ -249,9 +251,12 @@ class TaskMap:
         self._gaze_t = np.ascontiguousarray(self.gaze.T)
         self._mask = self.driven.astype(float)
         self._xpos, self._xmat = kin.data.xpos, kin.data.xmat  # views, kept once
-        # Buffers of evaluate (the points' Jacobians) and curvature (their rates).
-        self._jac = np.empty((_planner.N_POINTS, 3, kin.n))
-        self._rates = np.empty((2, _planner.N_POINTS, 3, kin.n))
+        self._objects = self._points_of[:2]
+        self._dof = np.ascontiguousarray(kin.dof_adr, dtype=np.intp)
+        # Buffers of evaluate (the objects' Jacobians) and curvature (their rates), nv columns.
+        nv = kin.model.nv
+        self._jac = np.empty((2, 2, 3, nv))
+        self._rates = np.empty((2, 2, 2, 3, nv))
 
     def __call__(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(x (7,), J (7, n))`` at the kinematics' last update; angles on the branch nearest to
@@ -261,18 +266,22 @@ class TaskMap:
 
     def evaluate(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, TaskFrame]:
         """As :meth:`__call__`, and the :class:`TaskFrame` that :meth:`rates` needs."""
-        points, proj, inv, x, rows = (
-            np.empty((4, 3)), np.empty((2, 3)), np.empty(2), np.empty(self.m), np.empty((2, 3))
+        points, proj, inv, x, rows, axes = (
+            np.empty((4, 3)), np.empty((2, 3)), np.empty(2), np.empty(self.m), np.empty((2, 3)),
+            np.empty((2, 3)),
         )
         _planner._task_state(
             self._xpos, self._xmat, self._bodies, self._gaze,
             np.ascontiguousarray(angle_ref, dtype=float), _SINGULAR_RHO2,
-            points, proj, inv, x, rows,
+            points, proj, inv, x, rows, axes,
         )
-        jac = self.kin.point_jacobians(self._points_of, points, out=self._jac)
-        J, axis_jac = np.empty((self.m, self.kin.n)), np.empty((2, 3, self.kin.n))
-        _planner._task_jacobian(jac, rows, self._gaze, self._mask, J, axis_jac)
-        return x, J, TaskFrame(points, proj, inv, rows, axis_jac)
+        jac = self.kin.frame_jacobians(self._objects, points, self._jac)
+        n = self.kin.n
+        J, axis_jac, rot_jac = np.empty((self.m, n)), np.empty((2, 3, n)), np.empty((2, 3, n))
+        _planner._task_jacobian(
+            jac, self._dof, axes, rows, self._gaze, self._mask, J, axis_jac, rot_jac
+        )
+        return x, J, TaskFrame(points, proj, inv, rows, axis_jac, axes, rot_jac)
 
     def _mix(self, frame: TaskFrame) -> np.ndarray:
         """``(7, 12)``: ``J`` as a linear map of the stacked point Jacobians ``(4 * 3, n)``."""
@@ -310,15 +319,15 @@ class TaskMap:
     ) -> np.ndarray:
         """``a^T D_b J + c^T D_d J`` ``(n,)`` for task vectors ``a, c`` ``(7,)`` and joint
         directions ``b, d`` ``(n,)`` [rad]: two contractions of :meth:`rates` without forming
-        ``D J`` (the points' ``mj_jacDot`` along ``b`` and ``d``, then one compiled pass).
-        Same preconditions as :meth:`rates`."""
+        ``D J`` (``mj_jacDot`` of the objects' origins along ``b`` and ``d``, translational
+        and rotational, then one compiled pass). Same preconditions as :meth:`rates`."""
         kin, rates = self.kin, self._rates
-        kin.point_jacobian_rates(self._points_of, frame.points, b, out=rates[0])
-        kin.point_jacobian_rates(self._points_of, frame.points, d, out=rates[1])
+        kin.frame_jacobians(self._objects, frame.points, rates[0], qdot=b)
+        kin.frame_jacobians(self._objects, frame.points, rates[1], qdot=d)
         out = np.empty(kin.n)
         _planner._curvature(
-            a, b, c, d, rates, frame.rows, frame.proj, frame.inv, frame.axis_jac, self._gaze,
-            self._mask, out,
+            a, b, c, d, rates, self._dof, frame.axes, frame.rows, frame.proj, frame.inv,
+            frame.axis_jac, frame.rot_jac, self._gaze, self._mask, out,
         )
         return out
 
@@ -334,6 +343,8 @@ class TaskFrame(NamedTuple):
         rows: ``(2, 3)`` per object the gradient of its angle with respect to its axis,
             ``(-p_d r + p_r d) / rho^2`` (``r``, ``d``: gaze right and down).
         axis_jac: ``da/dq`` ``(2, 3, n)``, fixed joints' columns included.
+        axes: ``(2, 3)`` the long axes ``a``.
+        rot_jac: ``(2, 3, n)`` the objects' rotational Jacobians (``da/dq_j = omega_j x a``).
     """
 
     points: np.ndarray
@@ -341,3 +352,5 @@ class TaskFrame(NamedTuple):
     inv: np.ndarray
     rows: np.ndarray
     axis_jac: np.ndarray
+    axes: np.ndarray
+    rot_jac: np.ndarray

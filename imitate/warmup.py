@@ -4,10 +4,11 @@ a stage compiles them.
 numba compiles a kernel the first time a process calls it and keeps the machine code in its
 on-disk cache (``cache=True``): later processes load it in milliseconds. ``make setup`` runs
 this module once after installing, so that the first ``imitate run`` finds every kernel in the
-cache. It runs the tracker on one rendered stereo pair and the learner on a few short synthetic
-demonstrations, the code paths of a run with the argument types of a run, in two processes at
-once (numba compiles on one core): the tracker's kernels and DTW and EM in one, K-means and the
-fast BIC in the other; then once more here, which only loads what the two compiled.
+cache. It runs the tracker on one rendered stereo pair, the learner on a few short synthetic
+demonstrations and one planner iteration, the code paths of a run with the argument types of a
+run, in two processes at once (numba compiles on one core): the tracker's kernels and DTW and
+EM in one, K-means, the fast BIC and the planner in the other; then once more here, which only
+loads what the two compiled.
 
 :func:`announce_compiles` makes a process say on stderr which kernel it compiles, so that a
 stage that compiles for seconds is not silent.
@@ -19,6 +20,8 @@ import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
+
+import numpy as np
 
 __all__ = ["announce_compiles", "warm"]
 
@@ -99,6 +102,29 @@ def _learning_kmeans() -> None:
     bic_sweep(time_stacked(demos, rate), 4, "fast")
 
 
+def _planner() -> None:
+    """One iteration of the planner (task map, RMR, capsule test, adjoint) on the robot, from
+    a two-component model of a short synthetic demonstration."""
+    from imitate.gmm import GMM
+    from imitate.learning import LearnedModel
+    from imitate.models import humanoid
+    from imitate.motion import PlanConfig, plan_from_model
+    from imitate.replay import planning_task
+
+    demos, rate = _demos()
+    mean = demos[0]
+    times = np.arange(len(mean)) / rate
+    data = np.column_stack((times, mean))
+    halves = np.array_split(data, 2)
+    gmm = GMM.from_parameters(
+        np.full(2, 0.5), np.array([h.mean(axis=0) for h in halves]),
+        np.array([np.cov(h.T) + 1e-3 * np.eye(data.shape[1]) for h in halves]),
+    )
+    covariance = np.broadcast_to(1e-4 * np.eye(mean.shape[1]), (len(mean),) + (mean.shape[1],) * 2)
+    model = LearnedModel(data, gmm, np.empty(0), times, mean, covariance.copy(), None)
+    plan_from_model(planning_task(), model, q0=humanoid.rest_pose(), config=PlanConfig(max_iter=1))
+
+
 def _everything() -> None:
     """What a run calls: the tracker, and the learner with both BICs and without DTW."""
     import dataclasses
@@ -106,6 +132,7 @@ def _everything() -> None:
     from imitate.learning import LearningConfig, learn
 
     _tracker()
+    _planner()
     demos, rate = _demos()
     for method in ("full", "fast"):
         config = LearningConfig(k_max=4, bic_method=method)
@@ -115,7 +142,7 @@ def _everything() -> None:
 
 _GROUPS = {
     "tracker, DTW, EM": (_tracker, _learning_em),
-    "K-means, fast BIC": (_learning_kmeans,),
+    "K-means, fast BIC, planner": (_learning_kmeans, _planner),
 }
 
 
@@ -138,7 +165,8 @@ def warm(processes: int = 2, stream=None) -> float:
     """
     stream = stream or sys.stderr
     start = time.perf_counter()
-    print("numba: compiling the tracker's and the learner's kernels into the cache ...",
+    print("numba: compiling the tracker's, the learner's and the planner's kernels into the "
+          "cache ...",
           file=stream, flush=True)
     announce_compiles(stream)
     if processes > 1:
