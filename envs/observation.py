@@ -40,10 +40,10 @@ class ObservationConfig:
         head_tilt: the robot's head tilt while watching [rad] (> 0 looks down); the default
             centres the teacher's hands in the images.
         fast_render: render the eye cameras without shadows, reflections, multisample
-            anti-aliasing, skybox and textures (a black sky, a plain floor): about 7x faster
-            on a CPU (Mesa llvmpipe), and the tracker's colour masks are the same (it sees the
-            objects and the teacher's skin, not the background); ``False`` renders as the
-            scene is set.
+            anti-aliasing, skybox and textures (a black sky, a plain floor): several times
+            faster on a CPU (Mesa llvmpipe; the skybox alone is a third of a frame), and the
+            tracker's colour masks are the same (it sees the objects and the teacher's skin,
+            not the background); ``False`` renders as the scene is set.
         render_workers: processes that render the pairs while the tracker works on earlier
             ones (see :func:`frames`; the pairs are the same with any number); 0 renders them
             in the calling process, the fastest on a 2-core CPU, where Mesa already rasterizes

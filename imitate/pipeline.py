@@ -45,6 +45,7 @@ from imitate.perception import load_observations, save_observations
 from imitate.replay import planning_task
 from imitate.replay import replay as replay_plan
 from imitate.segment import StillnessConfig, load_demos, save_demos, segment, task_demo
+from imitate.warmup import announce_compiles
 
 __all__ = ["figures", "learn", "observe", "optimize", "replay", "run_stage"]
 
@@ -251,6 +252,8 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
         raise ImitateError(f"{problems[0]}, or add --force to go on anyway")
     for problem in problems:
         print(f"warning: {problem}; going on anyway (--force)", file=sys.stderr)
+    if sys.stderr.isatty():  # as the progress bars: a kernel numba compiles says so
+        announce_compiles()
     with staged(run_dir) as staging:
         start = time.perf_counter()
         sections = current.run(run_dir, config)

@@ -7,15 +7,18 @@ show as they do on a terminal): first with ``NUMBA_CACHE_DIR`` pointing at a new
 directory (cold: numba compiles every kernel the run calls), then with the same directory
 (warm: numba loads them). The child wraps a few functions in timers:
 
-- every numba dispatcher's ``compile`` (a compile, or a load from the cache), timed exclusive of
-  the kernels it compiles in turn, and attributed to the kernel's module;
+- every numba dispatcher's ``compile`` (a compile, or a load from the cache), in processor time
+  (robust to a shared machine), exclusive of the kernels it compiles in turn, and attributed to
+  the kernel's module;
 - the observation stage's own ``timing`` (rendering, tracking, ...);
 - the planner (``plan_from_model``), the physics replay, the video (``write_video``, which
   renders its frames as it encodes them) and the figures' snapshot rendering.
 
-It prints per stage the wall time, these parts, the longest silence on the terminal (the
-longest time between two writes of the child, progress bars included) and the load average
-(the machine may be shared), then the compile or load time per module.
+It prints per stage the wall time, its processor time (the child's threads and the processes
+it waited for, as the video encoder: less sensitive than the wall time to a shared machine),
+these parts, the longest silence on the terminal (the longest time between two writes of the
+child, progress bars included) and the load average, then the compile or load time per module.
+``PYTHONPATH=DIR`` runs another tree's ``imitate`` (its path is printed).
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ import functools
 import json
 import os
 import pty
+import resource
 import select
 import struct
 import subprocess
@@ -50,6 +54,7 @@ class _Timers:
         self.parts: dict[str, dict[str, float]] = defaultdict(lambda: defaultdict(float))
         self.numba: dict[str, dict[str, float]] = defaultdict(lambda: defaultdict(float))
         self.stage_wall: dict[str, float] = {}
+        self.stage_cpu: dict[str, float] = {}
         self._numba_stack: list[float] = []  # children's time of each open compile
 
     def wrap(self, owner, name: str, part: str) -> None:
@@ -78,11 +83,11 @@ class _Timers:
 
         def compile(disp, sig):
             timers._numba_stack.append(0.0)
-            start = time.perf_counter()
+            start = time.thread_time()  # processor time: numba compiles in this thread
             try:
                 return original(disp, sig)
             finally:
-                elapsed = time.perf_counter() - start
+                elapsed = time.thread_time() - start
                 nested = timers._numba_stack.pop()
                 if timers._numba_stack:
                     timers._numba_stack[-1] += elapsed
@@ -90,6 +95,14 @@ class _Timers:
                 timers.numba[timers.stage][module] += elapsed - nested
 
         dispatcher.Dispatcher.compile = compile
+
+
+def cpu_seconds() -> float:
+    """User and system time of this process (all threads) and its waited-for children [s]."""
+    return sum(
+        usage.ru_utime + usage.ru_stime
+        for usage in map(resource.getrusage, (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    )
 
 
 def child(out: Path, argv: list[str], result: Path) -> int:
@@ -123,11 +136,12 @@ def child(out: Path, argv: list[str], result: Path) -> int:
 
     def run_stage(stage, *args, **kwargs):
         timers.stage = stage
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), cpu_seconds()
         try:
             return original_run_stage(stage, *args, **kwargs)
         finally:
             timers.stage_wall[stage] = time.perf_counter() - t0
+            timers.stage_cpu[stage] = cpu_seconds() - c0
             timers.stage = "end"
 
     pipeline.run_stage = run_stage
@@ -139,6 +153,8 @@ def child(out: Path, argv: list[str], result: Path) -> int:
                 "status": status,
                 "process_s": time.perf_counter() - start,
                 "stage_wall": timers.stage_wall,
+                "stage_cpu": timers.stage_cpu,
+                "imitate": str(Path(cli.__file__).parent),
                 "parts": timers.parts,
                 "numba": timers.numba,
             }
@@ -206,20 +222,11 @@ def run_child(out: Path, argv: list[str], cache: Path, result: Path) -> dict:
 
 
 def breakdown(run: dict, stage: str) -> dict[str, float]:
-    """``{part: seconds}`` of ``stage``: numba, the timed parts, and the rest."""
+    """``{part: seconds}`` of ``stage``: numba's processor time, then the timed parts (wall)."""
     timers = run["timers"]
-    parts = dict(timers["parts"].get(stage, {}))
     numba = sum(timers["numba"].get(stage, {}).values())
-    total = run["report"]["timings"].get(stage) if stage in STAGES else None
-    out = {"numba compile/load (main process)": numba} if numba > 0.005 else {}
-    observe_keys = [k for k in parts if k.startswith("observe timing")]
-    for key in observe_keys:
-        out[key] = parts.pop(key)
-    out.update(parts)
-    if total is not None:
-        counted = numba + sum(parts.values())  # observe's timing overlaps: not subtracted
-        if not observe_keys:
-            out["rest"] = max(total - counted, 0.0)
+    out = {"numba compile/load (processor time)": numba} if numba > 0.005 else {}
+    out.update(timers["parts"].get(stage, {}))
     return out
 
 
@@ -233,6 +240,8 @@ def print_tables(runs: dict[str, dict]) -> None:
                                    for n in names})]
     for stage in STAGES:
         rows.append((stage, {n: runs[n]["report"]["timings"][stage] for n in names}))
+        rows.append(("  processor time (all threads, children)",
+                     {n: runs[n]["timers"]["stage_cpu"].get(stage) for n in names}))
         parts = {n: breakdown(runs[n], stage) for n in names}
         keys = list(dict.fromkeys(k for n in names for k in parts[n]))
         rows += [(f"  {key}", {n: parts[n].get(key) for n in names}) for key in keys]
@@ -242,6 +251,8 @@ def print_tables(runs: dict[str, dict]) -> None:
         ))
     rows.append(("total of the stages", {
         n: sum(runs[n]["report"]["timings"][s] for s in STAGES) for n in names}))
+    rows.append(("  processor time", {
+        n: sum(runs[n]["timers"]["stage_cpu"].values()) for n in names}))
     rows.append(("process (imports and stages)", {n: runs[n]["timers"]["process_s"]
                                                   for n in names}))
     rows.append(("longest silence before the first stage",
@@ -252,7 +263,7 @@ def print_tables(runs: dict[str, dict]) -> None:
         )
         print(f"{label:<44}{cells}")
 
-    print(f"\n{'numba compile (cold) / load (warm) per module':<44}"
+    print(f"\n{'numba compile / load per module, CPU':<44}"
           + "".join(f"{name + ' [s]':>12}" for name in names))
     modules: dict[str, dict[str, float]] = defaultdict(dict)
     for n in names:
@@ -285,7 +296,8 @@ def main() -> None:
         for name in ("cold", "warm"):
             print(f"{name} run ... (load average {load()})", file=sys.stderr, flush=True)
             runs[name] = run_child(base / name, argv, cache, Path(tmp) / f"{name}.json")
-        print(f"imitate run {' '.join(argv)}".rstrip() + f"; {os.cpu_count()} cores")
+        where = runs["cold"]["timers"]["imitate"]
+        print(f"imitate run {' '.join(argv)}".rstrip() + f" ({where}); {os.cpu_count()} cores")
         print_tables(runs)
 
 
