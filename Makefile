@@ -22,8 +22,16 @@ $(BIN)/.installed-test: $(BIN)/.installed
 	$(BIN)/pip install --quiet -e ".[test]"
 	touch $@
 
-setup: $(BIN)/.installed
-setup-test: $(BIN)/.installed-test
+# numba compiles the tracker's and the learner's kernels into its cache now, two processes at
+# once, so that the first run loads them (again whenever a kernel's source changes).
+KERNELS := imitate/dtw.py imitate/kmeans.py imitate/_em.py imitate/bic.py \
+	imitate/perception/_outline.py imitate/perception/_rim.py imitate/_planner.py
+$(BIN)/.compiled: $(BIN)/.installed $(KERNELS)
+	$(BIN)/python -m imitate.warmup
+	touch $@
+
+setup: $(BIN)/.installed $(BIN)/.compiled
+setup-test: $(BIN)/.installed-test $(BIN)/.compiled
 
 # The whole pipeline on the default settings: watch, learn, optimize, pour, figures, video.
 run: setup

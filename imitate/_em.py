@@ -13,7 +13,7 @@ import numba
 import numpy as np
 
 from imitate import numba_cache
-from imitate.kmeans import _EPS_COUNTS
+from imitate.kmeans import _EPS_COUNTS, _argsort
 
 numba_cache.ensure_writable()  # before the kernels below are declared
 
@@ -145,10 +145,13 @@ def _block_log_densities(
     size = stop - start
     lo, hi = xt[0, start], xt[0, stop - 1]
     bounds = np.empty(n_components)
+    negated = np.empty(n_components)
     for k in range(n_components):
         gap = max(lo - means[k, 0], means[k, 0] - hi, 0.0) * prec_chol[k, 0, 0]
         bounds[k] = log_coef[k] - 0.5 * gap * gap
-    order = np.argsort(-bounds)
+        negated[k] = -bounds[k]
+    order = np.empty(n_components, dtype=np.intp)
+    _argsort(negated, order)
     tops[:size] = -np.inf
     floor = -np.inf  # smallest best-so-far term over the block
     for rank in range(n_components):
@@ -286,8 +289,10 @@ def _em_loop(
                 if used:
                     _block_differences(xt, start, stop, means[k], diff)
                     _accumulate_moments(resp, diff, size, k, counts, first, second)
-        counts += _EPS_COUNTS  # e_k, eq. 9
-        total_counts = counts.sum()
+        total_counts = 0.0
+        for k in range(n_components):
+            counts[k] += _EPS_COUNTS  # e_k, eq. 9
+            total_counts += counts[k]
         for k in range(n_components):
             weights[k] = counts[k] / total_counts  # eq. 10
             for e in range(d):

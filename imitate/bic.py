@@ -49,7 +49,11 @@ def _cluster_log_likelihood(
     log_coef = np.empty(k)
     if not _factor(weights, cov, prec_chol, log_coef):
         return np.nan
-    return _e_step(xt, means, prec_chol, log_coef, _LOG_NEGLIGIBLE, np.empty((0, k))).sum()
+    log_norm = _e_step(xt, means, prec_chol, log_coef, _LOG_NEGLIGIBLE, np.empty((0, k)))
+    total = 0.0
+    for value in log_norm:  # the order of ndarray.sum in numba: no reduction to compile
+        total += value
+    return total
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,8 @@ Jacobians are translational, ``dp/dq`` of points in the world frame, restricted 
 ``joints`` columns, shape ``(3, n)`` (orientations enter through points on an object's axis, see
 :class:`imitate.taskspace.TaskMap`).
 Signed distances come from ``mj_geomDistance`` between the pairs of
-:class:`imitate.envs.collision.CollisionPairs`; a bounding-sphere test skips far pairs first.
+:class:`imitate.envs.collision.CollisionPairs`; a compiled test of capsules enclosing the geoms
+(:func:`imitate._planner._near_pairs`) skips the pairs that are far apart first.
 """
 
 from __future__ import annotations
@@ -23,10 +24,41 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from imitate import _planner
 from imitate.envs.collision import CollisionPairs
 from imitate.errors import ImitateError
 
 __all__ = ["Distances", "Kinematics"]
+
+
+# Added to ``distmax`` in the capsule test: a pair it skips is at least this much farther than
+# ``distmax``, beyond any rounding of mj_geomDistance's convex solver [m].
+_SLACK = 1e-4
+
+
+def _enclosing_capsules(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per geom, a capsule that contains it: ``(column (ngeom,), half (ngeom,), radius
+    (ngeom,))``, the segment of ``half`` on either side of the geom's centre along its frame's
+    axis ``column``, grown by ``radius`` [m] (``inf``: a plane or height field, never skipped).
+    """
+    g = mujoco.mjtGeom
+    column = np.full(model.ngeom, 2, dtype=np.intp)
+    half = np.zeros(model.ngeom)
+    radius = model.geom_rbound.copy()  # meshes and others: the bounding sphere
+    for i, (kind, size) in enumerate(zip(model.geom_type.tolist(), model.geom_size, strict=True)):
+        if kind in (g.mjGEOM_PLANE.value, g.mjGEOM_HFIELD.value):
+            radius[i] = np.inf
+        elif kind == g.mjGEOM_SPHERE.value:
+            radius[i] = size[0]
+        elif kind in (g.mjGEOM_CAPSULE.value, g.mjGEOM_CYLINDER.value):
+            half[i], radius[i] = size[1], size[0]
+        elif kind == g.mjGEOM_BOX.value:
+            column[i] = int(np.argmax(size))
+            others = np.delete(size, column[i])
+            half[i], radius[i] = size[column[i]], float(np.hypot(*others))
+        elif kind == g.mjGEOM_ELLIPSOID.value:
+            radius[i] = float(np.max(size))
+    return column, half, radius
 
 
 @dataclass(frozen=True)
@@ -77,6 +109,13 @@ class Kinematics:
         self.joints = tuple(joints)
         self.qpos_adr = model.jnt_qposadr[ids].copy()
         self.dof_adr = model.jnt_dofadr[ids].copy()
+        # Where q goes in qpos and qvel: a slice when the joints are consecutive (faster).
+        self._q_index, self._dof_index = (
+            slice(int(adr[0]), int(adr[0]) + len(adr))
+            if len(adr) and np.array_equal(adr, np.arange(adr[0], adr[0] + len(adr)))
+            else adr
+            for adr in (self.qpos_adr, self.dof_adr)
+        )
         self.lower, self.upper = model.jnt_range[ids].T.copy()
         self._held = self._held_objects()
         owner = np.arange(model.nbody)  # body whose Jacobian moves each body
@@ -86,20 +125,25 @@ class Kinematics:
         self.pairs = CollisionPairs.between(model, geoms) if geoms is not None else None
         if self.pairs is not None:
             self._pair_geoms = (self.pairs.geom1.tolist(), self.pairs.geom2.tolist())
-            # Centre distance beyond which the bounding spheres are apart.
-            self._reach = model.geom_rbound[self.pairs.geom1] + model.geom_rbound[self.pairs.geom2]
+            self._pair_arrays = tuple(
+                np.ascontiguousarray(g, dtype=np.intp) for g in (self.pairs.geom1, self.pairs.geom2)
+            )
+            self._capsules = _enclosing_capsules(model)
+            self._near = np.empty(len(self.pairs), dtype=np.intp)
             self._fromto = np.zeros((len(self.pairs), 6))
-            self._reach_for = (None, None)  # (distmax, squared reach + distmax (k,)), cached
+            self._none_near = Distances(  # shared by the queries that find no pair (read only)
+                np.zeros(0, dtype=int), np.zeros(0), np.zeros((0, 6)), np.zeros((0, len(ids)))
+            )
         # Views kept once: MjData attribute access builds a new array each time.
         d = self.data
-        self._qpos, self._qvel, self._xpos, self._xquat = d.qpos, d.qvel, d.xpos, d.xquat
-        self._geom_xpos = d.geom_xpos
+        self._qpos, self._qvel = d.qpos, d.qvel
+        self._geom_xpos, self._geom_xmat = d.geom_xpos, d.geom_xmat
         # Per held object: hand, weld pose, and views of its free joint's position, quaternion.
         self._poses = []
         for obj, (hand, rel_pos, rel_quat) in self._held.items():
             adr = model.jnt_qposadr[model.body_jntadr[obj]]
             pos, quat = d.qpos[adr : adr + 3], d.qpos[adr + 3 : adr + 7]
-            self._poses.append((hand, rel_pos, rel_quat, pos, quat))
+            self._poses.append((d.xpos[hand], d.xquat[hand], rel_pos, rel_quat, pos, quat))
         self._jacp = np.zeros((4, 3, model.nv))
 
     @property
@@ -126,13 +170,12 @@ class Kinematics:
         physics); ``held=False`` leaves the held objects where they were (enough for Jacobians
         of points given in the world frame)."""
         m, d = self.model, self.data
-        self._qpos[self.qpos_adr] = q
+        self._qpos[self._q_index] = q
         mujoco.mj_kinematics(m, d)
         if held and self._poses:
-            for hand, rel_pos, rel_quat, pos, quat in self._poses:
-                hand_quat = self._xquat[hand]
+            for hand_pos, hand_quat, rel_pos, rel_quat, pos, quat in self._poses:
                 mujoco.mju_rotVecQuat(pos, rel_pos, hand_quat)
-                np.add(pos, self._xpos[hand], out=pos)
+                np.add(pos, hand_pos, out=pos)
                 mujoco.mju_mulQuat(quat, hand_quat, rel_quat)
             mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
@@ -150,26 +193,51 @@ class Kinematics:
         mujoco.mj_jac(self.model, self.data, jacp, None, point, self._owners[int(body)])
         return jacp[:, self.dof_adr].copy()
 
-    def point_jacobians(self, bodies: Sequence[int], points: np.ndarray) -> np.ndarray:
+    def point_jacobians(
+        self, bodies: Sequence[int], points: np.ndarray, out: np.ndarray | None = None
+    ) -> np.ndarray:
         """Translational Jacobians ``(k, 3, n)`` [m/rad] of ``k <= 4`` points ``(k, 3)`` [m]
-        fixed to ``bodies`` (ids; held objects move with their hands)."""
+        fixed to ``bodies`` (ids; held objects move with their hands); into ``out`` if given."""
         m, d, jacp, owner = self.model, self.data, self._jacp, self._owners
         for k, (b, p) in enumerate(zip(bodies, points, strict=True)):
             mujoco.mj_jac(m, d, jacp[k], None, p, owner[b])
-        return jacp[: len(bodies)].take(self.dof_adr, axis=2)
+        return jacp[: len(bodies)].take(self.dof_adr, axis=2, out=out)
+
+    def frame_jacobians(
+        self, bodies: Sequence[int], points: np.ndarray, out: np.ndarray, qdot=None
+    ) -> np.ndarray:
+        """Translational and rotational Jacobians of ``k`` points ``(k, 3)`` [m] fixed to
+        ``bodies`` (ids; held objects move with their hands), all ``nv`` columns, into ``out``
+        ``(k, 2, 3, nv)``; with ``qdot`` ``(n,)`` [rad/s] their derivatives along it
+        (``mj_comVel``, ``mj_jacDot``) instead. The planned joints are the columns
+        :attr:`dof_adr`."""
+        m, d, owner = self.model, self.data, self._owners
+        if qdot is None:
+            for k, b in enumerate(bodies):
+                mujoco.mj_jac(m, d, out[k, 0], out[k, 1], points[k], owner[b])
+            return out
+        self._qvel[self._dof_index] = qdot
+        mujoco.mj_comVel(m, d)
+        for k, b in enumerate(bodies):
+            mujoco.mj_jacDot(m, d, out[k, 0], out[k, 1], points[k], owner[b])
+        return out
 
     def point_jacobian_rates(
-        self, bodies: Sequence[int], points: np.ndarray, qdot: np.ndarray
+        self,
+        bodies: Sequence[int],
+        points: np.ndarray,
+        qdot: np.ndarray,
+        out: np.ndarray | None = None,
     ) -> np.ndarray:
         """Derivatives ``(k, 3, n)`` [m/rad^2] of :meth:`point_jacobians` along the joint
         velocity ``qdot`` ``(n,)`` [rad/s] (``mj_comVel``, ``mj_jacDot``), the points moving
-        with their bodies."""
+        with their bodies; into ``out`` if given."""
         m, d, jacp, owner = self.model, self.data, self._jacp, self._owners
-        self._qvel[self.dof_adr] = qdot
+        self._qvel[self._dof_index] = qdot
         mujoco.mj_comVel(m, d)
         for k, (b, p) in enumerate(zip(bodies, points, strict=True)):
             mujoco.mj_jacDot(m, d, jacp[k], None, p, owner[b])
-        return jacp[: len(bodies)].take(self.dof_adr, axis=2)
+        return jacp[: len(bodies)].take(self.dof_adr, axis=2, out=out)
 
     def distances(self, distmax: float, *, jacobian: bool = False) -> Distances:
         """Signed distances of the pairs closer than ``distmax`` [m] at the last :meth:`update`.
@@ -186,11 +254,11 @@ class Kinematics:
             raise ImitateError("distances need the Kinematics to be built with geoms")
         m, d = self.model, self.data
         g1, g2 = self._pair_geoms
-        if distmax != self._reach_for[0]:
-            self._reach_for = distmax, np.square(self._reach + distmax)
-        gap = self._geom_xpos.take(self.pairs.geom1, axis=0)
-        gap -= self._geom_xpos.take(self.pairs.geom2, axis=0)
-        near = np.flatnonzero(np.einsum("ij,ij->i", gap, gap) < self._reach_for[1]).tolist()
+        count = _planner._near_pairs(
+            self._geom_xpos, self._geom_xmat, *self._pair_arrays, *self._capsules,
+            distmax + _SLACK, self._near,
+        )
+        near = self._near[:count].tolist()
         kept, dist = [], []
         fromto, geom_distance = self._fromto, mujoco.mj_geomDistance
         for p in near:
@@ -198,6 +266,8 @@ class Kinematics:
             if value < distmax:
                 kept.append(p)
                 dist.append(value)
+        if not kept:
+            return self._none_near
         fromto = fromto[: len(kept)].copy()
         jac = np.zeros((len(kept), self.n))
         if jacobian:

@@ -51,6 +51,34 @@ def _start_generator(seed: int, start: int) -> np.random.Generator:
 
 
 @numba.njit(cache=True)
+def _argsort(keys: np.ndarray, order: np.ndarray) -> None:
+    """``order[:] = np.argsort(keys)`` for a few keys ``(k,)``, by a stable insertion sort (NaN
+    last): what numba's ``np.argsort`` does for up to 15 keys, without compiling its quicksort
+    (seconds per array type)."""
+    for i in range(keys.shape[0]):
+        order[i] = i
+    for i in range(1, keys.shape[0]):
+        moving = order[i]
+        key = keys[moving]
+        j = i
+        while j > 0:
+            other = keys[order[j - 1]]
+            if not (key < other or (other != other and key == key)):
+                break
+            order[j] = order[j - 1]
+            j -= 1
+        order[j] = moving
+
+
+@numba.njit(cache=True)
+def _copy_row(source: np.ndarray, target: np.ndarray) -> None:
+    """``target[:] = source`` for 1-D arrays of one length, as a loop: numba's array assignment
+    compiles a shape check whose error message alone costs seconds of compilation."""
+    for e in range(source.shape[0]):
+        target[e] = source[e]
+
+
+@numba.njit(cache=True)
 def _distance(x_i: np.ndarray, centre: np.ndarray) -> float:
     """Euclidean distance between one sample and one centre, both of shape ``(D,)``."""
     total = 0.0
@@ -134,10 +162,17 @@ def _add_centre(
 
 @numba.njit(cache=True)
 def _move_sample(sums: np.ndarray, x_i: np.ndarray, source: int, target: int) -> None:
-    """Moves one sample between the cluster sums ``sums`` (K, D); ``source = -1``: only adds."""
+    """Moves one sample between the cluster sums ``sums`` (K, D)."""
     for e in range(x_i.shape[0]):
-        if source >= 0:
-            sums[source, e] -= x_i[e]
+        sums[source, e] -= x_i[e]
+        sums[target, e] += x_i[e]
+
+
+@numba.njit(cache=True)
+def _add_sample(sums: np.ndarray, x_i: np.ndarray, target: int) -> None:
+    """Adds one sample to the cluster sums ``sums`` (K, D) (a constant ``source`` of
+    :func:`_move_sample` would compile it a second time, for that constant)."""
+    for e in range(x_i.shape[0]):
         sums[target, e] += x_i[e]
 
 
@@ -171,9 +206,12 @@ def _lloyd(
     counts = np.zeros(k, dtype=np.intp)
     for i in range(n):
         counts[labels[i]] += 1
-        _move_sample(sums, x[i], -1, labels[i])
+        _add_sample(sums, x[i], labels[i])
     moved = np.empty(k)
     half_gap = np.empty(k)
+    order = np.empty(k, dtype=np.intp)
+    keys = np.empty(k)
+    firsts = np.empty(k)
     n_iter = 0
     while n_iter < max_iter:
         n_iter += 1
@@ -200,8 +238,11 @@ def _lloyd(
             shift += squared
         if shift <= tol:
             break
-        order = np.argsort(centres[:, 0])
-        keys = centres[order, 0]
+        for c in range(k):
+            firsts[c] = centres[c, 0]
+        _argsort(firsts, order)
+        for rank in range(k):
+            keys[rank] = firsts[order[rank]]
         for rank in range(k):  # nearest other centre, outward in the first coordinate
             c = order[rank]
             gap = np.inf
@@ -243,7 +284,7 @@ def _lloyd(
     # Exact centres (no drift from the incremental sums), distances and inertia.
     sums[:] = 0.0
     for i in range(n):
-        _move_sample(sums, x[i], -1, labels[i])
+        _add_sample(sums, x[i], labels[i])
     for c in range(k):
         if counts[c] > 0:
             for e in range(d):
@@ -280,7 +321,7 @@ def _kmeans_chains(
     lower = np.empty(n)
     cumulative = np.empty(n)
     for start in range(first.shape[0]):
-        centres[0] = x[first[start]]
+        _copy_row(x[first[start]], centres[0])
         _assign_all(x, centres[:1], labels, upper, lower)
         for k in range(1, k_max + 1):
             if k > 1:  # k-means++: probability proportional to the squared distance
@@ -292,13 +333,15 @@ def _kmeans_chains(
                     idx = min(np.searchsorted(cumulative, draws[start, k - 2] * total), n - 1)
                 else:  # fewer distinct points than clusters: any point will do
                     idx = min(int(draws[start, k - 2] * n), n - 1)
-                centres[k - 1] = x[idx]
+                _copy_row(x[idx], centres[k - 1])
                 _add_centre(x, centres[:k], labels, upper, lower)
             inertia, _ = _lloyd(x, centres[:k], labels, upper, lower, max_iter, tol)
             if inertia < best_inertia[k - 1]:
                 best_inertia[k - 1] = inertia
-                best_centres[k - 1, :k] = centres[:k]
-                best_labels[k - 1] = labels
+                for c in range(k):
+                    _copy_row(centres[c], best_centres[k - 1, c])
+                for i in range(n):
+                    best_labels[k - 1, i] = labels[i]
 
 
 @dataclass(frozen=True)
@@ -418,9 +461,10 @@ def _cluster_parameters(
         counts[c] += 1.0
         for e in range(d):
             means[c, e] += x[i, e]
-    counts += _EPS_COUNTS
-    for c in range(n_components):
-        means[c] /= counts[c]
+    for c in range(n_components):  # element loops: no compiled shape checks (see _copy_row)
+        counts[c] += _EPS_COUNTS
+        for e in range(d):
+            means[c, e] /= counts[c]
     diff = np.empty(d)
     for i in range(n):
         c = labels[i]
@@ -435,5 +479,11 @@ def _cluster_parameters(
                 cov[c, e, f] /= counts[c]
                 cov[c, f, e] = cov[c, e, f]
             cov[c, e, e] += reg_covar
-    return counts / counts.sum(), means, cov
+    total = 0.0
+    for c in range(n_components):
+        total += counts[c]
+    weights = np.empty(n_components)
+    for c in range(n_components):
+        weights[c] = counts[c] / total
+    return weights, means, cov
 

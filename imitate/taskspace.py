@@ -44,14 +44,13 @@ minus that of the object's origin ``o``.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from imitate import _planner
 from imitate.errors import ImitateError
 
 if TYPE_CHECKING:
@@ -211,9 +210,12 @@ class TaskMap:
     (``p = R_gaze^T a``, ``rho^2 = p_r^2 + p_d^2``). ``A = da/dq`` ``(3, n)`` is the Jacobian of
     the point ``o + a`` minus that of the origin ``o``, so every row of ``J`` and of its
     derivative along ``b`` (:meth:`rates`: ``C' R_gaze^T A + C R_gaze^T A'``) comes from
-    ``mj_jac`` and ``mj_jacDot`` of the four points ``o_b, o_g, o_b + a_b, o_g + a_g``. The
+    ``mj_jac`` and ``mj_jacDot`` of the four points ``o_b, o_g, o_b + a_b, o_g + a_g`` (the
+    compiled :meth:`evaluate` and :meth:`curvature` get ``A`` as ``omega x a`` from the
+    rotational Jacobians of ``o_b`` and ``o_g`` instead: two MuJoCo calls, not four). The
     objects' frames give ``o`` (origin) and ``a`` (``z`` axis), as for :func:`task_space`. It
-    runs in the planner's inner loop, hence the plain-float arithmetic.
+    runs in the planner's inner loop: :meth:`evaluate` and :meth:`curvature` are compiled
+    (:mod:`imitate._planner`) around MuJoCo's Jacobians.
 
     Args:
         kin: The kinematics (its held objects give the bottle and glass poses).
@@ -245,18 +247,16 @@ class TaskMap:
         self.driven = np.array([j not in fixed_joints for j in kin.joints])
         self._bodies = np.array([self.bottle, self.glass])
         self._points_of = (self.bottle, self.glass, self.bottle, self.glass)
+        self._gaze = np.ascontiguousarray(self.gaze)
         self._gaze_t = np.ascontiguousarray(self.gaze.T)
         self._mask = self.driven.astype(float)
         self._xpos, self._xmat = kin.data.xpos, kin.data.xmat  # views, kept once
-        self._rd = np.ascontiguousarray(self.gaze[:, :2].T)  # (2, 3) gaze right, down
-        self._right, self._down = self._rd.tolist()
-        # evaluate's (7, 12) map from the four points' Jacobians to J, constant rows filled.
-        self._mix = np.zeros((7, 12))
-        self._mix[:3, :3], self._mix[:3, 3:6] = np.eye(3), -np.eye(3)
-        forward = self.gaze[:, 2]
-        self._mix[4, 6:9], self._mix[4, :3] = forward, -forward
-        self._mix[6, 9:12], self._mix[6, 3:6] = forward, -forward
-        self._rate = np.empty((2, 12, kin.n))  # curvature's buffer
+        self._objects = self._points_of[:2]
+        self._dof = np.ascontiguousarray(kin.dof_adr, dtype=np.intp)
+        # Buffers of evaluate (the objects' Jacobians) and curvature (their rates), nv columns.
+        nv = kin.model.nv
+        self._jac = np.empty((2, 2, 3, nv))
+        self._rates = np.empty((2, 2, 2, 3, nv))
 
     def __call__(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(x (7,), J (7, n))`` at the kinematics' last update; angles on the branch nearest to
@@ -266,34 +266,33 @@ class TaskMap:
 
     def evaluate(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, TaskFrame]:
         """As :meth:`__call__`, and the :class:`TaskFrame` that :meth:`rates` needs."""
-        points = np.empty((4, 3))
-        self._xpos.take(self._bodies, axis=0, out=points[:2])
-        axis = self._xmat.take(self._bodies, axis=0)[:, 2::3]
-        points[2:] = points[:2] + axis
-        proj = axis @ self.gaze
-        x = (points[0] - points[1]).tolist()
-        inv = []
-        mix = self._mix.copy()
-        right, down = self._right, self._down
-        objects = zip(proj.tolist(), angle_ref.tolist(), strict=True)
-        for o, ((pr, pd, pf), ref) in enumerate(objects):
-            rho2 = pr * pr + pd * pd
-            if rho2 > _SINGULAR_RHO2:
-                angle = math.atan2(pd, pr)
-                x += (angle + 2.0 * math.pi * round((ref - angle) / (2.0 * math.pi)), pf)
-                s = 1.0 / rho2
-            else:  # undefined angle: the reference, with a zero gradient
-                x += (ref, pf)
-                s = 0.0
-            inv.append(s)
-            row = [-pd * s * ri + pr * s * di for ri, di in zip(right, down, strict=True)]
-            mix[3 + 2 * o, 6 + 3 * o : 9 + 3 * o] = row
-            mix[3 + 2 * o, 3 * o : 3 + 3 * o] = [-v for v in row]
-        jac = self.kin.point_jacobians(self._points_of, points)
-        J = mix @ jac.reshape(12, -1)
-        J *= self._mask
-        frame = TaskFrame(points, proj, np.array(inv), mix, jac[2:] - jac[:2])
-        return np.array(x), J, frame
+        points, proj, inv, x, rows, axes = (
+            np.empty((4, 3)), np.empty((2, 3)), np.empty(2), np.empty(self.m), np.empty((2, 3)),
+            np.empty((2, 3)),
+        )
+        _planner._task_state(
+            self._xpos, self._xmat, self._bodies, self._gaze,
+            np.ascontiguousarray(angle_ref, dtype=float), _SINGULAR_RHO2,
+            points, proj, inv, x, rows, axes,
+        )
+        jac = self.kin.frame_jacobians(self._objects, points, self._jac)
+        n = self.kin.n
+        J, axis_jac, rot_jac = np.empty((self.m, n)), np.empty((2, 3, n)), np.empty((2, 3, n))
+        _planner._task_jacobian(
+            jac, self._dof, axes, rows, self._gaze, self._mask, J, axis_jac, rot_jac
+        )
+        return x, J, TaskFrame(points, proj, inv, rows, axis_jac, axes, rot_jac)
+
+    def _mix(self, frame: TaskFrame) -> np.ndarray:
+        """``(7, 12)``: ``J`` as a linear map of the stacked point Jacobians ``(4 * 3, n)``."""
+        mix = np.zeros((7, 12))
+        mix[:3, :3], mix[:3, 3:6] = np.eye(3), -np.eye(3)
+        forward = self.gaze[:, 2]
+        for o in range(2):
+            for row, weights in ((3 + 2 * o, frame.rows[o]), (4 + 2 * o, forward)):
+                mix[row, 6 + 3 * o : 9 + 3 * o] = weights
+                mix[row, 3 * o : 3 + 3 * o] = -weights
+        return mix
 
     def rates(self, qdot: np.ndarray, frame: TaskFrame) -> np.ndarray:
         """``D_b J`` ``(k, 7, n)``: derivatives of ``J`` along each joint direction ``b`` in
@@ -310,7 +309,7 @@ class TaskMap:
         r, d, _ = self.gaze.T
         coef_r, coef_d = -dproj[:, 1] * s - pd * ds, dproj[:, 0] * s + pr * ds  # (2, k)
         row_dot = coef_r[..., None] * r + coef_d[..., None] * d  # (2, k, 3)
-        out = frame.mix @ rate
+        out = self._mix(frame) @ rate
         out[:, 3::2] += (row_dot @ frame.axis_jac).transpose(1, 0, 2)
         out *= self._mask
         return out
@@ -320,34 +319,20 @@ class TaskMap:
     ) -> np.ndarray:
         """``a^T D_b J + c^T D_d J`` ``(n,)`` for task vectors ``a, c`` ``(7,)`` and joint
         directions ``b, d`` ``(n,)`` [rad]: two contractions of :meth:`rates` without forming
-        ``D J`` (one weighted sum of the points' ``mj_jacDot`` and one of the axis Jacobians for
-        the ``C'`` term). Same preconditions as :meth:`rates`."""
-        kin, rate = self.kin, self._rate
-        rate[0] = kin.point_jacobian_rates(self._points_of, frame.points, b).reshape(12, -1)
-        rate[1] = kin.point_jacobian_rates(self._points_of, frame.points, d).reshape(12, -1)
-        left = np.array((a, c))
-        out = (left @ frame.mix).ravel() @ rate.reshape(24, -1)
-        # C' term of the angle rows 3 and 5, as in :meth:`rates`, weighted by a and c.
-        axis_jac = frame.axis_jac.reshape(6, -1)
-        dproj = (self._rd @ (axis_jac @ np.array((b, d)).T).reshape(2, 3, 2)).tolist()
-        weights = left[:, 3::2].T.tolist()  # (2 objects, 2 directions)
-        coef = []
-        for (pr, pd, _), s, (dpr, dpd), w in zip(
-            frame.proj.tolist(), frame.inv.tolist(), dproj, weights, strict=True
-        ):
-            cr = cd = 0.0
-            for dr, dd, wk in zip(dpr, dpd, w, strict=True):
-                ds = -2.0 * (pr * dr + pd * dd) * s * s
-                cr += wk * (-dd * s - pd * ds)
-                cd += wk * (dr * s + pr * ds)
-            coef.append((cr, cd))
-        out += (np.array(coef) @ self._rd).ravel() @ axis_jac
-        out *= self._mask
+        ``D J`` (``mj_jacDot`` of the objects' origins along ``b`` and ``d``, translational
+        and rotational, then one compiled pass). Same preconditions as :meth:`rates`."""
+        kin, rates = self.kin, self._rates
+        kin.frame_jacobians(self._objects, frame.points, rates[0], qdot=b)
+        kin.frame_jacobians(self._objects, frame.points, rates[1], qdot=d)
+        out = np.empty(kin.n)
+        _planner._curvature(
+            a, b, c, d, rates, self._dof, frame.axes, frame.rows, frame.proj, frame.inv,
+            frame.axis_jac, frame.rot_jac, self._gaze, self._mask, out,
+        )
         return out
 
 
-@dataclass(frozen=True)
-class TaskFrame:
+class TaskFrame(NamedTuple):
     """What :meth:`TaskMap.rates` reuses from :meth:`TaskMap.evaluate` at one posture.
 
     Attributes:
@@ -355,13 +340,17 @@ class TaskFrame:
         proj: ``(2, 3)`` the axes' gaze coordinates ``p`` (right, down, forward).
         inv: ``(2,)`` ``1 / rho^2`` per object (0 where the axis is along the gaze: the angle is
             undefined there and its gradient is taken as 0).
-        mix: ``(7, 12)`` ``J`` as a linear map of the stacked point Jacobians ``(4 * 3, n)``
-            (rows 3: hold ``C R_gaze^T`` on ``A``).
+        rows: ``(2, 3)`` per object the gradient of its angle with respect to its axis,
+            ``(-p_d r + p_r d) / rho^2`` (``r``, ``d``: gaze right and down).
         axis_jac: ``da/dq`` ``(2, 3, n)``, fixed joints' columns included.
+        axes: ``(2, 3)`` the long axes ``a``.
+        rot_jac: ``(2, 3, n)`` the objects' rotational Jacobians (``da/dq_j = omega_j x a``).
     """
 
     points: np.ndarray
     proj: np.ndarray
     inv: np.ndarray
-    mix: np.ndarray
+    rows: np.ndarray
     axis_jac: np.ndarray
+    axes: np.ndarray
+    rot_jac: np.ndarray

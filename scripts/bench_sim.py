@@ -1,7 +1,7 @@
 """Benchmark the simulation: physics steps per second (with and without liquid particles) and
 stereo frame pairs per second from the robot's head cameras, printed as a table: with and without
 shadows, and as the observation stage renders them (``ObservationConfig.fast_render``: no
-shadows, reflections or multisampling).
+shadows, reflections, multisampling, skybox or textures).
 
     python scripts/bench_sim.py [--seconds 3] [--pairs 20]
 """

@@ -101,3 +101,28 @@ def test_an_unknown_camera_is_refused_with_the_cameras_named():
     model = build_model(SceneConfig(teacher=False, particles=0))
     with pytest.raises(ImitateError, match=r"camera 'nose' not in the model; its cameras: \["):
         observation.camera_parameters(model, mujoco.MjData(model), "nose", 64, 48)
+
+
+def test_render_workers_give_the_same_pairs_in_order():
+    config = observation.ObservationConfig(
+        teacher=TeacherConfig(n_demos=2, seed=1), width=160, height=120, fps=5
+    )
+    sess = observation.session(config)
+    sess = dataclasses.replace(sess, times=sess.times[: 2 * observation.CHUNK + 3])
+    here = list(observation.frames(sess, workers=0))
+    timing = {}
+    spawned = list(observation.frames(sess, timing, workers=2))
+    assert len(spawned) == len(here) == len(sess.times)
+    assert np.array_equal(np.array(here), np.array(spawned))
+    assert timing["render"] > 0 and timing["wait"] > 0
+
+
+def test_the_eyes_render_without_what_the_tracker_does_not_need(rendered_session):
+    sess, pairs = rendered_session
+    corner = pairs[0][0][0, 0]  # the sky: black, not the skybox's grey
+    assert sess.fast_render and not corner.any()
+
+
+def test_a_bad_number_of_render_workers_is_refused():
+    with pytest.raises(ImitateError, match=r"render_workers=-1 not accepted: an integer >= 0"):
+        observation.ObservationConfig(render_workers=-1)

@@ -19,8 +19,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg.lapack import dposv
 
+from imitate import _planner
 from imitate.errors import ImitateError
 from imitate.kinematics import Distances, Kinematics
 from imitate.taskspace import TaskFrame, TaskMap
@@ -70,11 +70,6 @@ class JointLimitCost:
         excess = np.minimum(q - self.low_border, 0.0) + np.maximum(q - self.high_border, 0.0)
         grad = self.scale * excess
         return 0.5 * np.sum(grad * excess, axis=-1), grad, self.scale * (excess != 0.0)
-
-    def gradient(self, q: np.ndarray) -> np.ndarray:
-        """``dH/dq`` ``(n,)`` alone, for ``q`` ``(n,)`` (the rollout's inner loop)."""
-        low, high = np.minimum(q - self.low_border, 0.0), np.maximum(q - self.high_border, 0.0)
-        return self.scale * (low + high)
 
 
 @dataclass(frozen=True)
@@ -140,9 +135,9 @@ def rollout(
     unclipped = np.empty((T, n))
     frames, distances, between = [], [], []
     q[0] = q0
-    damped = config.damping * np.eye(m)
-    rhs = np.empty((m, n + 1))
-    angle_ref = target[:, [3, 5]]
+    target = np.ascontiguousarray(target, dtype=float)
+    angle_ref = np.ascontiguousarray(target[:, [3, 5]])
+    step = _planner._rmr_step
     for t in range(T + 1):
         kin.update(q[t])
         x[t], J, frame = task.evaluate(angle_ref[t])
@@ -150,19 +145,12 @@ def rollout(
             distances.append(kin.distances(distmax, jacobian=True))
         if t == T:
             break
-        JW = J * winv
-        rhs[:, :n] = JW
-        np.subtract(target[t + 1], x[t], out=rhs[:, n])
-        sol = _solve_spd(JW @ J.T + damped, rhs)
-        Jp, solved[t] = sol[:, :n].T, sol[:, n]
-        step = JW.T @ solved[t]
-        g = limits.gradient(q[t])
-        if g.any():  # outside the free zone: the null-space joint-limit step
-            g *= winv
-            step -= config.nullspace_gain * (g - Jp @ (J @ g))
-        np.add(q[t], step, out=unclipped[t])
-        np.minimum(np.maximum(unclipped[t], kin.lower, out=q[t + 1]), kin.upper, out=q[t + 1])
-        jac[t], pinv[t] = J, Jp
+        step(
+            J, x[t], target[t + 1], q[t], winv, config.damping, config.nullspace_gain,
+            limits.low_border, limits.high_border, limits.scale, kin.lower, kin.upper,
+            pinv[t], solved[t], unclipped[t], q[t + 1],
+        )
+        jac[t] = J
         frames.append(frame)
         if distmax > 0:
             kin.update(0.5 * (q[t] + q[t + 1]))
@@ -172,13 +160,6 @@ def rollout(
     return Rollout(
         q, x, jac, pinv, hess, solved, tuple(frames), tuple(distances), tuple(between), clipped
     )
-
-
-def _solve_spd(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """``matrix^-1 rhs`` for a symmetric positive definite ``matrix`` (LAPACK ``dposv``, less
-    call overhead than ``np.linalg.solve`` on these small systems); LU if Cholesky fails."""
-    _, sol, info = dposv(matrix, rhs)
-    return sol if info == 0 else np.linalg.solve(matrix, rhs)
 
 
 def backward(
@@ -217,16 +198,15 @@ def backward(
     alpha = config.nullspace_gain
     dx = gx.copy()
     lam = gq[T].copy()
+    m = result.jac.shape[1]
+    p, ln, b, d = np.empty(m), np.empty(kin.n), np.empty(kin.n), np.empty(kin.n)
+    directions, update = _planner._adjoint_directions, _planner._adjoint_update
     for t in range(T - 1, -1, -1):
-        Jp, J, u = result.pinv[t], result.jac[t], result.solved[t]
-        p = lam @ Jp
-        dx[t + 1] += p
-        ln = lam - p @ J
+        directions(lam, result.pinv[t], result.jac[t], result.solved[t], winv, p, ln, b, d,
+                   dx[t + 1])
         kin.update(result.q[t], held=False)
-        curvature = task.curvature(
-            u, winv * lam - winv * (J.T @ p), -p, winv * (J.T @ u), result.frames[t]
-        )
-        lam = gq[t] + ln - alpha * (ln * winv) * result.limit_hessian[t] + curvature
+        curvature = task.curvature(result.solved[t], b, -p, d, result.frames[t])
+        update(gq[t], ln, alpha, winv, result.limit_hessian[t], curvature, lam)
     return dx
 
 

@@ -28,7 +28,7 @@ def _extremes(outline: np.ndarray, origin: np.ndarray, direction: np.ndarray) ->
         along[i] = (outline[i, 0] - origin[0]) * direction[0] + (
             outline[i, 1] - origin[1]
         ) * direction[1]
-    low, high = along.min(), along.max()
+    low, high = _min_max(along)
     sum_low = sum_high = 0.0
     n_low = n_high = 0
     for a in along:
@@ -38,7 +38,54 @@ def _extremes(outline: np.ndarray, origin: np.ndarray, direction: np.ndarray) ->
         if a > high - 1.0:
             sum_high += a
             n_high += 1
-    return np.array([sum_low / n_low, sum_high / n_high])
+    extent = np.empty(2)
+    extent[0], extent[1] = sum_low / n_low, sum_high / n_high
+    return extent
+
+
+# The kernels below use element loops and scalars where NumPy would use array expressions,
+# np.interp, np.full or ndarray.min: the same arithmetic, without compiling numba's shape
+# checks (whose error messages alone cost seconds of compilation) and its general
+# implementations of those functions.
+
+
+@numba.njit(cache=True)
+def _min_max(values: np.ndarray) -> tuple[float, float]:
+    """``(values.min(), values.max())`` of finite ``values (n,)``, ``n >= 1``."""
+    low = high = values[0]
+    for i in range(1, values.shape[0]):
+        if values[i] < low:
+            low = values[i]
+        if values[i] > high:
+            high = values[i]
+    return low, high
+
+
+@numba.njit(cache=True)
+def _interp(x: float, xp: np.ndarray, fp: np.ndarray) -> float:
+    """``np.interp(x, xp, fp)`` for a scalar ``x`` and increasing ``xp (m,)``: numba's (and
+    NumPy's) arithmetic, edge cases included."""
+    m = xp.shape[0]
+    if m == 1:
+        return fp[0]
+    if np.isnan(x):
+        return x
+    if x > xp[m - 1]:
+        return fp[m - 1]
+    if x < xp[0]:
+        return fp[0]
+    j = 0  # the last j with xp[j] <= x, as NumPy's search finds it
+    while j + 1 < m and x >= xp[j + 1]:
+        j += 1
+    if j == m - 1 or xp[j] == x:
+        return fp[j]
+    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+    value = slope * (x - xp[j]) + fp[j]
+    if np.isnan(value):  # as NumPy: try from the other end, then a flat segment
+        value = slope * (x - xp[j + 1]) + fp[j + 1]
+        if np.isnan(value) and fp[j] == fp[j + 1]:
+            value = fp[j]
+    return value
 
 
 @numba.njit(cache=True)
@@ -67,17 +114,20 @@ def _fit_axis_line(
         ``(origin (2,), direction (2,), number of edge pixels used)``; the number is 0 (and the
         line the given one) with fewer than ``min_edges`` edges or a degenerate fit.
     """
-    perp = np.array([-direction[1], direction[0]])
+    perp = np.empty(2)
+    perp[0], perp[1] = -direction[1], direction[0]
     count = outline.shape[0]
     s_all, x_all = np.empty(count), np.empty(count)
     for i in range(count):
         rx, ry = outline[i, 0] - origin[0], outline[i, 1] - origin[1]
         s_all[i] = rx * direction[0] + ry * direction[1]
         x_all[i] = rx * perp[0] + ry * perp[1]
-    low, high = s_all.min(), s_all.max()
+    low, high = _min_max(s_all)
     # Slices one pixel thick across the axis; each has two edges, its extremes across it.
     n = int(high - low) + 1
-    lo, hi = np.full(n, np.inf), np.full(n, -np.inf)
+    lo, hi = np.empty(n), np.empty(n)
+    for k in range(n):
+        lo[k], hi[k] = np.inf, -np.inf
     for i in range(count):
         k = int(s_all[i] - low)
         lo[k] = min(lo[k], x_all[i])
@@ -106,7 +156,7 @@ def _fit_axis_line(
                 if 0 <= col < occluded.shape[1] and 0 <= row < occluded.shape[0]:
                     if occluded[row, col]:
                         continue
-            axis_x = x - side * np.interp(height, heights, radii) * px_per_m
+            axis_x = x - side * _interp(height, heights, radii) * px_per_m
             used += 1
             sum_s += s
             sum_x += axis_x
@@ -119,5 +169,9 @@ def _fit_axis_line(
         return origin, direction, 0
     slope = (used * sum_sx - sum_s * sum_x) / det
     x0 = (sum_x - slope * sum_s) / used
-    new_direction = (direction + slope * perp) / np.hypot(1.0, slope)
-    return origin + x0 * perp, new_direction, used
+    norm = np.hypot(1.0, slope)
+    new_origin, new_direction = np.empty(2), np.empty(2)
+    for e in range(2):
+        new_origin[e] = origin[e] + x0 * perp[e]
+        new_direction[e] = (direction[e] + slope * perp[e]) / norm
+    return new_origin, new_direction, used

@@ -5,6 +5,10 @@ centres, the rims (circles of the object's end radii) are projected into both vi
 extremes along each view's axis line predicted, the observed extremes shifted back by how far
 those lie beyond the projected centres, and the ends re-triangulated. Cameras are passed as
 arrays: ``intrinsics (2, 3, 3)``, world-to-camera ``rotations (2, 3, 3)``, ``positions (2, 3)``.
+
+The vector arithmetic is written as element loops, not NumPy array expressions: the same
+arithmetic, without compiling numba's shape checks (whose error messages alone cost seconds of
+compilation); the matrix and dot products stay NumPy's.
 """
 
 from __future__ import annotations
@@ -24,7 +28,9 @@ _RIM_COS, _RIM_SIN = np.cos(_RIM_PHASES), np.sin(_RIM_PHASES)
 @numba.njit(cache=True, error_model="numpy")
 def _project(intrinsics, rotation, position, point) -> tuple[float, float]:
     """Pixel ``(col, row)`` of world ``point (3,)`` [m]; as ``PinholeCamera.project``."""
-    rel = point - position
+    rel = np.empty(3)
+    for e in range(3):
+        rel[e] = point[e] - position[e]
     cam = rotation @ rel
     pix = intrinsics @ cam
     return pix[0] / pix[2], pix[1] / pix[2]
@@ -39,14 +45,20 @@ def _triangulate_pair(intrinsics, rotations, positions, pl, pr) -> np.ndarray:
         k, r = intrinsics[c], rotations[c]
         x = (pix[0] - k[0, 2]) / k[0, 0]
         y = (pix[1] - k[1, 2]) / k[1, 1]
-        rays[c] = x * r[0] + y * r[1] + r[2]
+        for q in range(3):
+            rays[c, q] = x * r[0, q] + y * r[1, q] + r[2, q]
     d1, d2 = rays[0], rays[1]
-    w0 = positions[0] - positions[1]
+    w0 = np.empty(3)
+    for q in range(3):
+        w0[q] = positions[0, q] - positions[1, q]
     a, b, c = d1 @ d1, d1 @ d2, d2 @ d2
     d, e = d1 @ w0, d2 @ w0
     denom = a * c - b * b
     t1, t2 = (b * e - c * d) / denom, (a * e - b * d) / denom
-    return 0.5 * (positions[0] + t1 * d1 + positions[1] + t2 * d2)
+    point = np.empty(3)
+    for q in range(3):
+        point[q] = 0.5 * (positions[0, q] + t1 * d1[q] + positions[1, q] + t2 * d2[q])
+    return point
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -70,16 +82,28 @@ def _rim_fit(ends, radii, intrinsics, rotations, positions, origins, directions,
         ones along the lines and of the projected centres' distances from the lines (inf for
         a degenerate axis).
     """
-    axis = ends[1] - ends[0]
-    a = axis / np.sqrt(axis @ axis)
+    axis = np.empty(3)
+    for e in range(3):
+        axis[e] = ends[1, e] - ends[0, e]
+    length = np.sqrt(axis @ axis)
+    a = np.empty(3)
+    for e in range(3):
+        a[e] = axis[e] / length
     # u: a unit vector perpendicular to a (a x e for the basis vector e least aligned with a);
     # v = a x u.
+    u = np.empty(3)
     if abs(a[0]) < 0.9:
-        u = np.array([0.0, a[2], -a[1]])
+        u[0], u[1], u[2] = 0.0, a[2], -a[1]
     else:
-        u = np.array([-a[2], 0.0, a[0]])
-    u /= np.sqrt(u @ u)
-    v = np.array([a[1] * u[2] - a[2] * u[1], a[2] * u[0] - a[0] * u[2], a[0] * u[1] - a[1] * u[0]])
+        u[0], u[1], u[2] = -a[2], 0.0, a[0]
+    length = np.sqrt(u @ u)
+    for e in range(3):
+        u[e] /= length
+    v = np.empty(3)
+    v[0] = a[1] * u[2] - a[2] * u[1]
+    v[1] = a[2] * u[0] - a[0] * u[2]
+    v[2] = a[0] * u[1] - a[1] * u[0]
+    rim = np.empty(3)
     shifted = np.empty((2, 2, 2))
     misfit = 0.0
     for c in range(2):
@@ -92,11 +116,15 @@ def _rim_fit(ends, radii, intrinsics, rotations, positions, origins, directions,
             # The rim's extreme point: lowest along the line for the bottom, highest for the top.
             extreme = np.inf if j == 0 else -np.inf
             for q in range(_RIM_POINTS):
-                pc, pr = _project(k, r, p, ends[j] + radii[j] * (_RIM_COS[q] * u + _RIM_SIN[q] * v))
+                for e in range(3):
+                    rim[e] = ends[j, e] + radii[j] * (_RIM_COS[q] * u[e] + _RIM_SIN[q] * v[e])
+                pc, pr = _project(k, r, p, rim)
                 s = (pc - o[0]) * d[0] + (pr - o[1]) * d[1]
                 extreme = min(extreme, s) if j == 0 else max(extreme, s)
             misfit += (extreme - extents[c, j]) ** 2 + across**2
-            shifted[c, j] = o + (extents[c, j] - (extreme - along)) * d
+            shift = extents[c, j] - (extreme - along)
+            for e in range(2):
+                shifted[c, j, e] = o[e] + shift * d[e]
     return shifted, misfit if misfit < np.inf else np.inf  # NaN: a degenerate axis
 
 
@@ -124,9 +152,11 @@ def _refine(
     for _ in range(iterations):
         shifted, _misfit = _rim_fit(ends, *args)
         for j in range(2):
-            ends[j] = _triangulate_pair(
+            point = _triangulate_pair(
                 intrinsics, rotations, positions, shifted[0, j], shifted[1, j]
             )
+            for e in range(3):
+                ends[j, e] = point[e]
     return ends, _rim_fit(ends, *args)[1]
 
 
@@ -156,11 +186,21 @@ def _correct_ends(
     Returns:
         ``(2, 3)`` bottom and top centres [m]; NaN for a degenerate axis.
     """
-    mid, axis = 0.5 * (raw[0] + raw[1]), raw[1] - raw[0]
-    sight = (mid - eyes) / np.sqrt((mid - eyes) @ (mid - eyes))
-    axis = axis - 2 * (axis @ sight) * sight
+    mid, axis, view = np.empty(3), np.empty(3), np.empty(3)
+    for e in range(3):
+        mid[e] = 0.5 * (raw[0, e] + raw[1, e])
+        axis[e] = raw[1, e] - raw[0, e]
+        view[e] = mid[e] - eyes[e]
+    length = np.sqrt(view @ view)
+    sight = np.empty(3)
+    for e in range(3):
+        sight[e] = view[e] / length
+    along = 2 * (axis @ sight)
     mirrored = np.empty((2, 3))
-    mirrored[0], mirrored[1] = mid - 0.5 * axis, mid + 0.5 * axis
+    for e in range(3):
+        axis[e] = axis[e] - along * sight[e]
+        mirrored[0, e] = mid[e] - 0.5 * axis[e]
+        mirrored[1, e] = mid[e] + 0.5 * axis[e]
     args = (radii, intrinsics, rotations, positions, origins, directions, extents, iterations)
     ends, misfit = _refine(raw, *args)
     other, other_misfit = _refine(mirrored, *args)

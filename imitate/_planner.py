@@ -1,0 +1,336 @@
+"""The planner's inner loops over the task map and the RMR step, compiled (numba).
+
+:class:`imitate.taskspace.TaskMap` and :mod:`imitate.motion.control` run these once per step of
+every rollout and of every backward pass; in NumPy, the call overhead of some forty small array
+operations per step was most of the planner's time. Between the kernels, MuJoCo computes the
+kinematics and the point Jacobians and their rates.
+
+The kernels use element loops and scalars only (no array expressions, no ``np.linalg``): cheap
+to compile.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+# Points of the task map: the bottle's and the glass's origin ``o``, then ``o + a`` with ``a``
+# each one's long axis (its frame's z axis).
+N_POINTS = 4
+
+
+@numba.njit(cache=True)
+def _task_state(xpos, xmat, bodies, gaze, angle_ref, singular_rho2, points, proj, inv, x, rows,
+                axes):
+    """Eq. 1 on the held objects at MuJoCo's kinematics ``xpos (nbody, 3)``, ``xmat (nbody,
+    9)``, and what the Jacobian needs; all outputs are written.
+
+    Args:
+        bodies: ``(2,)`` the bottle's and the glass's body ids.
+        gaze: ``R_gaze`` ``(3, 3)``, columns right, down, forward.
+        angle_ref: ``(2,)`` the angles' reference branches [rad].
+        singular_rho2: ``rho^2`` below which an angle is undefined (it is then ``angle_ref``).
+        points: ``(4, 3)`` the task map's points (see :data:`N_POINTS`) [m].
+        proj: ``(2, 3)`` the axes' gaze coordinates ``p`` (right, down, forward).
+        inv: ``(2,)`` ``1 / rho^2`` (0 where the angle is undefined).
+        x: ``(7,)`` the task state.
+        rows: ``(2, 3)`` the gradients of the two angles with respect to the axes, ``C``'s
+            first rows times ``R_gaze^T``: ``(-p_d r + p_r d) / rho^2``.
+        axes: ``(2, 3)`` the long axes ``a``.
+    """
+    for o in range(2):
+        b = bodies[o]
+        for c in range(3):
+            axes[o, c] = xmat[b, 3 * c + 2]
+            points[o, c] = xpos[b, c]
+            points[2 + o, c] = xpos[b, c] + axes[o, c]
+        for c in range(3):
+            total = 0.0
+            for k in range(3):
+                total += xmat[b, 3 * k + 2] * gaze[k, c]
+            proj[o, c] = total
+    for c in range(3):
+        x[c] = points[0, c] - points[1, c]
+    for o in range(2):
+        pr, pd = proj[o, 0], proj[o, 1]
+        rho2 = pr * pr + pd * pd
+        if rho2 > singular_rho2:
+            angle = math.atan2(pd, pr)
+            angle += 2.0 * math.pi * round((angle_ref[o] - angle) / (2.0 * math.pi))
+            s = 1.0 / rho2
+        else:  # undefined: the reference, with a zero gradient
+            angle = angle_ref[o]
+            s = 0.0
+        x[3 + 2 * o] = angle
+        x[4 + 2 * o] = proj[o, 2]
+        inv[o] = s
+        for c in range(3):
+            rows[o, c] = -pd * s * gaze[c, 0] + pr * s * gaze[c, 1]
+
+
+@numba.njit(cache=True)
+def _task_jacobian(jac, dof, axes, rows, gaze, mask, J, axis_jac, rot_jac):
+    """The task Jacobian ``J (7, n)``, the axes' Jacobians ``axis_jac (2, 3, n)`` (``da/dq``)
+    and the objects' rotational Jacobians ``rot_jac (2, 3, n)``, all written, from MuJoCo's
+    ``jac (2, 2, 3, nv)`` (per object, translational and rotational Jacobian of its origin; the
+    planned joints are the columns ``dof (n,)``); ``da/dq_j = omega_j x a``. Columns where
+    ``mask (n,)`` is 0 are 0 in ``J``."""
+    n = dof.shape[0]
+    for j in range(n):
+        col = dof[j]
+        for c in range(3):
+            J[c, j] = (jac[0, 0, c, col] - jac[1, 0, c, col]) * mask[j]
+        for o in range(2):
+            r0, r1, r2 = jac[o, 1, 0, col], jac[o, 1, 1, col], jac[o, 1, 2, col]
+            a0, a1, a2 = axes[o, 0], axes[o, 1], axes[o, 2]
+            da0, da1, da2 = r1 * a2 - r2 * a1, r2 * a0 - r0 * a2, r0 * a1 - r1 * a0
+            rot_jac[o, 0, j], rot_jac[o, 1, j], rot_jac[o, 2, j] = r0, r1, r2
+            axis_jac[o, 0, j], axis_jac[o, 1, j], axis_jac[o, 2, j] = da0, da1, da2
+            J[3 + 2 * o, j] = (rows[o, 0] * da0 + rows[o, 1] * da1 + rows[o, 2] * da2) * mask[j]
+            J[4 + 2 * o, j] = (gaze[0, 2] * da0 + gaze[1, 2] * da1 + gaze[2, 2] * da2) * mask[j]
+
+
+@numba.njit(cache=True)
+def _cross(u, v, out):
+    """``out = u x v`` for ``(3,)`` vectors."""
+    out[0] = u[1] * v[2] - u[2] * v[1]
+    out[1] = u[2] * v[0] - u[0] * v[2]
+    out[2] = u[0] * v[1] - u[1] * v[0]
+
+
+@numba.njit(cache=True)
+def _curvature(a, b, c, d, rates, dof, axes, rows, proj, inv, axis_jac, rot_jac, gaze, mask,
+               out):
+    """``a^T D_b J + c^T D_d J`` into ``out (n,)`` (see :meth:`TaskMap.curvature`).
+
+    Args:
+        a, c: ``(7,)`` task vectors.
+        b, d: ``(n,)`` joint directions.
+        rates: ``(2, 2, 2, 3, nv)`` per direction (``b``, ``d``) and object, the derivatives of
+            its origin's translational and rotational Jacobian (columns ``dof (n,)``).
+        axes, rows, proj, inv, axis_jac, rot_jac: the task frame.
+        gaze: ``R_gaze``; mask: ``(n,)`` as in :func:`_task_jacobian`.
+
+    With ``A = omega x a`` per joint, ``D_b A = omega' x a + omega x a'`` and ``a' = A b``; a
+    row ``w`` of ``C R_gaze^T`` weighs it as ``w . (omega' x a) = omega' . (a x w)`` and
+    ``w . (omega x a') = omega . (a' x w)``.
+    """
+    n = out.shape[0]
+    w = np.empty(3)
+    moved = np.empty(3)
+    across = np.empty((2, 2, 2, 3))  # direction, object, (a x w, a' x w)
+    coef = np.zeros((2, 3))  # C' (the angle rows' own derivative): per object, on A's rows
+    for k in range(2):
+        vector = a if k == 0 else c
+        direction = b if k == 0 else d
+        for o in range(2):
+            for e in range(3):
+                w[e] = vector[3 + 2 * o] * rows[o, e] + vector[4 + 2 * o] * gaze[e, 2]
+                total = 0.0
+                for j in range(n):
+                    total += axis_jac[o, e, j] * direction[j]
+                moved[e] = total  # a' = A direction
+            _cross(axes[o], w, across[k, o, 0])
+            _cross(moved, w, across[k, o, 1])
+            # C': d(-p_d s, p_r s) with s = 1 / rho^2 and p' = R^T a'.
+            pr, pd, s = proj[o, 0], proj[o, 1], inv[o]
+            dpr = gaze[0, 0] * moved[0] + gaze[1, 0] * moved[1] + gaze[2, 0] * moved[2]
+            dpd = gaze[0, 1] * moved[0] + gaze[1, 1] * moved[1] + gaze[2, 1] * moved[2]
+            ds = -2.0 * (pr * dpr + pd * dpd) * s * s
+            weight = vector[3 + 2 * o]
+            cr = weight * (-dpd * s - pd * ds)
+            cd = weight * (dpr * s + pr * ds)
+            for e in range(3):
+                coef[o, e] += cr * gaze[e, 0] + cd * gaze[e, 1]
+    for j in range(n):
+        col = dof[j]
+        total = 0.0
+        for k in range(2):
+            vector = a if k == 0 else c
+            for e in range(3):
+                total += vector[e] * (rates[k, 0, 0, e, col] - rates[k, 1, 0, e, col])
+            for o in range(2):
+                for e in range(3):
+                    total += across[k, o, 0, e] * rates[k, o, 1, e, col]
+                    total += across[k, o, 1, e] * rot_jac[o, e, j]
+        for o in range(2):
+            for e in range(3):
+                total += coef[o, e] * axis_jac[o, e, j]
+        out[j] = total * mask[j]
+
+
+@numba.njit(cache=True)
+def _rmr_step(J, x, target, q, winv, damping, gain, low, high, scale, lower, upper,
+              pinv, solved, unclipped, q_next):
+    """One RMR step (see :mod:`imitate.motion.control`) from ``q (n,)`` with ``J (m, n)`` and
+    ``x (m,)`` at ``q`` towards ``target (m,)``; writes ``pinv (n, m)`` ``J^#``, ``solved (m,)``
+    ``(J W^-1 J^T + lambda I)^-1 (target - x)``, ``unclipped (n,)`` and ``q_next (n,)``.
+
+    ``damping`` > 0 and ``winv >= 0`` make the system positive definite: it is solved by
+    Cholesky. ``low``, ``high``, ``scale`` are the joint-limit cost's borders and scales,
+    ``lower``, ``upper`` the joint ranges.
+    """
+    m, n = J.shape
+    JW = np.empty((m, n))
+    for i in range(m):
+        for j in range(n):
+            JW[i, j] = J[i, j] * winv[j]
+    chol = np.zeros((m, m))
+    for i in range(m):
+        for k in range(i + 1):
+            total = damping if i == k else 0.0
+            for j in range(n):
+                total += JW[i, j] * J[k, j]
+            for e in range(k):
+                total -= chol[i, e] * chol[k, e]
+            chol[i, k] = math.sqrt(total) if i == k else total / chol[k, k]
+    # Solve L L^T y = r for the columns r of [JW | target - x].
+    sol = np.empty((m, n + 1))
+    for col in range(n + 1):
+        for i in range(m):
+            total = JW[i, col] if col < n else target[i] - x[i]
+            for e in range(i):
+                total -= chol[i, e] * sol[e, col]
+            sol[i, col] = total / chol[i, i]
+        for i in range(m - 1, -1, -1):
+            total = sol[i, col]
+            for e in range(i + 1, m):
+                total -= chol[e, i] * sol[e, col]
+            sol[i, col] = total / chol[i, i]
+    for i in range(m):
+        solved[i] = sol[i, n]
+        for j in range(n):
+            pinv[j, i] = sol[i, j]
+    step = np.empty(n)
+    limited = False
+    g = np.empty(n)
+    for j in range(n):
+        total = 0.0
+        for i in range(m):
+            total += JW[i, j] * solved[i]
+        step[j] = total
+        excess = min(q[j] - low[j], 0.0) + max(q[j] - high[j], 0.0)
+        g[j] = scale[j] * excess * winv[j]
+        limited = limited or excess != 0.0
+    if limited:  # outside the free zone: the null-space joint-limit step
+        Jg = np.empty(m)
+        for i in range(m):
+            total = 0.0
+            for j in range(n):
+                total += J[i, j] * g[j]
+            Jg[i] = total
+        for j in range(n):
+            total = 0.0
+            for i in range(m):
+                total += pinv[j, i] * Jg[i]
+            step[j] -= gain * (g[j] - total)
+    for j in range(n):
+        unclipped[j] = q[j] + step[j]
+        q_next[j] = min(max(unclipped[j], lower[j]), upper[j])
+
+
+@numba.njit(cache=True)
+def _adjoint_directions(lam, pinv, J, solved, winv, p, ln, b, d, dx):
+    """The backward pass's products at one step: ``p = lam J^#``, ``ln = lam - p J``,
+    ``b = W^-1 (lam - J^T p)`` and ``d = W^-1 J^T u`` (``u = solved``), all written;
+    ``dx += p``."""
+    n, m = pinv.shape
+    for i in range(m):
+        total = 0.0
+        for j in range(n):
+            total += lam[j] * pinv[j, i]
+        p[i] = total
+        dx[i] += total
+    for j in range(n):
+        jp = 0.0
+        ju = 0.0
+        for i in range(m):
+            jp += J[i, j] * p[i]
+            ju += J[i, j] * solved[i]
+        ln[j] = lam[j] - jp
+        b[j] = winv[j] * ln[j]
+        d[j] = winv[j] * ju
+
+
+@numba.njit(cache=True)
+def _segment_distance(p, u, h, q, v, k) -> float:
+    """Distance between the segments ``p + s u`` and ``q + t v``, ``|s| <= h``, ``|t| <= k``
+    (centres ``(3,)``, unit directions ``(3,)``, half-lengths; Ericson's closest points)."""
+    r0 = p[0] - h * u[0] - q[0] + k * v[0]
+    r1 = p[1] - h * u[1] - q[1] + k * v[1]
+    r2 = p[2] - h * u[2] - q[2] + k * v[2]
+    a = 4.0 * h * h  # |d1|^2 of the segment d1 = 2 h u from p - h u
+    e = 4.0 * k * k
+    f = 2.0 * k * (v[0] * r0 + v[1] * r1 + v[2] * r2)
+    s = 0.0
+    t = 0.0
+    if a <= 1e-20 and e <= 1e-20:
+        pass
+    elif a <= 1e-20:
+        t = min(max(f / e, 0.0), 1.0)
+    else:
+        c = 2.0 * h * (u[0] * r0 + u[1] * r1 + u[2] * r2)
+        if e <= 1e-20:
+            s = min(max(-c / a, 0.0), 1.0)
+        else:
+            b = 4.0 * h * k * (u[0] * v[0] + u[1] * v[1] + u[2] * v[2])
+            denom = a * e - b * b
+            if denom > 0.0:
+                s = min(max((b * f - c * e) / denom, 0.0), 1.0)
+            t = (b * s + f) / e
+            if t < 0.0:
+                t = 0.0
+                s = min(max(-c / a, 0.0), 1.0)
+            elif t > 1.0:
+                t = 1.0
+                s = min(max((b - c) / a, 0.0), 1.0)
+    total = 0.0
+    for i, ri in enumerate((r0, r1, r2)):
+        gap = ri + 2.0 * h * s * u[i] - 2.0 * k * t * v[i]
+        total += gap * gap
+    return math.sqrt(total)
+
+
+@numba.njit(cache=True)
+def _near_pairs(geom_xpos, geom_xmat, geom1, geom2, column, half, radius, distmax, out) -> int:
+    """The pairs ``(geom1[p], geom2[p])`` whose enclosing capsules are closer than ``distmax``:
+    their indices ``p`` in ``out[:count]``, ascending; returns ``count``.
+
+    Each geom lies inside a capsule: the segment of ``half[g]`` on either side of its centre
+    along its frame's axis ``column[g]``, grown by ``radius[g]`` (``inf`` for an unbounded
+    geom). The distance of two capsules is a lower bound of their geoms' distance.
+    """
+    count = 0
+    u = np.empty(3)
+    v = np.empty(3)
+    for p in range(geom1.shape[0]):
+        g, h = geom1[p], geom2[p]
+        reach = radius[g] + radius[h] + distmax
+        if not reach < np.inf:
+            out[count] = p
+            count += 1
+            continue
+        # The bounding spheres first: cheap, and most pairs are far apart.
+        gap = 0.0
+        for i in range(3):
+            delta = geom_xpos[g, i] - geom_xpos[h, i]
+            gap += delta * delta
+        if math.sqrt(gap) >= reach + half[g] + half[h]:
+            continue
+        for i in range(3):
+            u[i] = geom_xmat[g, 3 * i + column[g]]
+            v[i] = geom_xmat[h, 3 * i + column[h]]
+        if _segment_distance(geom_xpos[g], u, half[g], geom_xpos[h], v, half[h]) < reach:
+            out[count] = p
+            count += 1
+    return count
+
+
+@numba.njit(cache=True)
+def _adjoint_update(gq, ln, alpha, winv, hessian, curvature, lam):
+    """``lam = gq + ln - alpha (ln W^-1) H'' + curvature`` (all ``(n,)``, ``lam`` written): the
+    backward recursion's step (see :func:`imitate.motion.control.backward`)."""
+    for j in range(lam.shape[0]):
+        lam[j] = gq[j] + ln[j] - alpha * (ln[j] * winv[j]) * hessian[j] + curvature[j]
