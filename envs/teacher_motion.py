@@ -119,23 +119,34 @@ _KEYS = ("glass", "glass_tilt", "mouth", "bottle_tilt")
 # The nominal pour as waypoints in a demonstration's phase u in [0, 1]: the glass bottom [m], the
 # glass tilt towards the bottle [deg], the bottle's mouth relative to the glass rim centre [m] and
 # the bottle tilt towards the glass [deg]; with each waypoint's spread over demonstrations (one
-# standard deviation, [m] and [deg]). The first and last rows are the rest pose, shared with the
-# previous and next demonstration. The mouth is placed relative to the glass, so the bottle's
-# position relative to the glass varies by millimetres while pouring (rows 3-4, the bottle tilting
-# further as it empties) and by centimetres while transporting. On its way over (rows 1-2) the
-# bottle swings out in front of the glass, towards the robot (world -x), still upright: followed
-# exactly, this brings the robot's bottle hand back against its chest (paper Fig. 8).
+# standard deviation, [m] and [deg]; the mouth's either one value or per axis x, y, z). The first
+# and last rows are the rest pose, shared with the previous and next demonstration. The mouth is
+# placed relative to the glass, so the bottle's position relative to the glass varies by
+# millimetres while pouring and by centimetres while transporting.
+# - Swing (rows 1-2): the bottle swings out beside and in front of the glass, towards the robot
+#   (world -x), still upright, above and beside the glass in the robot's view; how far it swings
+#   varies most (6 cm, against 2-2.5 cm sideways and up). Followed exactly, the swing brings the
+#   robot's bottle into its chest by centimetres (paper Fig. 8): the reproduction has to leave
+#   the demonstrated mean, where the demonstrations varied.
+# - Pour (rows 4-5): the bottle is held at a nearly constant tilt (116-120 deg) over the glass
+#   while the teacher lifts both hands a little (the glass rises 5 cm): steady relative to the
+#   glass, so the attractors can follow it closely, yet never still, so the stillness
+#   segmentation does not cut a demonstration in two.
+# - Return (rows 6-7): the bottle tilts back before it is lowered, so the pour ends gently.
+_SWING = (0.06, 0.02, 0.025)  # spread of the mouth on the swing: towards the robot, sideways, up
 _WAYPOINTS = (
-    # u,  glass bottom,        tilt, mouth - rim,          tilt, spreads (glass, tilt, mouth, tilt)
-    (0.00, (1.21, 0.11, 1.00), 0.0, (0.00, -0.24, 0.165), 0.0, (0.020, 0.0, 0.010, 0.0)),
-    (0.20, (1.19, 0.07, 1.04), 3.0, (-0.28, 0.00, 0.30), 5.0, (0.020, 1.5, 0.045, 5.0)),
-    (0.38, (1.18, 0.05, 1.05), 8.0, (-0.12, -0.05, 0.13), 65.0, (0.020, 2.0, 0.035, 5.0)),
-    (0.50, (1.18, 0.05, 1.05), 12.0, (0.00, -0.025, 0.040), 100.0, (0.020, 1.0, 0.003, 1.0)),
-    (0.68, (1.18, 0.05, 1.05), 14.0, (0.00, -0.020, 0.035), 125.0, (0.003, 1.0, 0.003, 1.0)),
-    (0.86, (1.19, 0.07, 1.03), 4.0, (0.00, -0.10, 0.13), 35.0, (0.020, 2.0, 0.045, 8.0)),
-    (1.00, (1.21, 0.11, 1.00), 0.0, (0.00, -0.24, 0.165), 0.0, (0.020, 0.0, 0.010, 0.0)),
+    # u,  glass bottom,        tilt, mouth - rim,           tilt, spreads (glass, tilt, mouth, tilt)
+    (0.00, (1.21, 0.11, 1.00), 0.0, (0.00, -0.24, 0.165), 0.0, (0.020, 0.0, 0.006, 0.0)),
+    (0.12, (1.19, 0.07, 1.04), 3.0, (-0.31, -0.16, 0.20), 3.0, (0.020, 1.5, _SWING, 5.0)),
+    (0.24, (1.19, 0.07, 1.04), 3.0, (-0.44, -0.12, 0.28), 5.0, (0.020, 1.5, _SWING, 5.0)),
+    (0.36, (1.18, 0.06, 1.02), 8.0, (-0.12, -0.05, 0.13), 62.0, (0.020, 2.0, 0.040, 5.0)),
+    (0.52, (1.18, 0.05, 1.05), 12.0, (0.00, -0.025, 0.040), 116.0, (0.020, 1.0, 0.003, 1.0)),
+    (0.68, (1.18, 0.02, 1.10), 14.0, (0.00, -0.020, 0.035), 120.0, (0.003, 1.0, 0.003, 1.0)),
+    (0.80, (1.18, -0.01, 1.14), 6.0, (0.00, -0.05, 0.07), 95.0, (0.020, 2.0, 0.010, 8.0)),
+    (0.92, (1.19, 0.07, 1.03), 4.0, (0.00, -0.10, 0.13), 30.0, (0.020, 2.0, 0.020, 8.0)),
+    (1.00, (1.21, 0.11, 1.00), 0.0, (0.00, -0.24, 0.165), 0.0, (0.020, 0.0, 0.006, 0.0)),
 )
-_POUR_ROWS = (3, 4)  # the glass barely moves while the bottle pours into it
+_POUR_ROWS = (4, 5)  # the glass keeps its offset from the nominal while the bottle pours
 _WARP_GRID = 2001  # samples of a demonstration's time warp
 _TREMOR_BAND = (6.0, 11.0)  # [Hz], physiological tremor
 _TREMOR_WAVES = 6  # sinusoids summed per tremor channel
@@ -151,7 +162,7 @@ class TeacherConfig:
         pause: range ``(low, high)`` [s] of the stillness between demonstrations; also the
             stillness before the first and after the last demonstration is drawn from it.
         spread: scale of the spatial variation between demonstrations: 1 gives the spreads of
-            the nominal waypoints (up to 4.5 cm while transporting, 3 mm and 1 deg while
+            the nominal waypoints (up to 6 cm while transporting, 3 mm and 1 deg while
             pouring).
         tilt_plane_spread: standard deviation of the azimuth of the plane the bottle tilts in
             [rad] (0: it tilts straight across the robot's view).
@@ -314,7 +325,7 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
             [
                 [row[5][0]] * 3
                 + [np.radians(row[5][1])]
-                + [row[5][2]] * 3
+                + list(np.broadcast_to(row[5][2], 3))
                 + [np.radians(row[5][3])]
                 for row in rows
             ]
@@ -327,9 +338,8 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
     for i in range(config.n_demos):
         values = nominal + spread * rng.standard_normal(nominal.shape)
         values[0], values[-1] = rests[i], rests[i + 1]
-        values[_POUR_ROWS[1], :3] = values[_POUR_ROWS[0], :3] + (
-            values[_POUR_ROWS[1], :3] - nominal[_POUR_ROWS[1], :3]
-        )
+        # While pouring the glass moves as scripted (nominal), off by its pour-start offset.
+        values[_POUR_ROWS[1], :3] += values[_POUR_ROWS[0], :3] - nominal[_POUR_ROWS[0], :3]
         # Shape-preserving (no overshoot between waypoints), starting and ending at rest.
         slopes = PchipInterpolator(u, values).derivative()(u)
         slopes[[0, -1]] = 0.0

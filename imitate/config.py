@@ -118,7 +118,7 @@ def _setting(default: Any, help: str, **declaration: Any) -> Any:
     return field(default=default, metadata={"setting": Setting(help, **declaration)})
 
 
-# Largest collision weight, over 300 times the default of 3000: it keeps the weighted costs and
+# Largest collision weight, 100 times the default of 10000: it keeps the weighted costs and
 # the optimizer's arithmetic far from overflow.
 MAX_WEIGHT = 1e6
 # Video sizes are multiples of the encoder's macro block [px] (``envs/video.py``'s

@@ -2,7 +2,7 @@
 planner beside an earlier commit's on the same problem.
 
 Usage: ``python scripts/bench_motion.py [--repeats 3] [--max-iter 100]
-[--collision-weight 3000] [--baseline 8a4964a]``.
+[--collision-weight 10000] [--baseline 8a4964a]``.
 
 The problem is the oracle model's 5 s movement (K attractors, one per GMM component), learned
 once here and handed to both planners as arrays. The baseline's ``imitate`` is exported with
@@ -121,7 +121,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--max-iter", type=int, default=100)
-    parser.add_argument("--collision-weight", type=float, default=3000.0)
+    parser.add_argument("--collision-weight", type=float, default=10000.0)
     parser.add_argument("--baseline", default=BASELINE,
                         help=f"commit to compare with (default {BASELINE}); '' for none")
     parser.add_argument("--rounds", type=int, default=2, help="alternations of the two")

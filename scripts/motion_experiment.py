@@ -2,7 +2,7 @@
 error, where the deviation from the GMR mean falls, and (``--physics``) the replay in physics,
 also over seeded variations of grasp heights and an obstacle.
 
-Usage: ``python scripts/motion_experiment.py [--weights 0 300 3000] [--physics] [--variations 10]
+Usage: ``python scripts/motion_experiment.py [--weights 0 1000 10000] [--physics] [--variations 10]
 [--out runs/motion]``; writes ``fig9.png`` and ``costs.png`` under ``--out``.
 """
 
@@ -34,7 +34,7 @@ def run_plan(task, learned, weight: float, max_iter: int):
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--weights", type=float, nargs="+", default=[0.0, 300.0, 3000.0, 30000.0])
+    parser.add_argument("--weights", type=float, nargs="+", default=[0.0, 1000.0, 10000.0, 100000.0])
     parser.add_argument("--max-iter", type=int, default=60)
     parser.add_argument("--physics", action="store_true")
     parser.add_argument("--variations", type=int, default=0)

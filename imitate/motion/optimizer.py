@@ -70,7 +70,7 @@ class PlanConfig:
     w_max: tuple[float, ...] | None = None
     sigma_max: tuple[float, ...] | None = None
     similarity_weight: float = 1.0
-    collision_weight: float = 3000.0
+    collision_weight: float = 10000.0
     joint_limit_weight: float = 1.0
     path_length_weight: float = 0.01
     margin: float = 0.011
