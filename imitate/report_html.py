@@ -45,6 +45,7 @@ STYLE = "".join((
     ".row{display:flex;flex-wrap:wrap;gap:0 4em;align-items:flex-start}",
     "figure{margin:1.2em 0}img,video{max-width:100%;border:1px solid #d0d7de}",
     "figcaption{color:#59636e;font-size:.9em;margin-top:.3em}ul.files{columns:3}",
+    ".grid{display:grid;grid-template-columns:repeat(auto-fill,minmax(320px,1fr));gap:0 1.5em}",
 ))
 
 
@@ -89,8 +90,9 @@ def eval_page(summary: dict, failures: list[str], links: list[str], title: str) 
         ("95 % Wilson interval", f"{low:.3f} … {high:.3f}"),
         ("pour over the replays",
          f"mean {summary['pour_mean']:.3f}, min {summary['pour_min']:.3f}"),
-        (f"plan − physics clearance over the {gap['plans']} plans that keep clear [mm]",
-         ", ".join(f"{k} {v:.2f}" for k, v in gap.items() if k != "plans") or "—"),
+        ("plan − physics clearance [mm]",
+         (", ".join(f"{k} {v:.2f}" for k, v in gap.items() if k != "plans") or "—")
+         + f" over the {gap['plans']} plans that keep clear"),
         ("seconds per variation", ", ".join(f"{k} {v:.1f}" for k, v in seconds.items())),
         ("this evaluation",
          f"{run['ran']} run now, {run['backend']}{where}, {run['wall_seconds']:.1f} s"),
@@ -110,9 +112,9 @@ def eval_page(summary: dict, failures: list[str], links: list[str], title: str) 
                  + _media("img", "outcomes.png", OUTCOMES_CAPTION)),
     ]
     if failures:
-        body.append(_section("Failure videos", "".join(
-            _media("video", path, Path(path).stem.replace("_", " ")) for path in failures
-        )))
+        body.append(_section("Failure videos", "<div class=grid>" + "".join(
+            _media("video", path, _failure(path)) for path in failures
+        ) + "</div>"))
     body += [
         _section("Suite", _table((escape(k), _value(v)) for k, v in summary["suite"].items())),
         _section("Files", _links(links + failures)),
@@ -242,6 +244,12 @@ def _media(tag: str, src: str, caption: str) -> str:
     )
     return (f"<figure>{element}<figcaption><a href='{escape(src)}'>{escape(src)}</a>: "
             f"{escape(caption)}</figcaption></figure>")
+
+
+def _failure(path: str) -> str:
+    """A failure video's caption from its name ``<id>-<outcome>.mp4``: ``variation 7: spill``."""
+    number, outcome = Path(path).stem.split("-", 1)
+    return f"variation {int(number)}: {outcome.replace('_', ' ')}"
 
 
 def _links(paths) -> str:

@@ -84,15 +84,17 @@ def test_eval_page_links_its_files_and_failure_videos(tmp_path):
         "path_points": 10, **summarize(records),
         "run": {"ran": 3, "wall_seconds": 6.0, "backend": "local", "workers": 2},
     }
+    video = f"failures/{digest}/0002-spill.mp4"
     (out / "failures" / digest).mkdir(parents=True)
-    for name in ("summary.json", "results.jsonl", "outcomes.png", f"failures/{digest}/2-spill.mp4"):
+    for name in ("summary.json", "results.jsonl", "outcomes.png", video):
         (out / name).write_text("")
     found = references(save_eval_page(out, summary))
-    assert f"failures/{digest}/2-spill.mp4" in found.paths and "outcomes.png" in found.paths
+    assert video in found.paths and "outcomes.png" in found.paths
     assert "../report.html" not in found.paths  # the run has no page
     text = " ".join(found.text)
     low, high = summary["success_wilson95"]
-    assert "2 of 3 = 0.667" in text and f"{low:.3f} … {high:.3f}" in text and "spill" in text
+    assert "2 of 3 = 0.667" in text and f"{low:.3f} … {high:.3f}" in text
+    assert "variation 2: spill" in text
 
 
 def test_every_figure_has_a_caption():
