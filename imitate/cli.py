@@ -47,7 +47,7 @@ matplotlib.use("Agg")
 from imitate.config import RunConfig, Setting, load_config, settings  # noqa: E402
 from imitate.errors import ImitateError  # noqa: E402
 from imitate.rundir import locked  # noqa: E402
-from imitate.stages import NAMES, RUN_HELP, STAGES  # noqa: E402
+from imitate.stages import NAMES, PAGE, RUN_HELP, STAGES  # noqa: E402
 
 __all__ = ["main"]
 
@@ -356,6 +356,7 @@ def summary(report: dict, stages: tuple[str, ...], run_dir: Path) -> str:
     for name in ("video", "report"):
         if name in report.get("artifacts", {}):
             lines.append(f"{name}: {run_dir / report['artifacts'][name]}")
+    lines.append(f"page: {run_dir / PAGE}")
     return "\n".join(lines)
 
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from imitate import plots, provenance, stages
+from imitate import plots, provenance, report_html, stages
 from imitate.artifacts import load_json, load_npz, save_json, save_npz, staged
 from imitate.bic import bic_sweep
 from imitate.config import RunConfig
@@ -259,10 +259,11 @@ def figures(run_dir: Path, config: RunConfig) -> dict:
 
 def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False) -> dict:
     """Run one stage in ``run_dir`` with ``config``, all or nothing: its artifacts,
-    ``config.json``, its record in ``manifest.json`` (see :mod:`imitate.provenance`) and
+    ``config.json``, its record in ``manifest.json`` (see :mod:`imitate.provenance`),
     ``report.json`` (its numbers, its time and the artifacts present merged in; the sections of
-    later stages dropped, as they no longer follow from it) are renamed into place only when
-    the stage has succeeded. Returns the report.
+    later stages dropped, as they no longer follow from it) and ``report.html`` (the same as a
+    page, see :mod:`imitate.report_html`) are renamed into place only when the stage has
+    succeeded. Returns the report.
 
     Raises:
         ImitateError: before the stage runs, ``report.json`` or ``manifest.json`` is unusable,
@@ -289,6 +290,7 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
         save_json(run_dir / "config.json", config.to_json())
         save_json(run_dir / provenance.MANIFEST, manifest)
         save_json(run_dir / stages.REPORT, report)
+        report_html.save_run_page(run_dir, report, config.to_json())
     log.debug("%s wrote %s in %.1f s", stage, ", ".join(sorted(outputs)), seconds)
     return report
 

@@ -19,11 +19,12 @@ if TYPE_CHECKING:
     from imitate.config import RunConfig
 
 __all__ = [
-    "FIGURES", "NAMES", "REPORT", "REPORT_SCHEMA", "RUN_HELP", "STAGES", "Stage", "find",
+    "FIGURES", "NAMES", "PAGE", "REPORT", "REPORT_SCHEMA", "RUN_HELP", "STAGES", "Stage", "find",
     "producer",
 ]
 
 REPORT = "report.json"  # every stage merges its sections into it
+PAGE = "report.html"  # the report and the settings as a page (imitate.report_html), with the report
 REPORT_SCHEMA = 1  # report["schema"]: version of the layout the README's `report.json` documents
 FIGURES = (
     "observation", "fig4_gmm_dtw", "fig5_bic", "gmr", "fig8_snapshots", "fig9_collision_sweep",

@@ -101,6 +101,7 @@ def text(summary: dict, out: Path) -> str:
         f"seconds per variation: mean {seconds['mean']:.1f}, median {seconds['median']:.1f}, "
         f"max {seconds['max']:.1f}",
         f"results: {out / 'results.jsonl'}, {out / 'summary.json'}, {out / 'outcomes.png'}",
+        f"page: {out / 'report.html'}",
     ])
 
 

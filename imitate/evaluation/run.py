@@ -1,9 +1,9 @@
 """``imitate eval``: a run's learned model reproduced in the variations of a suite.
 
 Writes under ``RUN_DIR/eval/``: ``results.jsonl`` (one record per variation, appended and
-synced as each finishes, with the suite digest and the exact settings), ``summary.json`` and
-``outcomes.png`` (of the last evaluation) and ``failures/<digest>/<id>-<outcome>.mp4`` for the
-first failures. An interrupted
+synced as each finishes, with the suite digest and the exact settings), ``summary.json``,
+``outcomes.png`` and ``report.html`` (of the last evaluation) and
+``failures/<digest>/<id>-<outcome>.mp4`` for the first failures. An interrupted
 evaluation continues where it stopped: variations whose id already has a record under the same
 digest (suite, seed, learned model) are not run again.
 """
@@ -17,7 +17,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from imitate import plots
+from imitate import plots, report_html
 from imitate.artifacts import load_npz, save_json
 from imitate.errors import ImitateError
 from imitate.evaluation.parallel import run_local, run_ray
@@ -101,6 +101,7 @@ def evaluate(
         video = out / "failures" / digest / f"{record['id']:04d}-{record['outcome']}.mp4"
         if not video.exists():
             failure_video(video, learned, arrays["gaze"], record)
+    report_html.save_eval_page(out, summary)
     return summary
 
 

@@ -1,0 +1,284 @@
+"""``report.html``: the page a person opens instead of reading JSON, for a run directory
+(:func:`run_page`, from its report and settings) or an evaluation (:func:`eval_page`, from its
+summary). Self-contained: inline CSS, no script, no external resource; every figure, video and
+artifact is referenced by a path relative to the page. A section whose numbers are not in the
+report (a run stopped before ``replay``) is left out.
+"""
+
+from __future__ import annotations
+
+import json
+from html import escape
+from pathlib import Path
+
+from imitate.artifacts import write_atomic
+from imitate.stages import PAGE
+
+__all__ = ["CAPTIONS", "eval_page", "run_page", "save_eval_page", "save_run_page"]
+
+CAPTIONS = {  # figures/<name>.png: what it shows
+    "observation": "Tracked against true object trajectories; detected demonstration boundaries.",
+    "fig4_gmm_dtw": "Paper Fig. 4: GMM over time on the bottle's angle, without and with DTW.",
+    "fig5_bic": "Paper Fig. 5: BIC against K, fast heuristic (K-means only) and full EM.",
+    "gmr": "GMR mean ± 2σ per task dimension over the aligned demonstrations.",
+    "fig8_snapshots": "Paper Fig. 8: the physics replays without the collision cost (top) and "
+                      "with it (bottom); parts touching or penetrating are framed in red.",
+    "fig9_collision_sweep": "Paper Fig. 9: the reproductions of the collision-weight sweep "
+                            "against the GMR mean ± 2σ, their deviation and clearance.",
+    "costs": "Total cost per optimizer iteration, for each weight of the sweep.",
+}
+VIDEO_CAPTION = "The teacher demonstrates, then the robot reproduces the pour in physics."
+OUTCOMES_CAPTION = (
+    "Obstacles on the table by outcome (filled: placed in the path), over the held objects' path "
+    "at weight 0; outcome counts by where the obstacle is."
+)
+SHOWN_APART = {"schema", "seed", "timings", "artifacts"}  # report keys not in "All numbers"
+STYLE = "".join((
+    "body{font:15px/1.45 system-ui,sans-serif;color:#1f2328;max-width:1080px;margin:2em auto;",
+    "padding:0 1.2em}h1{font-size:1.6em;margin:0}.sub{color:#59636e;margin:.3em 0 0}",
+    "h2{font-size:1.2em;border-bottom:1px solid #d0d7de;padding-bottom:.2em;margin-top:2em}",
+    "h3{font-size:1em;margin:.6em 0 .2em}table{border-collapse:collapse;margin:.3em 0}",
+    "th,td{padding:.2em .9em .2em 0;text-align:left;vertical-align:top}",
+    "tr+tr td{border-top:1px solid #eaeef2}th{border-bottom:2px solid #d0d7de}",
+    "td.n{text-align:right;font-variant-numeric:tabular-nums}tr.chosen td{font-weight:600}",
+    ".ok{color:#1a7f37;font-weight:600}.bad{color:#cf222e;font-weight:600}",
+    ".row{display:flex;flex-wrap:wrap;gap:0 4em;align-items:flex-start}",
+    "figure{margin:1.2em 0}img,video{max-width:100%;border:1px solid #d0d7de}",
+    "figcaption{color:#59636e;font-size:.9em;margin-top:.3em}ul.files{columns:3}",
+    ".grid{display:grid;grid-template-columns:repeat(auto-fill,minmax(320px,1fr));gap:0 1.5em}",
+))
+
+
+def run_page(report: dict, config: dict, run_dir: str) -> str:
+    """The page of a run: ``report`` (``report.json``), ``config`` (``config.json``), and
+    ``run_dir`` for the title; links from ``report["artifacts"]``, relative to the run directory."""
+    artifacts, replay = report.get("artifacts", {}), report.get("replay", {})
+    verdict = f" — {_yes_no(replay['success'], 'pours', 'does not pour')}" if replay else ""
+    body = [
+        f"<h1>imitate run{verdict}</h1>",
+        f"<p class=sub><code>{escape(run_dir)}</code> · seed {report.get('seed', '?')}</p>",
+        "<div class=row>" + _section("Headline", _table(_headline(report)))
+        + _section("Stage timings", _timings(report.get("timings", {}))) + "</div>",
+    ]
+    if "video" in artifacts:
+        body.append(_section("Video", _media("video", artifacts["video"], VIDEO_CAPTION)))
+    if "optimization" in report:
+        body.append(_section("Collision-weight sweep", _sweep(report["optimization"])))
+    figures = [(name, path) for name, path in artifacts.items() if path.startswith("figures/")]
+    if figures:
+        body.append(_section("Figures", "".join(
+            _media("img", path, CAPTIONS.get(name, name)) for name, path in figures
+        )))
+    settings = _table((escape(k), _value(v)) for k, v in config.items())
+    body += [
+        _section("All numbers", _all_numbers(report)),
+        _section("Settings (config.json)", settings),
+        _section("Artifacts", _links(artifacts.values())),
+    ]
+    return _page(f"imitate run {run_dir}", body)
+
+
+def eval_page(summary: dict, failures: list[str], links: list[str], title: str) -> str:
+    """The page of an evaluation: ``summary`` (``summary.json``), the failure videos and the
+    other files to link, paths relative to the page; ``title`` names what was evaluated."""
+    n, outcomes, run = summary["variations"], summary["outcomes"], summary["run"]
+    low, high = summary["success_wilson95"]
+    gap, seconds = summary["clearance_gap_mm"], summary["seconds_per_variation"]
+    where = f" on {run['workers']} workers" if run["workers"] else ""
+    headline = [
+        ("success", f"{outcomes['success']} of {n} = {summary['success_rate']:.3f}"),
+        ("95 % Wilson interval", f"{low:.3f} … {high:.3f}"),
+        ("pour over the replays",
+         f"mean {summary['pour_mean']:.3f}, min {summary['pour_min']:.3f}"),
+        ("plan − physics clearance [mm]",
+         (", ".join(f"{k} {v:.2f}" for k, v in gap.items() if k != "plans") or "—")
+         + f" over the {gap['plans']} plans that keep clear"),
+        ("seconds per variation", ", ".join(f"{k} {v:.1f}" for k, v in seconds.items())),
+        ("this evaluation",
+         f"{run['ran']} run now, {run['backend']}{where}, {run['wall_seconds']:.1f} s"),
+    ]
+    places = summary["outcomes_by_obstacle"]
+    header = ("outcome", *(f"obstacle: {p.replace('_', ' ')}" for p in places), "all")
+    rows = [
+        (escape(o.replace("_", " ")), *(_n(places[p][o]) for p in places), _n(count))
+        for o, count in outcomes.items()
+    ]
+    body = [
+        f"<h1>imitate eval — {outcomes['success']} of {n} succeed</h1>",
+        f"<p class=sub><code>{escape(title)}</code> · seed {summary['seed']} · suite digest "
+        f"<code>{escape(summary['suite_digest'])}</code></p>",
+        _section("Headline", _table((escape(k), escape(v)) for k, v in headline)),
+        _section("Outcomes by obstacle placement", _table(rows, header)
+                 + _media("img", "outcomes.png", OUTCOMES_CAPTION)),
+    ]
+    if failures:
+        body.append(_section("Failure videos", "<div class=grid>" + "".join(
+            _media("video", path, _failure(path)) for path in failures
+        ) + "</div>"))
+    body += [
+        _section("Suite", _table((escape(k), _value(v)) for k, v in summary["suite"].items())),
+        _section("Files", _links(links + failures)),
+    ]
+    return _page(f"imitate eval {title}", body)
+
+
+def save_run_page(run_dir: Path, report: dict, config: dict) -> Path:
+    """Write ``run_dir/report.html`` from the run's report and settings, atomically (inside
+    :func:`imitate.artifacts.staged`: with the stage's commit)."""
+    page = run_page(report, config, str(run_dir))
+    return write_atomic(Path(run_dir) / PAGE, lambda tmp: tmp.write_text(page))
+
+
+def save_eval_page(out: Path, summary: dict) -> Path:
+    """Write ``out/report.html`` (``out``: an evaluation's folder) from its summary, linking
+    what is there: the failure videos of its digest, its files, the run's page."""
+    out = Path(out)
+    failures = sorted(
+        p.relative_to(out).as_posix()
+        for p in (out / "failures" / summary["suite_digest"]).glob("*.mp4")
+    )
+    files = ("summary.json", "results.jsonl", "outcomes.png", f"../{PAGE}")
+    links = [name for name in files if (out / name).is_file()]
+    page = eval_page(summary, failures, links, str(out))
+    return write_atomic(out / PAGE, lambda tmp: tmp.write_text(page))
+
+
+# --- Sections ----------------------------------------------------------------------------------
+
+
+def _headline(report: dict) -> list[tuple[str, str]]:
+    """(label, value HTML) of the key numbers present in ``report``."""
+    demos, perception = report.get("demos", {}), report.get("perception", {})
+    learning, opt, replay = (report.get(k, {}) for k in ("learning", "optimization", "replay"))
+    rows = []
+    if replay:
+        rows += [
+            ("success", _yes_no(replay["success"], "yes", "no")),
+            ("pour fraction", f"{replay['pour_fraction']:.2f} (mean "
+             f"{replay['pour_fraction_mean']:.2f}, min {replay['pour_fraction_min']:.2f} over "
+             f"the replays), {replay['spilled']} spilled"),
+            ("min distance, physics", _mm(replay["min_distance_m"])),
+        ]
+    if opt:
+        pair = " / ".join(opt["closest_pair"]) or "none within 0.2 m"
+        rows += [
+            ("min distance, plan", f"{_mm(opt['min_distance_m'])} ({escape(pair)})"),
+            ("pour phase error", f"{1e3 * opt['pour_phase_err_m']:.1f} mm, "
+             f"{opt['pour_phase_err_deg']:.2f}°"),
+        ]
+    if learning:
+        rows.append(("K chosen", f"{learning['n_components']} ({escape(learning['bic'])} BIC; "
+                     f"fast {learning['n_components_fast_bic']}, "
+                     f"full {learning['n_components_full_bic']})"))
+    if demos:
+        rows.append(("demonstrations found", f"{demos['detected']} of {demos['expected']}"))
+    if perception:
+        rows.append(("tracking error", f"{perception['pos_err_mm_median']:.1f} mm median, "
+                     f"{perception['pos_err_mm_p95']:.1f} mm p95"))
+    return rows
+
+
+def _timings(timings: dict) -> str:
+    rows = [(escape(stage), _n(seconds, ".1f")) for stage, seconds in timings.items()]
+    rows.append(("<b>total</b>", _n(sum(timings.values()), ".1f")))
+    return _table(rows, ("stage", "seconds"))
+
+
+def _sweep(opt: dict) -> str:
+    """The Fig. 9 sweep, one row per collision weight; the chosen one in bold."""
+    rows = [
+        (_n(e["weight"], "g"), _n(_mm(e["min_distance_m"])), _n(1e3 * e["max_deviation_m"], ".1f"),
+         _n(100 * e["change_high_variance_share"], ".0f"))
+        for e in opt["sweep"]
+    ]
+    header = ("weight", "min distance", "max deviation from weight 0 [mm]",
+              "change in high-variance steps [%]")
+    chosen = [e["weight"] == opt["collision_weight"] for e in opt["sweep"]]
+    return _table(rows, header, chosen)
+
+
+def _all_numbers(report: dict) -> str:
+    """Every section of ``report`` as a table of its plain values (lists of objects apart)."""
+    return "<div class=row>" + "".join(
+        f"<div><h3>{escape(name)}</h3>" + _table(
+            (escape(k), _value(v)) for k, v in section.items()
+            if not (isinstance(v, list) and v and isinstance(v[0], dict))
+        ) + "</div>"
+        for name, section in report.items()
+        if name not in SHOWN_APART and isinstance(section, dict)
+    ) + "</div>"
+
+
+# --- HTML --------------------------------------------------------------------------------------
+
+
+def _page(title: str, body: list[str]) -> str:
+    return (
+        "<!DOCTYPE html>\n<html lang=en><head><meta charset=utf-8>"
+        "<meta name=viewport content='width=device-width, initial-scale=1'>"
+        f"<title>{escape(title)}</title><style>{STYLE}</style></head>\n<body>\n"
+        + "\n".join(body) + "\n</body></html>\n"
+    )
+
+
+def _section(heading: str, content: str) -> str:
+    return f"<section><h2>{escape(heading)}</h2>{content}</section>"
+
+
+def _table(rows, header: tuple[str, ...] = (), bold: list[bool] = ()) -> str:
+    """Rows of cell HTML (a cell that starts with ``<td`` keeps its own tag); the rows marked
+    in ``bold`` in bold."""
+    lines = ["<tr>" + "".join(f"<th>{escape(h)}</th>" for h in header) + "</tr>"] if header else []
+    for i, row in enumerate(rows):
+        cells = "".join(c if c.startswith("<td") else f"<td>{c}</td>" for c in row)
+        lines.append(f"<tr class=chosen>{cells}</tr>" if i < len(bold) and bold[i]
+                     else f"<tr>{cells}</tr>")
+    return f"<table>{''.join(lines)}</table>"
+
+
+def _media(tag: str, src: str, caption: str) -> str:
+    """An ``img`` or a ``video`` of ``src`` with a caption that links the file."""
+    element = (
+        f"<img src='{escape(src)}' alt='{escape(caption)}'>" if tag == "img"
+        else f"<video controls preload=metadata src='{escape(src)}'></video>"
+    )
+    return (f"<figure>{element}<figcaption><a href='{escape(src)}'>{escape(src)}</a>: "
+            f"{escape(caption)}</figcaption></figure>")
+
+
+def _failure(path: str) -> str:
+    """A failure video's caption from its name ``<id>-<outcome>.mp4``: ``variation 7: spill``."""
+    number, outcome = Path(path).stem.split("-", 1)
+    return f"variation {int(number)}: {outcome.replace('_', ' ')}"
+
+
+def _links(paths) -> str:
+    items = "".join(f"<li><a href='{escape(p)}'>{escape(p)}</a></li>" for p in paths)
+    return f"<ul class=files>{items}</ul>"
+
+
+def _n(value: float | str, spec: str = "") -> str:
+    """A number (or its HTML) right-aligned in its own cell."""
+    return f"<td class=n>{value:{spec}}</td>"
+
+
+def _mm(metres: float) -> str:
+    """A distance [m] in mm, red where negative (penetrating)."""
+    text = f"{1e3 * metres:.1f} mm"
+    return f"<span class=bad>{text}</span>" if metres < 0 else text
+
+
+def _yes_no(flag: bool, yes: str, no: str) -> str:
+    return f"<span class=ok>{yes}</span>" if flag else f"<span class=bad>{no}</span>"
+
+
+def _value(value) -> str:
+    """A report or settings value as escaped text: floats to 4 significant digits."""
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    if isinstance(value, (list, tuple)) and all(isinstance(v, (str, int, float)) for v in value):
+        text = ", ".join(f"{v:.4g}" if isinstance(v, float) else str(v) for v in value)
+        return escape(text) or "—"
+    if isinstance(value, (dict, list, tuple)):
+        return f"<code>{escape(json.dumps(value))}</code>"
+    return "—" if value is None else escape(str(value))

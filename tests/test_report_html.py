@@ -1,0 +1,101 @@
+"""``report.html``: the page of a run (written by every stage) and of an evaluation; every file it
+references exists beside it, the key numbers are on it, and a partial run still has a page."""
+
+import json
+from html.parser import HTMLParser
+from pathlib import Path
+
+from imitate import stages
+from imitate.config import RunConfig
+from imitate.evaluation.report import summarize
+from imitate.report_html import CAPTIONS, save_eval_page, save_run_page
+
+
+class References(HTMLParser):
+    """The ``src`` and ``href`` values of a page, and its text."""
+
+    def __init__(self, page: str):
+        super().__init__()
+        self.paths: list[str] = []
+        self.text: list[str] = []
+        self.feed(page)
+
+    def handle_starttag(self, tag, attrs):
+        self.paths += [value for name, value in attrs if name in ("src", "href")]
+
+    def handle_data(self, data):
+        self.text.append(data)
+
+
+def references(page: Path) -> References:
+    """The references of ``page``, each checked to be a relative path to an existing file."""
+    found = References(page.read_text())
+    for path in found.paths:
+        assert "://" not in path and not path.startswith("/"), path
+        assert (page.parent / path).is_file(), path
+    return found
+
+
+def test_run_page_links_every_artifact_and_shows_the_key_numbers(quick_run):
+    found = references(quick_run / stages.PAGE)
+    report = json.loads((quick_run / stages.REPORT).read_text())
+    assert set(report["artifacts"].values()) <= set(found.paths)
+    assert {f"figures/{name}.png" for name in stages.FIGURES} <= set(found.paths)
+    assert "video.mp4" in found.paths
+    text = " ".join(found.text)
+    opt, replay = report["optimization"], report["replay"]
+    for number in (
+        f"{1e3 * opt['min_distance_m']:.1f} mm", f"{1e3 * replay['min_distance_m']:.1f} mm",
+        f"{replay['pour_fraction']:.2f}", f"{1e3 * opt['pour_phase_err_m']:.1f} mm",
+        f"{report['learning']['n_components']} (", f"{report['timings']['figures']:.1f}",
+        *(f"{entry['weight']:g}" for entry in opt["sweep"]),
+    ):
+        assert number in text, number
+    assert ("pours" if replay["success"] else "does not pour") in text
+
+
+def test_partial_run_has_a_page_of_what_exists(tmp_path):
+    report = {
+        "schema": stages.REPORT_SCHEMA, "seed": 4,
+        "demos": {"detected": 5, "expected": 5, "boundary_err_s_max": 0.07},
+        "perception": {"pos_err_mm_median": 4.2, "pos_err_mm_p95": 11.9},
+        "timings": {"observe": 15.4},
+        "artifacts": {name: name for name in ("config.json", "observations.npz", "demos.npz")},
+    }
+    for name in report["artifacts"].values():
+        (tmp_path / name).write_text("")
+    found = references(save_run_page(tmp_path, report, RunConfig.quick().to_json()))
+    text = " ".join(found.text)
+    assert "5 of 5" in text and "4.2 mm median" in text and "seed 4" in text
+    assert not any(path.endswith((".png", ".mp4")) for path in found.paths)
+    assert "Collision-weight sweep" not in text and "success" not in text
+
+
+def test_eval_page_links_its_files_and_failure_videos(tmp_path):
+    out, digest = tmp_path / "eval", "0123456789abcdef"
+    records = [
+        {"outcome": outcome, "seconds": 2.0, "plan": {"min_distance_m": 0.01},
+         "clearance_gap_m": 0.001, "pour_mean": pour, "pour_min": pour,
+         "settings": {"obstacle": None, "in_path": False}}
+        for outcome, pour in (("success", 1.0), ("success", 0.95), ("spill", 0.5))
+    ]
+    summary = {
+        "suite_digest": digest, "seed": 0, "suite": {"variations": 3, "shapes": ["box"]},
+        "path_points": 10, **summarize(records),
+        "run": {"ran": 3, "wall_seconds": 6.0, "backend": "local", "workers": 2},
+    }
+    video = f"failures/{digest}/0002-spill.mp4"
+    (out / "failures" / digest).mkdir(parents=True)
+    for name in ("summary.json", "results.jsonl", "outcomes.png", video):
+        (out / name).write_text("")
+    found = references(save_eval_page(out, summary))
+    assert video in found.paths and "outcomes.png" in found.paths
+    assert "../report.html" not in found.paths  # the run has no page
+    text = " ".join(found.text)
+    low, high = summary["success_wilson95"]
+    assert "2 of 3 = 0.667" in text and f"{low:.3f} … {high:.3f}" in text
+    assert "variation 2: spill" in text
+
+
+def test_every_figure_has_a_caption():
+    assert set(CAPTIONS) == set(stages.FIGURES)
