@@ -34,7 +34,9 @@ def run_plan(task, learned, weight: float, max_iter: int):
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--weights", type=float, nargs="+", default=[0.0, 1000.0, 10000.0, 100000.0])
+    parser.add_argument(
+        "--weights", type=float, nargs="+", default=[0.0, 1000.0, 10000.0, 100000.0]
+    )
     parser.add_argument("--max-iter", type=int, default=60)
     parser.add_argument("--physics", action="store_true")
     parser.add_argument("--variations", type=int, default=0)
