@@ -163,10 +163,12 @@ def _curvature(a, b, c, d, rates, dof, axes, rows, proj, inv, axis_jac, rot_jac,
 
 @numba.njit(cache=True)
 def _rmr_step(J, x, target, q, winv, damping, gain, low, high, scale, lower, upper,
-              pinv, solved, unclipped, q_next):
+              pinv, solved, limit_grad, unclipped, q_next):
     """One RMR step (see :mod:`imitate.motion.control`) from ``q (n,)`` with ``J (m, n)`` and
     ``x (m,)`` at ``q`` towards ``target (m,)``; writes ``pinv (n, m)`` ``J^#``, ``solved (m,)``
-    ``(J W^-1 J^T + lambda I)^-1 (target - x)``, ``unclipped (n,)`` and ``q_next (n,)``.
+    ``(J W^-1 J^T + lambda I)^-1 (target - x + gain J W^-1 dH/dq)``, ``limit_grad (n,)``
+    ``dH/dq``, ``unclipped (n,)`` and ``q_next (n,)``: the step is
+    ``W^-1 J^T solved - gain W^-1 dH/dq``.
 
     ``damping`` > 0 and ``winv >= 0`` make the system positive definite: it is solved by
     Cholesky. ``low``, ``high``, ``scale`` are the joint-limit cost's borders and scales,
@@ -199,43 +201,30 @@ def _rmr_step(J, x, target, q, winv, damping, gain, low, high, scale, lower, upp
             for e in range(i + 1, m):
                 total -= chol[e, i] * sol[e, col]
             sol[i, col] = total / chol[i, i]
+    for j in range(n):
+        excess = min(q[j] - low[j], 0.0) + max(q[j] - high[j], 0.0)
+        limit_grad[j] = scale[j] * excess
     for i in range(m):
-        solved[i] = sol[i, n]
+        # The null-space joint-limit step's task part: M^-1 J W^-1 dH/dq = (J^#)^T dH/dq.
+        total = 0.0
+        for j in range(n):
+            total += sol[i, j] * limit_grad[j]
+        solved[i] = sol[i, n] + gain * total
         for j in range(n):
             pinv[j, i] = sol[i, j]
-    step = np.empty(n)
-    limited = False
-    g = np.empty(n)
     for j in range(n):
         total = 0.0
         for i in range(m):
             total += JW[i, j] * solved[i]
-        step[j] = total
-        excess = min(q[j] - low[j], 0.0) + max(q[j] - high[j], 0.0)
-        g[j] = scale[j] * excess * winv[j]
-        limited = limited or excess != 0.0
-    if limited:  # outside the free zone: the null-space joint-limit step
-        Jg = np.empty(m)
-        for i in range(m):
-            total = 0.0
-            for j in range(n):
-                total += J[i, j] * g[j]
-            Jg[i] = total
-        for j in range(n):
-            total = 0.0
-            for i in range(m):
-                total += pinv[j, i] * Jg[i]
-            step[j] -= gain * (g[j] - total)
-    for j in range(n):
-        unclipped[j] = q[j] + step[j]
+        unclipped[j] = q[j] + total - gain * winv[j] * limit_grad[j]
         q_next[j] = min(max(unclipped[j], lower[j]), upper[j])
 
 
 @numba.njit(cache=True)
-def _adjoint_directions(lam, pinv, J, solved, winv, p, ln, b, d, dx):
+def _adjoint_directions(lam, pinv, J, solved, winv, limit_step, p, ln, b, d, dx):
     """The backward pass's products at one step: ``p = lam J^#``, ``ln = lam - p J``,
-    ``b = W^-1 (lam - J^T p)`` and ``d = W^-1 J^T u`` (``u = solved``), all written;
-    ``dx += p``."""
+    ``b = W^-1 (lam - J^T p)`` and ``d = W^-1 J^T u - s`` (``u = solved``, ``s =
+    limit_step``, the null-space step's ``gain W^-1 dH/dq``), all written; ``dx += p``."""
     n, m = pinv.shape
     for i in range(m):
         total = 0.0
@@ -251,7 +240,7 @@ def _adjoint_directions(lam, pinv, J, solved, winv, p, ln, b, d, dx):
             ju += J[i, j] * solved[i]
         ln[j] = lam[j] - jp
         b[j] = winv[j] * ln[j]
-        d[j] = winv[j] * ju
+        d[j] = winv[j] * ju - limit_step[j]
 
 
 @numba.njit(cache=True)

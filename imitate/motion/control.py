@@ -81,8 +81,11 @@ class Rollout:
         x: ``(T + 1, m)`` task state reached, ``phi(q_t)``.
         jac: ``(T, m, n)`` task Jacobians at ``q_0 .. q_{T-1}``.
         pinv: ``(T, n, m)`` their weighted damped pseudo-inverses ``J^#``.
-        limit_hessian: ``(T, n)`` diagonal Hessians of ``H`` at ``q_0 .. q_{T-1}``.
-        solved: ``(T, m)`` ``(J W^-1 J^T + lambda I)^-1 (x_{t+1} - phi(q_t))``.
+        limit_gradient, limit_hessian: ``(T, n)`` gradients and diagonal Hessians of ``H`` at
+            ``q_0 .. q_{T-1}``.
+        solved: ``(T, m)`` ``(J W^-1 J^T + lambda I)^-1 (x_{t+1} - phi(q_t) + alpha J W^-1
+            dH/dq)``: the step is ``W^-1 J^T solved - alpha W^-1 dH/dq``.
+        clipped_at: ``(T, n)`` the joints clipped to their ranges in ``q_1 .. q_T``.
         frames: ``T`` :class:`TaskFrame` at ``q_0 .. q_{T-1}``.
         distances: ``T + 1`` :class:`Distances` (with gradients) of the pairs closer than the
             rollout's ``distmax``; empty if it was 0.
@@ -90,19 +93,24 @@ class Rollout:
             moves between the steps along the straight line in joint space (the replay
             interpolates so), where it can come closer than at either step; empty if
             ``distmax`` was 0.
-        clipped: Number of joint-angle clips to the joint ranges.
     """
 
     q: np.ndarray
     x: np.ndarray
     jac: np.ndarray
     pinv: np.ndarray
+    limit_gradient: np.ndarray
     limit_hessian: np.ndarray
     solved: np.ndarray
+    clipped_at: np.ndarray
     frames: tuple[TaskFrame, ...]
     distances: tuple[Distances, ...]
     between: tuple[Distances, ...]
-    clipped: int
+
+    @property
+    def clipped(self) -> int:
+        """Number of steps with a joint angle clipped to its range."""
+        return int(np.count_nonzero(np.any(self.clipped_at, axis=1)))
 
 
 def _metric(kin: Kinematics, task: TaskMap) -> np.ndarray:
@@ -132,6 +140,7 @@ def rollout(
     jac = np.empty((T, m, n))
     pinv = np.empty((T, n, m))
     solved = np.empty((T, m))
+    limit_gradient = np.empty((T, n))
     unclipped = np.empty((T, n))
     frames, distances, between = [], [], []
     q[0] = q0
@@ -148,17 +157,16 @@ def rollout(
         step(
             J, x[t], target[t + 1], q[t], winv, config.damping, config.nullspace_gain,
             limits.low_border, limits.high_border, limits.scale, kin.lower, kin.upper,
-            pinv[t], solved[t], unclipped[t], q[t + 1],
+            pinv[t], solved[t], limit_gradient[t], unclipped[t], q[t + 1],
         )
         jac[t] = J
         frames.append(frame)
         if distmax > 0:
             kin.update(0.5 * (q[t] + q[t + 1]))
             between.append(kin.distances(distmax, jacobian=True))
-    hess = limits(q[:T])[2]
-    clipped = int(np.count_nonzero(np.any(q[1:] != unclipped, axis=1)))
     return Rollout(
-        q, x, jac, pinv, hess, solved, tuple(frames), tuple(distances), tuple(between), clipped
+        q, x, jac, pinv, limit_gradient, limits(q[:T])[2], solved, q[1:] != unclipped,
+        tuple(frames), tuple(distances), tuple(between),
     )
 
 
@@ -176,14 +184,15 @@ def backward(
 
     .. math::
         \lambda \frac{\partial q_{t+1}}{\partial q_t} = \lambda (I - J^\# J)
-        (I - \alpha W^{-1} H'') + u^T D_{\ell - z} J - p^T D_y J
+        (I - \alpha W^{-1} H'') + u^T D_{\ell - z} J - p^T D_{y - \alpha g} J
 
     where ``u = M^-1 e``, ``p = (lambda J^#)^T``, ``l = W^-1 lambda^T``, ``y = J^# e``,
-    ``z = W^-1 J^T p``, ``M = J W^-1 J^T + lambda I``, ``e = x_{t+1} - phi(q_t)``: the last two
-    terms are ``lambda (dJ^#/dq) e``, using the symmetry of second derivatives,
+    ``z = W^-1 J^T p``, ``g = W^-1 dH/dq``, ``M = J W^-1 J^T + lambda I`` and ``e = x_{t+1} -
+    phi(q_t) + alpha J g`` (the null-space step is ``alpha (J^# J g - g)``): the ``D`` terms are
+    ``lambda (dJ^#/dq) e + alpha p^T (dJ/dq) g``, using the symmetry of second derivatives,
     ``a^T (dJ/dq_i) b = [a^T D_b J]_i``, with ``D_b J`` the derivative of ``J`` along ``b``
-    (:meth:`TaskMap.rates`, exact). Neglected: the derivative of the null-space projector times
-    the joint-limit step (``alpha`` times a gradient that is zero inside the free zone).
+    (:meth:`TaskMap.rates`, exact). A joint clipped to its range in ``q_{t+1}`` passes nothing
+    back (its row of ``dq_{t+1}/dq_t`` and ``J^#_t`` is zero). Exact: no term is neglected.
 
     Args:
         gq: ``(T + 1, n)`` explicit gradients of the cost w.r.t. ``q_t``.
@@ -202,8 +211,10 @@ def backward(
     p, ln, b, d = np.empty(m), np.empty(kin.n), np.empty(kin.n), np.empty(kin.n)
     directions, update = _planner._adjoint_directions, _planner._adjoint_update
     for t in range(T - 1, -1, -1):
-        directions(lam, result.pinv[t], result.jac[t], result.solved[t], winv, p, ln, b, d,
-                   dx[t + 1])
+        lam[result.clipped_at[t]] = 0.0
+        limit_step = alpha * winv * result.limit_gradient[t]
+        directions(lam, result.pinv[t], result.jac[t], result.solved[t], winv, limit_step, p, ln,
+                   b, d, dx[t + 1])
         kin.update(result.q[t], held=False)
         curvature = task.curvature(result.solved[t], b, -p, d, result.frames[t])
         update(gq[t], ln, alpha, winv, result.limit_hessian[t], curvature, lam)

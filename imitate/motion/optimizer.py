@@ -3,9 +3,9 @@
 :func:`plan_from_model` resamples the learned GMR mean and variance to the planning step, moves
 the robot's start posture onto the learned start (by RMR), fits one attractor per GMM component
 to the GMR mean in least squares (:func:`setup`) and then minimises ``Phi(a) = sum_i w_i c_i``
-by iRprop- (default; sign-based, so it tolerates the gradient's neglected ``dJ#/dq`` terms) or
-L-BFGS (scipy). It returns a frozen :class:`Plan` with the best attractors found, whether or not
-the optimizer converged.
+by iRprop- (default; sign-based, robust to the collision cost's kinks) or L-BFGS (scipy). It
+returns a frozen :class:`Plan` with the best attractors found, whether or not the optimizer
+converged.
 """
 
 from __future__ import annotations
