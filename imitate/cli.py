@@ -319,17 +319,22 @@ def _eval(args: argparse.Namespace) -> int:
     """``imitate eval``: the evaluation of ``args.run_dir``; prints its summary."""
     from imitate import evaluation  # MuJoCo and the planner: once the arguments are fine
 
+    kept = f"the finished variations are kept in {args.run_dir / 'eval'}; run it again to go on"
     try:
         suite = evaluation.load_suite(args.suite) if args.suite else evaluation.Suite.default()
         if args.weight is not None:
             suite = suite.replace(collision_weight=args.weight)
-        summary = evaluation.evaluate(
-            args.run_dir, suite, n=args.n, seed=args.seed, workers=args.workers,
-            ray=args.ray, videos=args.videos,
-        )
+        with _terminated_as_exception():
+            summary = evaluation.evaluate(
+                args.run_dir, suite, n=args.n, seed=args.seed, workers=args.workers,
+                ray=args.ray, videos=args.videos,
+            )
     except ImitateError as err:
-        print(f"imitate eval: error: {err}", file=sys.stderr)
-        return 1
+        return _fail("eval", str(err), 1)
+    except KeyboardInterrupt:
+        return _fail("eval", f"interrupted (Ctrl-C); {kept}", 130)
+    except _Terminated:
+        return _fail("eval", f"terminated (SIGTERM); {kept}", 143)
     print(evaluation.text(summary, args.run_dir / "eval"))
     return 0
 

@@ -2,7 +2,12 @@
 gives the same records on 1 and 2 local workers, after a resume, and on Ray."""
 
 import json
+import os
 import re
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -192,3 +197,39 @@ def test_eval_command_errors(tmp_path, model_arrays, capsys):
     assert "model.npz is missing" in capsys.readouterr().err
     assert main(["eval", str(run_dir), "--n", "0"]) == 1
     assert "--n 0 not accepted" in capsys.readouterr().err
+
+
+def test_ctrl_c_stops_eval_and_its_workers_in_one_line(tmp_path, model_arrays):
+    """Ctrl-C (SIGINT to the terminal's process group) during an evaluation on two workers:
+    exit status 130, one line on stderr, no traceback, no process left; records kept."""
+    run_dir = _run_dir(tmp_path, model_arrays)
+    (tmp_path / "suite.json").write_text(json.dumps({**TINY, "variations": 40}))
+    command = [sys.executable, "-m", "imitate", "eval", str(run_dir), "--suite",
+               str(tmp_path / "suite.json"), "--workers", "2", "--videos", "0"]
+    process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    results = run_dir / "eval" / RESULTS
+    deadline = time.monotonic() + 300
+    while not (results.exists() and results.stat().st_size) and time.monotonic() < deadline:
+        time.sleep(0.5)
+    os.killpg(process.pid, signal.SIGINT)
+    _, err = process.communicate(timeout=60)
+    lines = [line for line in err.splitlines() if not line.startswith("eval:")]  # tqdm's bar
+    assert process.returncode == 130, err
+    assert "Traceback" not in err and len(lines) == 1, err
+    assert lines[0].startswith("imitate eval: error: interrupted (Ctrl-C)"), err
+    time.sleep(1)
+    assert _live_processes_in_group(process.pid) == []  # the workers are gone too
+    assert results.read_text().count("\n") >= 1
+
+
+def _live_processes_in_group(pgid: int) -> list[int]:
+    """Pids in process group ``pgid`` that are not zombies (from ``/proc/PID/stat``)."""
+    live = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue  # exited meanwhile
+        if int(fields[2]) == pgid and fields[0] != "Z":
+            live.append(int(stat.parent.name))
+    return live

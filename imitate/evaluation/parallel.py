@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
 from collections.abc import Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 
 import numpy as np
 
@@ -31,20 +31,18 @@ def run_local(
     arrays: dict[str, np.ndarray], variations: Sequence[Variation], workers: int
 ) -> Iterator[dict]:
     """Records of ``variations`` from ``workers`` spawned processes, in the order they finish;
-    ``arrays`` are ``model.npz``'s. Pending variations are cancelled if the caller stops."""
+    ``arrays`` are ``model.npz``'s. If the caller stops (Ctrl-C, an error, closing the
+    iterator), the workers are terminated at once: Ctrl-C reaches this process only."""
     for name in _SINGLE_THREAD:  # inherited by the spawned workers
         os.environ.setdefault(name, "1")
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(
-        workers, mp_context=context, initializer=_start, initargs=(arrays,)
-    ) as pool:
-        futures = [pool.submit(_run, v.to_json()) for v in variations]
-        try:
-            for future in as_completed(futures):
-                yield future.result()
-        finally:
-            for future in futures:
-                future.cancel()
+    pool = context.Pool(workers, initializer=_start, initargs=(arrays,))
+    try:
+        yield from pool.imap_unordered(_run, [v.to_json() for v in variations])
+        pool.close()
+    finally:
+        pool.terminate()
+        pool.join()
 
 
 def run_ray(
@@ -81,6 +79,7 @@ def run_ray(
 
 
 def _start(arrays: dict[str, np.ndarray]) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
     os.environ.setdefault("MUJOCO_GL", "egl")
     _worker.update(learned=LearnedModel.from_arrays(arrays), gaze=arrays["gaze"])
 
