@@ -146,6 +146,7 @@ _WAYPOINTS = (
     (0.92, (1.19, 0.07, 1.03), 4.0, (0.00, -0.10, 0.13), 30.0, (0.020, 2.0, 0.020, 8.0)),
     (1.00, (1.21, 0.11, 1.00), 0.0, (0.00, -0.24, 0.165), 0.0, (0.020, 0.0, 0.006, 0.0)),
 )
+_SWING_ROWS = (1, 2)  # a demonstration swings wide or narrow as a whole: one draw for both
 _POUR_ROWS = (4, 5)  # the glass keeps its offset from the nominal while the bottle pours
 _WARP_GRID = 2001  # samples of a demonstration's time warp
 _TREMOR_BAND = (6.0, 11.0)  # [Hz], physiological tremor
@@ -336,7 +337,9 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
     paths, warps, boundaries = [], [], []
     t = rng.uniform(*config.pause)
     for i in range(config.n_demos):
-        values = nominal + spread * rng.standard_normal(nominal.shape)
+        noise = rng.standard_normal(nominal.shape)
+        noise[_SWING_ROWS[1], 4:7] = noise[_SWING_ROWS[0], 4:7]  # one swing, wide or narrow
+        values = nominal + spread * noise
         values[0], values[-1] = rests[i], rests[i + 1]
         # While pouring the glass moves as scripted (nominal), off by its pour-start offset.
         values[_POUR_ROWS[1], :3] += values[_POUR_ROWS[0], :3] - nominal[_POUR_ROWS[0], :3]
