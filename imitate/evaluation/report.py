@@ -82,7 +82,8 @@ def text(summary: dict, out: Path) -> str:
     n, run = summary["variations"], summary["run"]
     low, high = summary["success_wilson95"]
     successes = summary["outcomes"]["success"]
-    where = f"{run['workers']} workers" if run["backend"] == "local" else "Ray"
+    workers = run["workers"]
+    where = f"{workers} worker{'s' * (workers != 1)}" if run["backend"] == "local" else "Ray"
     by_place = ", ".join(
         f"{p} {c['success']}/{sum(c.values())}" for p, c in summary["outcomes_by_obstacle"].items()
     )
