@@ -123,9 +123,12 @@ def _check_gradient(problem, terms):
             fd[i, j] = (up - down) / (2 * h[j])
     cosine = np.sum(grad * fd) / (np.linalg.norm(grad) * np.linalg.norm(fd))
     relative = np.linalg.norm(grad - fd) / np.linalg.norm(fd)
-    # Exact: measured relative error 1e-9 (1e-6 with the collision potential's kinks); a
-    # neglected term of the backward pass shows at 1e-2.
-    assert cosine >= 1 - 1e-9 and relative <= 1e-5, (cosine, relative)
+    # Exact: measured relative error 1e-9 for the terms without distances. The collision term
+    # gives 2e-7 to 1.2e-4 at four random points (1.2e-4 here, the same for steps 1e-3 to 1e-5
+    # of the tolerance): signed distances between convex hulls and capsules have kinks where
+    # the closest features are not unique, which the central difference averages over. A
+    # neglected term of the backward pass showed at 1e-1.
+    assert cosine >= 1 - 1e-7 and relative <= 1e-3, (cosine, relative)
 
 
 @pytest.mark.parametrize("term", ["similarity", "collision", "joint_limits", "path_length"])
