@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import os
 import time
+from contextlib import closing
 from pathlib import Path
 
 from tqdm import tqdm
@@ -69,9 +70,10 @@ def evaluate(
     start, load = time.perf_counter(), os.getloadavg()
     finished = (
         run_ray(arrays, pending, ray) if ray else run_local(arrays, pending, min(workers, n))
-    ) if pending else iter(())
+    ) if pending else (record for record in ())
     _end_line(out / RESULTS)
-    with open(out / RESULTS, "a") as results, tqdm(
+    # closing: an interruption stops the workers before it propagates
+    with closing(finished), open(out / RESULTS, "a") as results, tqdm(
         total=n, initial=n - len(pending), desc="eval", unit="variation",
         disable=None if progress is None else not progress,
     ) as bar:
