@@ -187,14 +187,17 @@ def replay(run_dir: Path, config: RunConfig) -> dict:
     arrays = load_npz(run_dir / "plan.npz", required=(*Plan.array_names(), "sweep_q", "sweep_x"))
     plan = Plan.from_arrays(arrays)
     gaze = load_npz(run_dir / "model.npz", required=("gaze",))["gaze"]
-    result, states, state_dt = _physics(plan, config, gaze)
-    pours = [result.pour_fraction] + [
-        _physics(plan, config, gaze, seed=config.seed + k)[0].pour_fraction
-        for k in range(1, POUR_REPLAYS)
-    ]
-    q_free = arrays["sweep_q"][0]
-    free = dataclasses.replace(plan, q=q_free, q_start=q_free[0], x=arrays["sweep_x"][0])
-    _, free_states, _ = _physics(free, config, gaze)
+    with tqdm(total=POUR_REPLAYS + 1, desc="replay", unit="replay", disable=_bars()) as bar:
+        result, states, state_dt = _physics(plan, config, gaze)
+        pours = [result.pour_fraction]
+        bar.update()
+        for k in range(1, POUR_REPLAYS):
+            pours.append(_physics(plan, config, gaze, seed=config.seed + k)[0].pour_fraction)
+            bar.update()
+        q_free = arrays["sweep_q"][0]
+        free = dataclasses.replace(plan, q=q_free, q_start=q_free[0], x=arrays["sweep_x"][0])
+        _, free_states, _ = _physics(free, config, gaze)
+        bar.update()
     save_npz(run_dir / "replay.npz", {
         **states, "task_error": result.task_error, "state_dt": state_dt,
         "pour_fraction": result.pour_fraction, "spilled": result.spilled,
