@@ -26,7 +26,7 @@ log = logging.getLogger(__name__)
 
 PACKAGE = Path(__file__).parent
 # The kernel modules each stage compiles on its first run, and about how long that takes on
-# the 2-core CI machine [s] (`python scripts/bench_run.py`: observe 16.5 s cold, 13.3 warm;
+# the 2-core CI machine [s] (`python scripts/bench_run.py`: observe 17.3 s cold, 14.0 warm;
 # learn 7.3 s cold, 0.2 warm).
 STAGE_KERNELS = {
     "observe": (("imitate.perception._rim", "imitate.perception._outline"), 4),
