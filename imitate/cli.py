@@ -21,20 +21,38 @@ Progress goes to stderr through :mod:`logging` (the ``imitate`` logger, configur
 from __future__ import annotations
 
 import argparse
+import atexit
 import logging
 import logging.handlers
+import os
+import shutil
 import signal
 import sys
+import tempfile
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
 from imitate import __version__, numba_cache
 from imitate.envs import rendering
+
+
+def _matplotlib_config_dir() -> None:
+    """``MPLCONFIGDIR`` in a temporary folder, removed at exit, when matplotlib's default
+    (``$XDG_CONFIG_HOME/matplotlib`` or ``~/.config/matplotlib``) is not writable, as under a
+    read-only home, where matplotlib would warn about it on every run."""
+    if os.environ.get("MPLCONFIGDIR"):
+        return
+    config = Path(os.environ.get("XDG_CONFIG_HOME") or Path.home() / ".config", "matplotlib")
+    try:
+        config.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=config).close()
+    except OSError:
+        os.environ["MPLCONFIGDIR"] = tempfile.mkdtemp(prefix="imitate-matplotlib-")
+        atexit.register(shutil.rmtree, os.environ["MPLCONFIGDIR"], ignore_errors=True)
+
 
 # Before the imports below load MuJoCo and the kernels: what the library logs while it loads
 # (numba's cache moved) waits for -v/-q in _LOADING.
@@ -42,6 +60,9 @@ _LOADING = logging.handlers.BufferingHandler(capacity=1000)
 logging.getLogger("imitate").addHandler(_LOADING)
 logging.getLogger("imitate").setLevel(logging.DEBUG)
 rendering.import_mujoco()
+_matplotlib_config_dir()
+import matplotlib  # noqa: E402
+
 matplotlib.use("Agg")
 
 from imitate.config import RunConfig, Setting, load_config, settings  # noqa: E402

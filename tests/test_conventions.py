@@ -126,7 +126,8 @@ def test_no_opengl_help_works_and_rendering_fails_in_one_line(backend, tmp_path)
 
 def test_numba_cache_moves_where_the_default_is_not_writable(tmp_path):
     """The package laid out as installed, with its ``__pycache__`` folders and the home unusable
-    (files where folders should be; the tests run as root, who may write anywhere)."""
+    (files where folders should be; the tests run as root, who may write anywhere): numba's
+    cache moves, said in one line, and matplotlib's config moves without a warning."""
     site = tmp_path / "site"
     ignore = shutil.ignore_patterns("__pycache__")
     shutil.copytree(ROOT / "imitate", site / "imitate", ignore=ignore)
@@ -138,7 +139,7 @@ def test_numba_cache_moves_where_the_default_is_not_writable(tmp_path):
     blocked.write_text("not a folder")
     temp.mkdir()
     env = {"PYTHONPATH": str(site), "HOME": str(blocked), "XDG_CACHE_HOME": str(blocked),
-           "TMPDIR": str(temp), "MPLCONFIGDIR": str(temp), "NUMBA_CACHE_DIR": None,
+           "TMPDIR": str(temp), "MPLCONFIGDIR": None, "NUMBA_CACHE_DIR": None,
            "PYTHONDONTWRITEBYTECODE": "1"}
     fallback = temp / f"imitate-numba-{os.getuid()}"
 
