@@ -84,6 +84,7 @@ def eval_page(summary: dict, failures: list[str], links: list[str], title: str) 
     n, outcomes, run = summary["variations"], summary["outcomes"], summary["run"]
     low, high = summary["success_wilson95"]
     gap, seconds = summary["clearance_gap_mm"], summary["seconds_per_variation"]
+    kept = summary["kept_margin"]
     where = f" on {run['workers']} workers" if run["workers"] else ""
     headline = [
         ("success", f"{outcomes['success']} of {n} = {summary['success_rate']:.3f}"),
@@ -93,6 +94,9 @@ def eval_page(summary: dict, failures: list[str], links: list[str], title: str) 
         ("plan − physics clearance [mm]",
          (", ".join(f"{k} {v:.2f}" for k, v in gap.items() if k != "plans") or "—")
          + f" over the {gap['plans']} plans that keep clear"),
+        (f"plans that keep the {kept['margin_m'] * 1000:g} mm margin",
+         f"{kept['plans']}: touching in physics {kept['physics_contact']}, "
+         f"pouring below {kept['pour_threshold']:g} in a replay {kept['low_pour']}"),
         ("seconds per variation", ", ".join(f"{k} {v:.1f}" for k, v in seconds.items())),
         ("this evaluation",
          f"{run['ran']} run now, {run['backend']}{where}, {run['wall_seconds']:.1f} s"),

@@ -17,7 +17,7 @@ from imitate.artifacts import save_npz
 from imitate.cli import main
 from imitate.errors import ImitateError
 from imitate.evaluation import Suite, evaluate, load_suite
-from imitate.evaluation.report import wilson
+from imitate.evaluation.report import summarize, text, wilson
 from imitate.evaluation.run import RESULTS, read_records
 from imitate.evaluation.suite import KEYS
 from imitate.evaluation.trial import classify
@@ -233,3 +233,23 @@ def _live_processes_in_group(pgid: int) -> list[int]:
         if int(fields[2]) == pgid and fields[0] != "Z":
             live.append(int(stat.parent.name))
     return live
+
+
+def test_summary_counts_what_physics_does_with_plans_that_keep_the_margin():
+    def record(plan_mm, physics_mm, pour):
+        return {
+            "outcome": "success", "settings": {"obstacle": None, "in_path": False},
+            "seconds": 1.0, "plan": {"min_distance_m": plan_mm / 1000},
+            "physics_min_distance_m": physics_mm / 1000,
+            "clearance_gap_m": (plan_mm - physics_mm) / 1000, "pour_mean": pour, "pour_min": pour,
+        }
+
+    records = [record(12, 11, 1.0), record(12, -1, 1.0), record(13, 12, 0.8), record(5, -2, 0.5)]
+    summary = summarize(records)
+    assert summary["kept_margin"] == {
+        "margin_m": 0.011, "pour_threshold": 0.9, "plans": 3, "physics_contact": 1, "low_pour": 1,
+    }
+    run = {"ran": 4, "wall_seconds": 4.0, "backend": "local", "workers": 1,
+           "load_average_start": [0.0] * 3, "load_average_end": [0.0] * 3}
+    printed = text({**summary, "run": run, "suite_digest": "d"}, Path("eval"))
+    assert "margin: 3; of them touching in physics 1, pouring below 0.9 in a replay 1" in printed

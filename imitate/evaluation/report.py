@@ -11,11 +11,13 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Patch, Rectangle
 
+from imitate.envs.pouring import SUCCESS_FRACTION
 from imitate.envs.video import StateRecorder, captioned, replay_frames, write_video
 from imitate.evaluation.trial import OUTCOMES, physics, plan_variation, replay_once
 from imitate.evaluation.variation import Variation
 from imitate.learning import LearnedModel
 from imitate.models.scene import TABLE_X
+from imitate.motion import PlanConfig
 
 __all__ = ["failure_video", "plot_outcomes", "summarize", "text", "wilson"]
 
@@ -24,6 +26,7 @@ COLOURS = {
     "spill": "tab:purple", "low_pour": "tab:blue", "diverged": "black",
 }
 PLACES = ("none", "random", "in_path")  # where a variation's obstacle was placed
+MARGIN = PlanConfig().margin  # [m], the clearance every variation's plan aims for
 
 
 def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
@@ -61,6 +64,12 @@ def summarize(records: Sequence[dict]) -> dict:
         p: {o: sum(place(r) == p and r["outcome"] == o for r in records) for o in OUTCOMES}
         for p in PLACES
     }
+    kept = [r for r in records if r["plan"]["min_distance_m"] >= MARGIN]
+    margin = {  # what physics does with the plans that keep the planner's margin
+        "margin_m": MARGIN, "pour_threshold": SUCCESS_FRACTION, "plans": len(kept),
+        "physics_contact": sum(r["physics_min_distance_m"] < 0 for r in kept),
+        "low_pour": sum(r["pour_min"] < SUCCESS_FRACTION for r in kept),
+    }
     return {
         "variations": n,
         "success_rate": successes / n,
@@ -70,6 +79,7 @@ def summarize(records: Sequence[dict]) -> dict:
         "pour_mean": float(np.mean([r["pour_mean"] for r in records])),
         "pour_min": float(np.min([r["pour_min"] for r in records])),
         "clearance_gap_mm": gap,
+        "kept_margin": margin,
         "seconds_per_variation": {
             "mean": float(seconds.mean()), "median": float(np.median(seconds)),
             "max": float(seconds.max()),
@@ -88,6 +98,7 @@ def text(summary: dict, out: Path) -> str:
         f"{p} {c['success']}/{sum(c.values())}" for p, c in summary["outcomes_by_obstacle"].items()
     )
     gap, seconds = summary["clearance_gap_mm"], summary["seconds_per_variation"]
+    kept = summary["kept_margin"]
     return "\n".join([
         f"eval: {n} variations ({run['ran']} run now on {where} in {run['wall_seconds']:.1f} s, "
         f"1-min load average {run['load_average_start'][0]:.1f} at the start, "
@@ -99,6 +110,9 @@ def text(summary: dict, out: Path) -> str:
         f"pour over the replays: mean {summary['pour_mean']:.3f}, min {summary['pour_min']:.3f}",
         f"plan - physics clearance over the {gap['plans']} plans that keep clear [mm]: "
         + ", ".join(f"{k} {v:.2f}" for k, v in gap.items() if k != "plans"),
+        f"plans that keep the {kept['margin_m'] * 1000:g} mm margin: {kept['plans']}; of them "
+        f"touching in physics {kept['physics_contact']}, pouring below "
+        f"{kept['pour_threshold']:g} in a replay {kept['low_pour']}",
         f"seconds per variation: mean {seconds['mean']:.1f}, median {seconds['median']:.1f}, "
         f"max {seconds['max']:.1f}",
         f"results: {out / 'results.jsonl'}, {out / 'summary.json'}, {out / 'outcomes.png'}",
