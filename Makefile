@@ -38,7 +38,7 @@ run: setup
 	$(BIN)/imitate run --out $(RUN)
 
 test: setup-test lint
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n auto --dist loadfile
 	$(BIN)/python scripts/render_ci_video.py --out runs/ci/video.mp4 --width 160 --height 120 --check
 	$(MAKE) test-lowest
 
