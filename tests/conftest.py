@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import shutil
+
 import numpy as np
 import pytest
 
@@ -25,3 +27,11 @@ def quick_run(tmp_path_factory):
     run_dir = tmp_path_factory.mktemp("quick")
     assert main(["run", "--quick", "--out", str(run_dir)]) == 0
     return run_dir
+
+
+@pytest.fixture
+def run_dir(quick_run, tmp_path):
+    """A copy of the finished quick run, free to change."""
+    copy = tmp_path / "run"
+    shutil.copytree(quick_run, copy)
+    return copy

@@ -35,13 +35,6 @@ def python(code_or_args, env=None, cwd=None) -> subprocess.CompletedProcess:
     )
 
 
-@pytest.fixture
-def run_dir(quick_run, tmp_path):
-    copy = tmp_path / "run"
-    shutil.copytree(quick_run, copy)
-    return copy
-
-
 def test_version(capsys):
     with pytest.raises(SystemExit) as exit_:
         main(["--version"])

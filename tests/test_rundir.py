@@ -8,7 +8,6 @@ import contextlib
 import hashlib
 import json
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -20,14 +19,6 @@ from imitate import provenance, stages
 from imitate.cli import main
 from imitate.config import load_config
 from imitate.rundir import LOCK, locked
-
-
-@pytest.fixture
-def run_dir(quick_run, tmp_path):
-    """A copy of the finished quick run."""
-    copy = tmp_path / "run"
-    shutil.copytree(quick_run, copy)
-    return copy
 
 
 def snapshot(directory):
