@@ -210,11 +210,11 @@ def backward(
     m = result.jac.shape[1]
     p, ln, b, d = np.empty(m), np.empty(kin.n), np.empty(kin.n), np.empty(kin.n)
     directions, update = _planner._adjoint_directions, _planner._adjoint_update
+    limit_steps = alpha * winv * result.limit_gradient  # the null-space step's W^-1 dH/dq part
     for t in range(T - 1, -1, -1):
         lam[result.clipped_at[t]] = 0.0
-        limit_step = alpha * winv * result.limit_gradient[t]
-        directions(lam, result.pinv[t], result.jac[t], result.solved[t], winv, limit_step, p, ln,
-                   b, d, dx[t + 1])
+        directions(lam, result.pinv[t], result.jac[t], result.solved[t], winv, limit_steps[t], p,
+                   ln, b, d, dx[t + 1])
         kin.update(result.q[t], held=False)
         curvature = task.curvature(result.solved[t], b, -p, d, result.frames[t])
         update(gq[t], ln, alpha, winv, result.limit_hessian[t], curvature, lam)
