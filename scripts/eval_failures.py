@@ -1,0 +1,44 @@
+"""The failed variations of an evaluation, one line each, from its records (nothing is re-run).
+
+Usage: ``python scripts/eval_failures.py RUN_DIR``: the records of the last ``imitate eval RUN_DIR``
+(the suite digest in ``RUN_DIR/eval/summary.json``) whose outcome is not ``success``.
+
+Columns: ``id``, ``outcome``, where the obstacle was placed (``path`` or ``rand``) and its shape,
+its centre ``x y`` [m], the plan's smallest clearance [mm] and its closest pair, the plan's
+pour-phase error [mm, deg] and the smallest pour fraction over the replays.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from imitate.evaluation.report import place
+from imitate.evaluation.run import RESULTS, read_records
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("run_dir", type=Path)
+    out = parser.parse_args().run_dir / "eval"
+    digest = json.loads((out / "summary.json").read_text())["suite_digest"]
+    records = sorted(read_records(out / RESULTS, digest), key=lambda r: r["id"])
+    failed = [r for r in records if r["outcome"] != "success"]
+    print(f"{'id':>4} {'outcome':<16}{'obstacle':<15}{'x':>6}{'y':>7}{'plan':>8}  "
+          f"{'closest pair':<28}{'pour err':>13}{'pour':>6}")
+    print(f"{'':>4} {'':<16}{'':<15}{'[m]':>6}{'[m]':>7}{'[mm]':>8}  {'':<28}{'[mm, deg]':>13}")
+    for r in failed:
+        obstacle, plan = r["settings"]["obstacle"], r["plan"]
+        where = {"in_path": "path", "random": "rand", "none": "-"}[place(r)]
+        shape = f"{where} {obstacle['shape']}" if obstacle else where
+        x, y = obstacle["pos"][:2] if obstacle else (float("nan"), float("nan"))
+        print(f"{r['id']:>4} {r['outcome']:<16}{shape:<15}{x:6.3f}{y:7.3f}"
+              f"{plan['min_distance_m'] * 1000:8.1f}  {' / '.join(plan['closest']):<28}"
+              f"{plan['pour_phase_err_m'] * 1000:7.1f} {plan['pour_phase_err_deg']:5.1f}"
+              f"{r['pour_min']:6.2f}")
+    print(f"{len(failed)} of {len(records)} variations failed")
+
+
+if __name__ == "__main__":
+    main()
