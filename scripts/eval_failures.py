@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from imitate.evaluation.report import place
@@ -22,6 +23,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run_dir", type=Path)
     out = parser.parse_args().run_dir / "eval"
+    if not (out / "summary.json").is_file():
+        sys.exit(f"eval_failures.py: {out / 'summary.json'} is missing: run imitate eval first")
     digest = json.loads((out / "summary.json").read_text())["suite_digest"]
     records = sorted(read_records(out / RESULTS, digest), key=lambda r: r["id"])
     failed = [r for r in records if r["outcome"] != "success"]
