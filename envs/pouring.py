@@ -143,6 +143,14 @@ class PouringEnv(gym.Env):
         self.metadata = {**self.metadata, "render_fps": 1.0 / self.dt}
         self._joint_qpos = np.array([self.model.joint(j).qposadr[0] for j in humanoid.JOINTS])
         self._joint_dof = np.array([self.model.joint(j).dofadr[0] for j in humanoid.JOINTS])
+        servos = [self.model.actuator(j) for j in humanoid.JOINTS]
+        #: ``(18,)`` [s]: how far each joint's position servo trails a target moving at a
+        #: constant speed, ``(kv + joint damping) / kp`` as built; a controller that leads its
+        #: targets by ``servo_lag * speed`` cancels it.
+        self.servo_lag = np.array([
+            (-a.biasprm[2] + self.model.dof_damping[dof]) / a.gainprm[0]
+            for a, dof in zip(servos, self._joint_dof, strict=True)
+        ])
         self._object_qpos = {
             obj: self.model.joint(obj).qposadr[0] for obj in (objects.BOTTLE, objects.GLASS)
         }

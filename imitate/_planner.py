@@ -162,17 +162,17 @@ def _curvature(a, b, c, d, rates, dof, axes, rows, proj, inv, axis_jac, rot_jac,
 
 
 @numba.njit(cache=True)
-def _rmr_step(J, x, target, q, winv, damping, gain, low, high, scale, lower, upper,
-              pinv, solved, limit_grad, unclipped, q_next):
+def _rmr_step(J, x, target, q, winv, damping, gain, low, high, scale, push, lower, upper,
+              pinv, solved, nullspace_grad, unclipped, q_next):
     """One RMR step (see :mod:`imitate.motion.control`) from ``q (n,)`` with ``J (m, n)`` and
     ``x (m,)`` at ``q`` towards ``target (m,)``; writes ``pinv (n, m)`` ``J^#``, ``solved (m,)``
-    ``(J W^-1 J^T + lambda I)^-1 (target - x + gain J W^-1 dH/dq)``, ``limit_grad (n,)``
-    ``dH/dq``, ``unclipped (n,)`` and ``q_next (n,)``: the step is
-    ``W^-1 J^T solved - gain W^-1 dH/dq``.
+    ``(J W^-1 J^T + lambda I)^-1 (target - x + gain J W^-1 g)``, ``nullspace_grad (n,)``
+    ``g = dH/dq - push``, ``unclipped (n,)`` and ``q_next (n,)``: the step is
+    ``W^-1 J^T solved - gain W^-1 g``.
 
     ``damping`` > 0 and ``winv >= 0`` make the system positive definite: it is solved by
     Cholesky. ``low``, ``high``, ``scale`` are the joint-limit cost's borders and scales,
-    ``lower``, ``upper`` the joint ranges.
+    ``push (n,)`` the null-space push, ``lower``, ``upper`` the joint ranges.
     """
     m, n = J.shape
     JW = np.empty((m, n))
@@ -203,12 +203,12 @@ def _rmr_step(J, x, target, q, winv, damping, gain, low, high, scale, lower, upp
             sol[i, col] = total / chol[i, i]
     for j in range(n):
         excess = min(q[j] - low[j], 0.0) + max(q[j] - high[j], 0.0)
-        limit_grad[j] = scale[j] * excess
+        nullspace_grad[j] = scale[j] * excess - push[j]
     for i in range(m):
-        # The null-space joint-limit step's task part: M^-1 J W^-1 dH/dq = (J^#)^T dH/dq.
+        # The null-space step's task part: M^-1 J W^-1 g = (J^#)^T g.
         total = 0.0
         for j in range(n):
-            total += sol[i, j] * limit_grad[j]
+            total += sol[i, j] * nullspace_grad[j]
         solved[i] = sol[i, n] + gain * total
         for j in range(n):
             pinv[j, i] = sol[i, j]
@@ -216,15 +216,15 @@ def _rmr_step(J, x, target, q, winv, damping, gain, low, high, scale, lower, upp
         total = 0.0
         for i in range(m):
             total += JW[i, j] * solved[i]
-        unclipped[j] = q[j] + total - gain * winv[j] * limit_grad[j]
+        unclipped[j] = q[j] + total - gain * winv[j] * nullspace_grad[j]
         q_next[j] = min(max(unclipped[j], lower[j]), upper[j])
 
 
 @numba.njit(cache=True)
-def _adjoint_directions(lam, pinv, J, solved, winv, limit_step, p, ln, b, d, dx):
+def _adjoint_directions(lam, pinv, J, solved, winv, nullspace_step, p, ln, b, d, dx):
     """The backward pass's products at one step: ``p = lam J^#``, ``ln = lam - p J``,
     ``b = W^-1 (lam - J^T p)`` and ``d = W^-1 J^T u - s`` (``u = solved``, ``s =
-    limit_step``, the null-space step's ``gain W^-1 dH/dq``), all written; ``dx += p``."""
+    nullspace_step``, the null-space step's ``gain W^-1 g``), all written; ``dx += p``."""
     n, m = pinv.shape
     for i in range(m):
         total = 0.0
@@ -240,7 +240,7 @@ def _adjoint_directions(lam, pinv, J, solved, winv, limit_step, p, ln, b, d, dx)
             ju += J[i, j] * solved[i]
         ln[j] = lam[j] - jp
         b[j] = winv[j] * ln[j]
-        d[j] = winv[j] * ju - limit_step[j]
+        d[j] = winv[j] * ju - nullspace_step[j]
 
 
 @numba.njit(cache=True)

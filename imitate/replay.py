@@ -102,6 +102,10 @@ def replay(
     play = _resample(plan.times - plan.times[0], plan.q, t_play)
     targets.extend(play)
     targets.extend([plan.q[-1]] * int(round(settle / dt)))
+    # Velocity feed-forward: each step holds its target (half a step behind on average) and the
+    # servos trail a moving target by servo_lag; both are led by the target's speed.
+    targets = np.array(targets)
+    targets += (env.servo_lag + dt / 2) * np.gradient(targets, dt, axis=0)
     task = planning_task(env.config, gaze)
     min_distance = np.inf
     reached = []

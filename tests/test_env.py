@@ -215,8 +215,8 @@ def test_replay_stops_where_the_physics_diverges():
     env = PouringEnv(particles=0)
     q = np.tile(humanoid.rest_pose(), (3, 1))
     plan = Plan(
-        times=np.array([0.0, 0.1, 0.2]), attractors=np.zeros((1, 7)), target=np.zeros((3, 7)),
-        x=np.zeros((3, 7)), q=q, q_start=q[0], mean=np.zeros((3, 7)),
+        times=np.array([0.0, 0.1, 0.2]), attractors=np.zeros((1, 7)), push=np.zeros((1, 18)),
+        target=np.zeros((3, 7)), x=np.zeros((3, 7)), q=q, q_start=q[0], mean=np.zeros((3, 7)),
         variance=np.ones((3, 7)), weights=np.ones((3, 7)), costs={}, min_distance=0.1,
         closest=None, converged=True, clipped=0, message="", n_iter=0, n_evaluations=0,
     )
@@ -236,3 +236,22 @@ def test_too_large_render_size():
     env.reset(seed=0)
     with pytest.raises(ImitateError, match="width must be in 1..1280"):
         env.render()
+
+
+@pytest.mark.parametrize("joint", ["left_elbow", "right_shoulder_pitch", "torso_yaw"])
+def test_servo_lag_is_how_far_a_servo_trails_a_moving_target(joint):
+    """A target ramped at +v and at -v from the rest pose: the servo trails the ramp by
+    ``servo_lag * v`` (gravity's offset is the same both ways and cancels in the difference).
+    Each step holds its target, the ramp's value at the step's end: half a step ahead."""
+    env = PouringEnv(particles=0, teacher=False, reset_noise_scale=0.0)
+    i, speed, steps = humanoid.JOINTS.index(joint), 0.4, 25
+    trail = []
+    for v in (speed, -speed):
+        env.reset(seed=0)
+        target = env.joint_positions()
+        for _ in range(steps):
+            target[i] += v * env.dt
+            env.step(target)
+        trail.append(target[i] - env.joint_positions()[i])
+    measured = (trail[0] - trail[1]) / (2 * speed) + env.dt / 2
+    assert measured == pytest.approx(env.servo_lag[i], rel=0.05)

@@ -8,6 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from imitate.envs.assembly import Obstacle, SceneConfig
 from imitate.errors import ImitateError
 from imitate.learning import LearningConfig
 from imitate.models import humanoid
@@ -20,7 +21,7 @@ from imitate.motion import (
     rollout,
     setup,
 )
-from imitate.motion.optimizer import _TOLERANCE
+from imitate.motion.optimizer import _PUSH_SCALE, _TOLERANCE
 from imitate.oracle import oracle_model
 from imitate.replay import planning_task
 from imitate.taskspace import gaze_frame, object_orientation, task_space
@@ -40,7 +41,7 @@ def learned(task):
 
 def _problem(task, learned, control=None):
     c = PlanConfig(dt=DT, collision_weight=300.0, margin=0.02, epsilon=0.03,
-                   control=control or ControlConfig())
+                   max_joint_acceleration=5.0, control=control or ControlConfig())
     start = setup(task, learned, q0=humanoid.rest_pose(), config=c)
     p = start.problem
     a = p.dynamics.fit(start.mean, p.x_start)  # unweighted: the point these checks were set at
@@ -112,7 +113,8 @@ def test_attractor_trajectory_is_exact_and_linear():
 def _check_gradient(problem, terms):
     p, a = problem
     _, _, grad = p.evaluate(a, terms)
-    h = np.array(_TOLERANCE) * 1e-3
+    scale = np.concatenate([_TOLERANCE, np.full(a.shape[1] - len(_TOLERANCE), _PUSH_SCALE)])
+    h = scale * 1e-3
     fd = np.zeros_like(a)
     for i in range(a.shape[0]):
         for j in range(a.shape[1]):
@@ -131,7 +133,9 @@ def _check_gradient(problem, terms):
     assert cosine >= 1 - 1e-7 and relative <= 1e-3, (cosine, relative)
 
 
-@pytest.mark.parametrize("term", ["similarity", "collision", "joint_limits", "path_length"])
+@pytest.mark.parametrize(
+    "term", ["similarity", "collision", "joint_limits", "path_length", "joint_acceleration"]
+)
 def test_term_gradient_through_rollout(problem, term):
     _check_gradient(problem, (term,))
 
@@ -148,10 +152,36 @@ def test_gradient_through_joints_clipped_to_their_ranges(task, learned):
     _check_gradient((p, a), ("joint_limits", "path_length"))
 
 
-def test_collision_term_is_active_in_the_gradient_check(problem):
+def test_gradient_with_the_nullspace_push(problem):
+    """The variables extended by a push per attractor: the push's gradient is exact too."""
     p, a = problem
-    _, values, _ = p.evaluate(a, ("collision",), gradient=False)
-    assert values["collision"] > 0
+    push = np.random.default_rng(1).normal(size=(len(a), p.task.kin.n)) * _PUSH_SCALE
+    _check_gradient((p, np.hstack([a, push])), None)
+
+
+def test_nullspace_push_clears_an_obstacle_the_attractors_cannot(task, learned):
+    """The task fixes the glass relative to the bottle, not in the world: a box on the table's
+    edge under the glass's path is hit with the attractors alone; the null-space push (the
+    body's redundancy) keeps the margin."""
+    scene = SceneConfig(obstacles=(Obstacle("box", (0.425, 0.0, 0.665), (0.02, 0.03, 0.055)),))
+    near = planning_task(scene, task.gaze)
+    plans = {
+        push: plan_from_model(
+            near, learned, q0=humanoid.rest_pose(),
+            config=PlanConfig(dt=DT, nullspace_push=push),
+        )
+        for push in (False, True)
+    }
+    assert plans[False].min_distance < 0 and not np.any(plans[False].push)
+    assert plans[True].min_distance >= PlanConfig().margin, plans[True].message
+    assert np.any(plans[True].push) and "null-space push" in plans[True].message
+
+
+@pytest.mark.parametrize("term", ["collision", "joint_acceleration"])
+def test_term_is_active_in_the_gradient_check(problem, term):
+    p, a = problem
+    _, values, _ = p.evaluate(a, (term,), gradient=False)
+    assert values[term] > 0
 
 
 def test_unconverged_and_unreachable_plans_report_instead_of_failing(task, learned):

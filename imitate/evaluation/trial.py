@@ -124,6 +124,7 @@ def run_variation(learned: LearnedModel, gaze: np.ndarray, variation: Variation)
             "closest": list(plan.closest or ()),
             "iterations": plan.n_iter,
             "converged": plan.converged,
+            "nullspace_push": bool(np.any(plan.push)),
             "pour_phase_err_m": error_m,
             "pour_phase_err_deg": error_deg,
             "seconds": plan_seconds,

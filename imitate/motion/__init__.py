@@ -7,6 +7,7 @@ that implements it):
 ``T``           number of planning steps; trajectories have ``T + 1`` samples, step ``dt`` [s]
 ``m``           task dimensions (7, eq. 1); ``n`` planned joints (18, head columns zero)
 ``K``           attractors = GMM components; ``a`` ``(K, m)`` attractor points
+``c_t``         null-space push ``(n,)`` [1/rad] (:mod:`.control`), ``(K, n)`` per attractor
 ``x_t``         target (attractor) trajectory ``x = S_x s_0 + Psi a`` (:mod:`.attractors`)
 ``phi(q)``      task map (:class:`imitate.taskspace.TaskMap`); ``J`` its Jacobian ``(m, n)``
 ``J#``          weighted damped pseudo-inverse of ``J``
@@ -21,7 +22,14 @@ that implements it):
 
 from imitate.motion.attractors import AttractorDynamics
 from imitate.motion.control import ControlConfig, JointLimitCost, Rollout, reach, rollout
-from imitate.motion.costs import Collision, JointLimits, PathLength, Similarity, similarity_weights
+from imitate.motion.costs import (
+    Collision,
+    JointAcceleration,
+    JointLimits,
+    PathLength,
+    Similarity,
+    similarity_weights,
+)
 from imitate.motion.optimizer import (
     OPTIMIZERS,
     PlanConfig,
@@ -37,6 +45,7 @@ __all__ = [
     "AttractorDynamics",
     "Collision",
     "ControlConfig",
+    "JointAcceleration",
     "JointLimitCost",
     "JointLimits",
     "PathLength",

@@ -4,11 +4,13 @@ Per step ``t`` (``n`` joints, ``m`` task dimensions):
 
 .. math::
     J^\# = W^{-1} J^T (J W^{-1} J^T + \lambda I)^{-1}, \qquad
-    q_{t+1} = q_t + J^\# (x_{t+1} - \phi(q_t)) - \alpha (I - J^\# J) W^{-1} \nabla H(q_t)
+    q_{t+1} = q_t + J^\# (x_{t+1} - \phi(q_t)) - \alpha (I - J^\# J) W^{-1} (\nabla H(q_t) - c_t)
 
 with the joint metric ``W^{-1} = diag(range_i)`` (zero for joints the task must not drive, the
-head) and the joint-limit "border" cost ``H`` (zero in a free zone around each range's centre,
-quadratic outside it). ``q`` is clipped to the joint ranges, and each clip is counted.
+head), the joint-limit "border" cost ``H`` (zero in a free zone around each range's centre,
+quadratic outside it) and an optional null-space push ``c_t`` [1/rad] (zero by default): the
+null-space step descends ``H(q) - c_t . q``, moving the body without changing the task. ``q`` is
+clipped to the joint ranges, and each clip is counted.
 
 The task map ``phi`` and its Jacobian are eq. 1 on the held objects,
 :class:`imitate.taskspace.TaskMap`.
@@ -81,10 +83,11 @@ class Rollout:
         x: ``(T + 1, m)`` task state reached, ``phi(q_t)``.
         jac: ``(T, m, n)`` task Jacobians at ``q_0 .. q_{T-1}``.
         pinv: ``(T, n, m)`` their weighted damped pseudo-inverses ``J^#``.
-        limit_gradient, limit_hessian: ``(T, n)`` gradients and diagonal Hessians of ``H`` at
-            ``q_0 .. q_{T-1}``.
+        nullspace_gradient: ``(T, n)`` ``g_t = dH/dq - c_t`` at ``q_0 .. q_{T-1}``, what the
+            null-space step descends.
+        limit_hessian: ``(T, n)`` diagonal Hessians of ``H`` at ``q_0 .. q_{T-1}``.
         solved: ``(T, m)`` ``(J W^-1 J^T + lambda I)^-1 (x_{t+1} - phi(q_t) + alpha J W^-1
-            dH/dq)``: the step is ``W^-1 J^T solved - alpha W^-1 dH/dq``.
+            g_t)``: the step is ``W^-1 J^T solved - alpha W^-1 g_t``.
         clipped_at: ``(T, n)`` the joints clipped to their ranges in ``q_1 .. q_T``.
         frames: ``T`` :class:`TaskFrame` at ``q_0 .. q_{T-1}``.
         distances: ``T + 1`` :class:`Distances` (with gradients) of the pairs closer than the
@@ -99,7 +102,7 @@ class Rollout:
     x: np.ndarray
     jac: np.ndarray
     pinv: np.ndarray
-    limit_gradient: np.ndarray
+    nullspace_gradient: np.ndarray
     limit_hessian: np.ndarray
     solved: np.ndarray
     clipped_at: np.ndarray
@@ -124,12 +127,14 @@ def rollout(
     config: ControlConfig,
     limits: JointLimitCost,
     distmax: float = 0.0,
+    push: np.ndarray | None = None,
 ) -> Rollout:
     """Tracks ``target`` ``(T + 1, m)`` (``target[0]`` unused) by RMR from ``q0`` ``(n,)``.
 
     Args:
         distmax: Compute the signed distances (and their gradients) of pairs closer than this
             [m] at every step and midway between steps; 0 for none.
+        push: ``(T, n)`` null-space push ``c_t`` [1/rad] of the steps; ``None`` for none.
     """
     kin = task.kin
     T = len(target) - 1
@@ -140,7 +145,8 @@ def rollout(
     jac = np.empty((T, m, n))
     pinv = np.empty((T, n, m))
     solved = np.empty((T, m))
-    limit_gradient = np.empty((T, n))
+    nullspace_gradient = np.empty((T, n))
+    push = np.zeros((T, n)) if push is None else np.ascontiguousarray(push, dtype=float)
     unclipped = np.empty((T, n))
     frames, distances, between = [], [], []
     q[0] = q0
@@ -156,8 +162,8 @@ def rollout(
             break
         step(
             J, x[t], target[t + 1], q[t], winv, config.damping, config.nullspace_gain,
-            limits.low_border, limits.high_border, limits.scale, kin.lower, kin.upper,
-            pinv[t], solved[t], limit_gradient[t], unclipped[t], q[t + 1],
+            limits.low_border, limits.high_border, limits.scale, push[t], kin.lower, kin.upper,
+            pinv[t], solved[t], nullspace_gradient[t], unclipped[t], q[t + 1],
         )
         jac[t] = J
         frames.append(frame)
@@ -165,7 +171,7 @@ def rollout(
             kin.update(0.5 * (q[t] + q[t + 1]))
             between.append(kin.distances(distmax, jacobian=True))
     return Rollout(
-        q, x, jac, pinv, limit_gradient, limits(q[:T])[2], solved, q[1:] != unclipped,
+        q, x, jac, pinv, nullspace_gradient, limits(q[:T])[2], solved, q[1:] != unclipped,
         tuple(frames), tuple(distances), tuple(between),
     )
 
@@ -176,8 +182,10 @@ def backward(
     config: ControlConfig,
     gq: np.ndarray,
     gx: np.ndarray,
+    push_gradient: np.ndarray | None = None,
 ) -> np.ndarray:
-    r"""Total derivative w.r.t. the target trajectory by the adjoint recursion.
+    r"""Total derivative w.r.t. the target trajectory (and the null-space push) by the adjoint
+    recursion.
 
     ``lambda_T = gq_T``; ``lambda_t = gq_t + lambda_{t+1} dq_{t+1}/dq_t`` and
     ``dPhi/dx_{t+1} = gx_{t+1} + lambda_{t+1} J^#_t``, with
@@ -187,16 +195,19 @@ def backward(
         (I - \alpha W^{-1} H'') + u^T D_{\ell - z} J - p^T D_{y - \alpha g} J
 
     where ``u = M^-1 e``, ``p = (lambda J^#)^T``, ``l = W^-1 lambda^T``, ``y = J^# e``,
-    ``z = W^-1 J^T p``, ``g = W^-1 dH/dq``, ``M = J W^-1 J^T + lambda I`` and ``e = x_{t+1} -
-    phi(q_t) + alpha J g`` (the null-space step is ``alpha (J^# J g - g)``): the ``D`` terms are
+    ``z = W^-1 J^T p``, ``g = W^-1 (dH/dq - c_t)``, ``M = J W^-1 J^T + lambda I`` and ``e =
+    x_{t+1} - phi(q_t) + alpha J g`` (the null-space step is ``alpha (J^# J g - g)``): the
+    ``D`` terms are
     ``lambda (dJ^#/dq) e + alpha p^T (dJ/dq) g``, using the symmetry of second derivatives,
     ``a^T (dJ/dq_i) b = [a^T D_b J]_i``, with ``D_b J`` the derivative of ``J`` along ``b``
     (:meth:`TaskMap.rates`, exact). A joint clipped to its range in ``q_{t+1}`` passes nothing
-    back (its row of ``dq_{t+1}/dq_t`` and ``J^#_t`` is zero). Exact: no term is neglected.
+    back (its row of ``dq_{t+1}/dq_t`` and ``J^#_t`` is zero). The push's derivative is
+    ``dPhi/dc_t = alpha lambda_{t+1} (I - J^# J) W^-1``. Exact: no term is neglected.
 
     Args:
         gq: ``(T + 1, n)`` explicit gradients of the cost w.r.t. ``q_t``.
         gx: ``(T + 1, m)`` explicit gradients w.r.t. the target ``x_t``.
+        push_gradient: ``(T, n)``, written with ``dPhi/dc_t`` if given.
 
     Returns:
         ``(T + 1, m)`` gradient w.r.t. the target trajectory (row 0 is ``gx[0]``).
@@ -210,11 +221,13 @@ def backward(
     m = result.jac.shape[1]
     p, ln, b, d = np.empty(m), np.empty(kin.n), np.empty(kin.n), np.empty(kin.n)
     directions, update = _planner._adjoint_directions, _planner._adjoint_update
-    limit_steps = alpha * winv * result.limit_gradient  # the null-space step's W^-1 dH/dq part
+    nullspace_steps = alpha * winv * result.nullspace_gradient
     for t in range(T - 1, -1, -1):
         lam[result.clipped_at[t]] = 0.0
-        directions(lam, result.pinv[t], result.jac[t], result.solved[t], winv, limit_steps[t], p,
-                   ln, b, d, dx[t + 1])
+        directions(lam, result.pinv[t], result.jac[t], result.solved[t], winv,
+                   nullspace_steps[t], p, ln, b, d, dx[t + 1])
+        if push_gradient is not None:
+            push_gradient[t] = alpha * b
         kin.update(result.q[t], held=False)
         curvature = task.curvature(result.solved[t], b, -p, d, result.frames[t])
         update(gq[t], ln, alpha, winv, result.limit_hessian[t], curvature, lam)

@@ -13,6 +13,8 @@ rollout is :func:`imitate.motion.control.backward`.
 - :class:`JointLimits`: the border cost ``H`` of :class:`imitate.motion.control.JointLimitCost`.
 - :class:`PathLength`: the joint-space trajectory length as ``sum_t |q_{t+1} - q_t|^2 / dt``
   (squared so it is differentiable at rest).
+- :class:`JointAcceleration`: joint accelerations above ``a_max``, squared, from rest to rest;
+  zero for a movement within it.
 """
 
 from __future__ import annotations
@@ -22,7 +24,14 @@ import numpy as np
 from imitate.errors import ImitateError
 from imitate.motion.control import JointLimitCost, Rollout
 
-__all__ = ["Collision", "JointLimits", "PathLength", "Similarity", "similarity_weights"]
+__all__ = [
+    "Collision",
+    "JointAcceleration",
+    "JointLimits",
+    "PathLength",
+    "Similarity",
+    "similarity_weights",
+]
 
 
 def similarity_weights(variance: np.ndarray, w_max: np.ndarray, sigma_max: np.ndarray):
@@ -135,3 +144,25 @@ class PathLength:
         gq[1:] += 2.0 * step / self.dt
         gq[:-1] -= 2.0 * step / self.dt
         return float(np.sum(step * step)) / self.dt, gq, np.zeros_like(x)
+
+
+class JointAcceleration:
+    """Joint accelerations above what the position servos follow: ``sum_t sum_i max(|a_ti| -
+    a_max, 0)^2 dt`` [rad^2/s^3] with ``a_t = (q_{t+1} - 2 q_t + q_{t-1}) / dt^2`` and the robot
+    at rest before the start and after the end; zero for a movement within ``a_max``."""
+
+    def __init__(self, a_max: float, dt: float):
+        self.a_max, self.dt = a_max, dt
+
+    def __call__(self, result: Rollout, x: np.ndarray):
+        q = np.concatenate([result.q[:1], result.q, result.q[-1:]])
+        acc = np.diff(q, 2, axis=0) / self.dt**2
+        excess = np.sign(acc) * np.maximum(np.abs(acc) - self.a_max, 0.0)
+        g = 2.0 * excess / self.dt  # d/dq of dt * excess^2 through a_t, before the stencil
+        gq = np.zeros_like(q)
+        gq[:-2] += g
+        gq[1:-1] -= 2.0 * g
+        gq[2:] += g
+        gq[1] += gq[0]  # the rest before the start is q_0, after the end q_T
+        gq[-2] += gq[-1]
+        return self.dt * float(np.sum(excess * excess)), gq[1:-1], np.zeros_like(x)

@@ -3,9 +3,12 @@
 :func:`plan_from_model` resamples the learned GMR mean and variance to the planning step, moves
 the robot's start posture onto the learned start (by RMR), fits one attractor per GMM component
 to the GMR mean in least squares (:func:`setup`) and then minimises ``Phi(a) = sum_i w_i c_i``
-by iRprop- (default; sign-based, robust to the collision cost's kinks) or L-BFGS (scipy). It
-returns a frozen :class:`Plan` with the best attractors found, whether or not the optimizer
-converged.
+by iRprop- (default; sign-based, robust to the collision cost's kinks) or L-BFGS (scipy). If
+the attractors alone leave less than the margin to an obstacle (one under the glass, where the
+task fixes where the hands are relative to each other), it optimizes once more with a null-space
+push per attractor added to the variables: the robot's redundancy, which moves the body without
+changing the task. It returns a frozen :class:`Plan` with the best variables found, whether or
+not the optimizer converged.
 """
 
 from __future__ import annotations
@@ -20,7 +23,14 @@ from imitate.errors import ImitateError
 from imitate.kinematics import Kinematics
 from imitate.motion.attractors import AttractorDynamics
 from imitate.motion.control import ControlConfig, JointLimitCost, Rollout, backward, reach, rollout
-from imitate.motion.costs import Collision, JointLimits, PathLength, Similarity, similarity_weights
+from imitate.motion.costs import (
+    Collision,
+    JointAcceleration,
+    JointLimits,
+    PathLength,
+    Similarity,
+    similarity_weights,
+)
 from imitate.motion.plan import Plan
 from imitate.taskspace import TaskMap
 
@@ -39,6 +49,9 @@ UNREACHED_ERROR = 0.05
 # iRprop- step factors: growth while a gradient keeps its sign, shrink on a change, and the
 # largest step as a multiple of the initial one.
 _RPROP_GROW, _RPROP_SHRINK, _RPROP_MAX = 1.2, 0.5, 50.0
+# The null-space push's scale [1/rad] for iRprop-'s initial step, as _TOLERANCE for the
+# attractors: a push of 0.1 moves a joint by 0.5 % of its range per step (nullspace_gain 0.05).
+_PUSH_SCALE = 0.1
 
 
 @dataclass(frozen=True)
@@ -53,7 +66,11 @@ class PlanConfig:
             ``1 / tolerance^2`` with 1 cm, 1 cm, 1 cm, 2 deg, 0.05, 2 deg, 0.05.
         sigma_max: Eq. 21 variance where the weight reaches 0 per dimension ``(m,)``; ``None``
             for each dimension's largest GMR variance.
-        similarity_weight, collision_weight, joint_limit_weight, path_length_weight: ``w_i``.
+        similarity_weight, collision_weight, joint_limit_weight, path_length_weight,
+            joint_acceleration_weight: ``w_i``.
+        max_joint_acceleration: Joint acceleration [rad/s^2] above which the acceleration
+            term costs: the position servos follow the plan's speed (the replay leads them by
+            it) but not sudden changes of it.
         margin: Clearance [m] the collision cost treats as contact.
         epsilon: Width [m] of the proximity zone above ``margin``.
         optimizer: ``"rprop"`` or ``"lbfgs"``.
@@ -62,6 +79,8 @@ class PlanConfig:
             last ``patience`` iterations.
         patience: See ``tol``.
         rprop_step: Initial iRprop- step as a fraction of each dimension's tolerance.
+        nullspace_push: Whether a plan that keeps less than ``margin`` with the attractors
+            alone is optimized once more with a null-space push per attractor (``Plan.push``).
         control: RMR parameters.
     """
 
@@ -73,6 +92,8 @@ class PlanConfig:
     collision_weight: float = 10000.0
     joint_limit_weight: float = 1.0
     path_length_weight: float = 0.01
+    joint_acceleration_weight: float = 0.1
+    max_joint_acceleration: float = 20.0
     margin: float = 0.011
     epsilon: float = 0.004
     optimizer: str = "rprop"
@@ -80,6 +101,7 @@ class PlanConfig:
     tol: float = 1e-2
     patience: int = 5
     rprop_step: float = 0.1
+    nullspace_push: bool = True
     control: ControlConfig = field(default_factory=ControlConfig)
 
     def __post_init__(self):
@@ -104,7 +126,10 @@ class PlanConfig:
 
 
 class Problem:
-    """The total cost ``Phi(a)`` and its gradient for one start posture and learned model.
+    """The total cost ``Phi(v)`` and its gradient for one start posture and learned model.
+
+    The variables ``v`` are the attractors ``(K, m)``, or the attractors with each one's
+    null-space push appended ``(K, m + n)``: the push of step ``t`` is ``blend_t @ v[:, m:]``.
 
     Args:
         task: Task map (with the kinematics).
@@ -134,26 +159,33 @@ class Problem:
             "collision": (config.collision_weight, Collision(config.margin, config.epsilon, dt)),
             "joint_limits": (config.joint_limit_weight, JointLimits(self.limits, dt)),
             "path_length": (config.path_length_weight, PathLength(dt)),
+            "joint_acceleration": (
+                config.joint_acceleration_weight,
+                JointAcceleration(config.max_joint_acceleration, dt),
+            ),
         }
         self.n_evaluations = 0
         self.last: tuple[np.ndarray, Rollout] | None = None  # of the last evaluate
 
-    def rollout(self, a: np.ndarray) -> tuple[np.ndarray, Rollout]:
-        """Target trajectory ``(T + 1, m)`` and RMR rollout of attractors ``a`` ``(K, m)``."""
-        target = self.dynamics.trajectory(a, self.x_start)
+    def rollout(self, v: np.ndarray) -> tuple[np.ndarray, Rollout]:
+        """Target trajectory ``(T + 1, m)`` and RMR rollout of the variables ``v``."""
+        m = self.task.m
+        target = self.dynamics.trajectory(v[:, :m], self.x_start)
+        push = self.dynamics.blend @ v[:, m:] if v.shape[1] > m else None
         with_distances = self.config.collision_weight > 0
         distmax = self.terms["collision"][1].distmax if with_distances else 0.0
         self.n_evaluations += 1
         result = rollout(
-            self.task, target, self.q_start, self.config.control, self.limits, distmax
+            self.task, target, self.q_start, self.config.control, self.limits, distmax, push
         )
         return target, result
 
     def evaluate(
-        self, a: np.ndarray, terms: tuple[str, ...] | None = None, gradient: bool = True
+        self, v: np.ndarray, terms: tuple[str, ...] | None = None, gradient: bool = True
     ) -> tuple[float, dict[str, float], np.ndarray | None]:
-        """``(Phi, {term: weighted value}, dPhi/da (K, m) or None)`` over ``terms`` (all)."""
-        target, result = self.rollout(a)
+        """``(Phi, {term: weighted value}, dPhi/dv (v's shape) or None)`` over ``terms``
+        (all)."""
+        target, result = self.rollout(v)
         self.last = target, result
         names = tuple(self.terms) if terms is None else terms
         values = {}
@@ -171,8 +203,13 @@ class Problem:
         total = float(sum(values.values()))
         if not gradient:
             return total, values, None
-        dx = backward(result, self.task, self.config.control, gq, gx)
-        return total, values, self.dynamics.gradient(dx)
+        m = self.task.m
+        dpush = np.empty_like(result.nullspace_gradient) if v.shape[1] > m else None
+        dx = backward(result, self.task, self.config.control, gq, gx, dpush)
+        da = self.dynamics.gradient(dx)
+        if dpush is None:
+            return total, values, da
+        return total, values, np.hstack([da, self.dynamics.blend.T @ dpush])
 
 
 @dataclass(frozen=True)
@@ -278,39 +315,35 @@ def plan_from_model(
     problem, a0, mu = start.problem, start.a0, start.mean
 
     history: list[tuple[float, dict[str, float]]] = []
-    best = {"a": a0, "cost": np.inf, "rollout": None}
+    best = {"v": a0, "cost": np.inf, "rollout": None}
 
-    def record(a, total, values):
+    def record(v, total, values):
         if np.isfinite(total) and total < best["cost"]:
-            best.update(a=a.copy(), cost=total, rollout=problem.last)
+            best.update(v=v.copy(), cost=total, rollout=problem.last)
         history.append((total, values))
 
-    converged = False
-    if c.optimizer == "rprop":
-        converged = _rprop(problem, a0, c, record, history)
-    else:
-        shape = a0.shape
-
-        def fun(flat):
-            total, values, grad = problem.evaluate(flat.reshape(shape))
-            record(flat.reshape(shape), total, values)
-            return total, grad.ravel()
-
-        result = minimize(
-            fun, a0.ravel(), jac=True, method="L-BFGS-B",
-            options={"maxiter": c.max_iter, "ftol": c.tol * 1e-2},
-        )
-        converged = bool(result.success)
-
-    a = best["a"]
-    target, final = best["rollout"] or problem.rollout(a)
+    converged = _minimize(problem, a0, c, record, history)
+    target, final = best["rollout"] or problem.rollout(best["v"])
     min_d, closest = _min_distance(task.kin, final.q)
+    pushed = c.nullspace_push and c.collision_weight > 0 and min_d < c.margin
+    alone = min_d
+    if pushed:  # from the least-squares fit and from the best attractors, the better wins
+        for a in (a0, best["v"]):
+            v0 = np.hstack([a, np.zeros((len(a), task.kin.n))])
+            converged = _minimize(problem, v0, c, record, history)
+        target, final = best["rollout"] or problem.rollout(best["v"])
+        min_d, closest = _min_distance(task.kin, final.q)
+
+    v, m = best["v"], task.m
+    push = v[:, m:] if v.shape[1] > m else np.zeros((len(v), task.kin.n))
     names = tuple(problem.terms) + ("total",)
     costs = {
         name: np.array([h[0] if name == "total" else h[1][name] for h in history]) for name in names
     }
     task_err = np.abs(final.x - mu)
     notes = ["converged" if converged else f"not converged in {c.max_iter} iterations (best plan)"]
+    if pushed:
+        notes.append(f"null-space push: the attractors alone kept {alone * 1000:.1f} mm")
     if min_d < 0:
         notes.append(f"collision: {closest} at {min_d * 1000:.1f} mm")
     worst = float(np.max(task_err[:, :3]))
@@ -319,12 +352,30 @@ def plan_from_model(
     if final.clipped:
         notes.append(f"joint angles clipped at {final.clipped} steps")
     return Plan(
-        times=start.times, attractors=a, target=target, x=final.x, q=final.q,
+        times=start.times, attractors=v[:, :m], push=push, target=target, x=final.x, q=final.q,
         q_start=problem.q_start, mean=mu, variance=start.variance, weights=start.weights,
         costs=costs, min_distance=min_d, closest=closest, converged=converged,
         clipped=final.clipped, message="; ".join(notes), n_iter=max(len(history) - 1, 0),
         n_evaluations=problem.n_evaluations,
     )
+
+
+def _minimize(problem: Problem, v0: np.ndarray, c: PlanConfig, record, history) -> bool:
+    """Minimizes ``problem`` from ``v0`` by ``c.optimizer``, each iterate passed to ``record``.
+    Returns whether it converged."""
+    if c.optimizer == "rprop":
+        return _rprop(problem, v0, c, record, history)
+
+    def fun(flat):
+        total, values, grad = problem.evaluate(flat.reshape(v0.shape))
+        record(flat.reshape(v0.shape), total, values)
+        return total, grad.ravel()
+
+    result = minimize(
+        fun, v0.ravel(), jac=True, method="L-BFGS-B",
+        options={"maxiter": c.max_iter, "ftol": c.tol * 1e-2},
+    )
+    return bool(result.success)
 
 
 def _min_distance(kin: Kinematics, q: np.ndarray) -> tuple[float, tuple[str, str] | None]:
@@ -339,15 +390,18 @@ def _min_distance(kin: Kinematics, q: np.ndarray) -> tuple[float, tuple[str, str
     return float(best), pair
 
 
-def _rprop(problem: Problem, a0: np.ndarray, c: PlanConfig, record, history) -> bool:
+def _rprop(problem: Problem, v0: np.ndarray, c: PlanConfig, record, history) -> bool:
     """iRprop-: per-coordinate steps grow by 1.2 while the gradient keeps its sign, halve on a
     sign change (and skip that coordinate once). Returns whether it converged."""
-    a = a0.copy()
-    step = c.rprop_step * np.broadcast_to(np.asarray(_TOLERANCE[: a.shape[1]]), a.shape).copy()
+    v = v0.copy()
+    m = problem.task.m
+    scale = np.concatenate([_TOLERANCE[:m], np.full(v.shape[1] - m, _PUSH_SCALE)])
+    step = c.rprop_step * np.broadcast_to(scale, v.shape).copy()
     step_max = _RPROP_MAX * step
-    prev = np.zeros_like(a)
-    total, values, grad = problem.evaluate(a)
-    record(a, total, values)
+    prev = np.zeros_like(v)
+    first = len(history)
+    total, values, grad = problem.evaluate(v)
+    record(v, total, values)
     for _ in range(c.max_iter):
         if not np.all(np.isfinite(grad)):
             return False
@@ -355,11 +409,11 @@ def _rprop(problem: Problem, a0: np.ndarray, c: PlanConfig, record, history) -> 
         step = np.where(sign > 0, np.minimum(step * _RPROP_GROW, step_max), step)
         step = np.where(sign < 0, step * _RPROP_SHRINK, step)
         grad = np.where(sign < 0, 0.0, grad)
-        a = a - np.sign(grad) * step
+        v = v - np.sign(grad) * step
         prev = grad
-        total, values, grad = problem.evaluate(a)
-        record(a, total, values)
-        best = [h[0] for h in history]
+        total, values, grad = problem.evaluate(v)
+        record(v, total, values)
+        best = [h[0] for h in history[first:]]
         if len(best) > c.patience:
             old, new = min(best[: -c.patience]), min(best)
             if old - new <= c.tol * abs(old):

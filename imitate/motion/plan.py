@@ -18,6 +18,8 @@ class Plan:
     Attributes:
         times: ``(T + 1,)`` [s].
         attractors: ``(K, m)`` optimized attractor points, sorted by time.
+        push: ``(K, n)`` null-space push of each attractor [1/rad] (see
+            :class:`imitate.motion.PlanConfig`'s ``nullspace_push``); zeros when unused.
         target: ``(T + 1, m)`` attractor trajectory ``x_t`` (what RMR tracks).
         x: ``(T + 1, m)`` task state reached, ``phi(q_t)``.
         q: ``(T + 1, n)`` joint angles [rad] in ``Kinematics.joints`` order.
@@ -37,6 +39,7 @@ class Plan:
 
     times: np.ndarray
     attractors: np.ndarray
+    push: np.ndarray
     target: np.ndarray
     x: np.ndarray
     q: np.ndarray
