@@ -82,9 +82,11 @@ def replay(
 ) -> ReplayResult:
     """Drives ``env`` along ``plan`` in physics: from the reset pose to the plan's start in
     ``approach`` [s] (cosine blend), the plan interpolated at the env's control rate, then
-    ``settle`` [s] holding the last posture. ``on_step(env)``, if given, is called after the
-    reset and after every step (to record states for a video, say). The task error is measured
-    in ``gaze``, which should be the plan's (``None``: :func:`planning_task`'s default).
+    ``settle`` [s] holding the last posture; each target led by its speed times
+    ``env.servo_lag`` plus half a step (velocity feed-forward). ``on_step(env)``, if given,
+    is called after the reset and after every step (to record states for a video, say). The
+    task error is measured in ``gaze``, which should be the plan's (``None``:
+    :func:`planning_task`'s default).
 
     Raises:
         ImitateError: the physics diverged (``info["diverged"]`` of a step): the replay stops

@@ -46,9 +46,16 @@ def check_robot(run, actions, rewards, pour_fraction, success, dt, atol=1e-12):
     t_play = np.arange(0.0, plan.times[-1] - plan.times[0] + 1e-9, dt)
     play = np.column_stack([np.interp(t_play, plan.times - plan.times[0], q) for q in plan.q.T])
     assert len(actions) == n_approach + len(play) + n_settle
-    np.testing.assert_allclose(actions[n_approach - 1], plan.q_start, rtol=0, atol=atol)
-    np.testing.assert_allclose(actions[n_approach:n_approach + len(play)], play, rtol=0, atol=atol)
-    np.testing.assert_allclose(actions[-n_settle:] - plan.q[-1], 0.0, rtol=0, atol=atol)
+    # the actions lead the targets by their speed (the replay's feed-forward, linear): undo it
+    lead = pouring.PouringEnv(particles=0).servo_lag + dt / 2
+    speed = np.gradient(np.eye(len(actions)), dt, axis=0)  # np.gradient as a matrix
+    targets = np.column_stack([
+        np.linalg.solve(np.eye(len(actions)) + lag * speed, a)
+        for lag, a in zip(lead, np.asarray(actions, dtype=float).T, strict=True)
+    ])
+    np.testing.assert_allclose(targets[n_approach - 1], plan.q_start, rtol=0, atol=atol)
+    np.testing.assert_allclose(targets[n_approach:n_approach + len(play)], play, rtol=0, atol=atol)
+    np.testing.assert_allclose(targets[-n_settle:] - plan.q[-1], 0.0, rtol=0, atol=atol)
     assert pour_fraction == run.replay.pour_fraction
     assert run.report["replay"]["min_distance_m"] >= 0.0  # no collision penalty, so:
     assert rewards.sum() == pytest.approx(pour_fraction, abs=1e-6)

@@ -74,7 +74,7 @@ class PlanConfig:
         margin: Clearance [m] the collision cost treats as contact.
         epsilon: Width [m] of the proximity zone above ``margin``.
         optimizer: ``"rprop"`` or ``"lbfgs"``.
-        max_iter: Iteration limit.
+        max_iter: Iteration limit of each run of the optimizer (the null-space push adds two).
         tol: Converged when the best cost improved by less than ``tol`` (relative) over the
             last ``patience`` iterations.
         patience: See ``tol``.
