@@ -25,7 +25,7 @@ from imitate.artifacts import load_json
 from imitate.config import RunConfig, settings
 from imitate.errors import ImitateError
 
-__all__ = ["MANIFEST", "digest", "load", "recorded", "stale"]
+__all__ = ["MANIFEST", "code_digest", "digest", "load", "recorded", "stale"]
 
 MANIFEST = "manifest.json"
 
@@ -104,6 +104,23 @@ def stale(
 def digest(path: Path) -> str:
     """sha256 of the file's bytes, hex."""
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def code_digest() -> str:
+    """sha256 (hex) of the code that makes results: every file of the packages ``imitate``,
+    ``imitate.envs`` and ``imitate.models`` (sources, MJCF) but compiled caches, by path
+    relative to its package."""
+    import imitate.envs  # binds imitate too
+    import imitate.models
+
+    h = hashlib.sha256()
+    for package in (imitate, imitate.envs, imitate.models):
+        root = Path(package.__file__).parent
+        for path in sorted(root.rglob("*")):
+            if path.is_file() and "__pycache__" not in path.parts:
+                h.update(f"{package.__name__}/{path.relative_to(root).as_posix()}".encode())
+                h.update(hashlib.sha256(path.read_bytes()).digest())
+    return h.hexdigest()
 
 
 def _fault(stage: stages.Stage, files: list[str], rec: dict | None, now: dict, current) -> str:

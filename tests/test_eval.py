@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from imitate import provenance
 from imitate.artifacts import save_npz
 from imitate.cli import main
 from imitate.errors import ImitateError
@@ -91,6 +92,7 @@ def test_suite_reads_toml_and_json_alike(tmp_path):
     assert a == b and a["particles"] == (40, 40) and a["shapes"] == ("box",)
     assert a.digest(0, b"m") == b.digest(0, b"m") != a.digest(1, b"m") != a.digest(0, b"n")
     assert a.replace(variations=7).digest(0, b"m") == a.digest(0, b"m")  # n may grow
+    assert a.digest(0, b"m", "code") != a.digest(0, b"m", "other code")
 
 
 def test_default_suite_and_readme_document_every_key():
@@ -155,7 +157,9 @@ def two_workers(tmp_path_factory, model_arrays):
     return read_records(run_dir / "eval" / RESULTS, summary["suite_digest"]), summary
 
 
-def test_tiny_evaluation_same_on_one_worker_after_a_resume(tmp_path, model_arrays, two_workers):
+def test_tiny_evaluation_same_on_one_worker_after_a_resume(
+    tmp_path, model_arrays, two_workers, monkeypatch
+):
     suite = Suite.from_dict(TINY)
     run_dir = _run_dir(tmp_path, model_arrays)
     evaluate(run_dir, suite, n=2, workers=1, videos=0)
@@ -173,6 +177,8 @@ def test_tiny_evaluation_same_on_one_worker_after_a_resume(tmp_path, model_array
     saved = json.loads((run_dir / "eval" / "summary.json").read_text())
     assert sum(saved["outcomes"].values()) == 3
     assert saved["suite_digest"] == summary["suite_digest"] == two_workers[1]["suite_digest"]
+    monkeypatch.setattr(provenance, "code_digest", lambda: "other code")
+    assert evaluate(run_dir, suite, n=1, workers=1, videos=0)["run"]["ran"] == 1  # not reused
 
 
 def test_tiny_evaluation_same_on_ray(tmp_path, model_arrays, two_workers):

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from imitate import plots, report_html
+from imitate import plots, provenance, report_html
 from imitate.artifacts import load_npz, save_json
 from imitate.errors import ImitateError
 from imitate.evaluation.parallel import run_local, run_ray
@@ -60,7 +60,7 @@ def evaluate(
     stored = load_npz(model_path, required=(*LearnedModel.array_names(), "gaze"))
     arrays = {k: stored[k] for k in (*LearnedModel.array_names(), "gaze")}
     learned = LearnedModel.from_arrays(arrays)
-    digest = suite.digest(seed, model_path.read_bytes())
+    digest = suite.digest(seed, model_path.read_bytes(), provenance.code_digest())
     out = run_dir / "eval"
     out.mkdir(parents=True, exist_ok=True)
     path = path_points(learned, arrays["gaze"], suite["max_iter"])
