@@ -11,22 +11,21 @@ pour-phase error [mm, deg] and the smallest pour fraction over the replays.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
+from imitate.errors import ImitateError
 from imitate.evaluation.report import place
-from imitate.evaluation.run import RESULTS, read_records
+from imitate.evaluation.run import last_records
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run_dir", type=Path)
-    out = parser.parse_args().run_dir / "eval"
-    if not (out / "summary.json").is_file():
-        sys.exit(f"eval_failures.py: {out / 'summary.json'} is missing: run imitate eval first")
-    digest = json.loads((out / "summary.json").read_text())["suite_digest"]
-    records = sorted(read_records(out / RESULTS, digest), key=lambda r: r["id"])
+    try:
+        records = last_records(parser.parse_args().run_dir)
+    except ImitateError as err:
+        sys.exit(f"eval_failures.py: {err}")
     failed = [r for r in records if r["outcome"] != "success"]
     print(f"{'id':>4} {'outcome':<16}{'obstacle':<15}{'x':>6}{'y':>7}{'plan':>8}  "
           f"{'closest pair':<28}{'pour err':>13}{'pour':>6}")

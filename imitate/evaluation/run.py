@@ -27,7 +27,7 @@ from imitate.evaluation.suite import Suite
 from imitate.evaluation.variation import draw, path_points
 from imitate.learning import LearnedModel
 
-__all__ = ["evaluate", "read_records"]
+__all__ = ["evaluate", "last_records", "read_records"]
 
 RESULTS = "results.jsonl"
 
@@ -121,6 +121,20 @@ def read_records(path: Path, digest: str) -> list[dict]:
         if record.get("digest") == digest:
             records[record["id"]] = record
     return list(records.values())
+
+
+def last_records(run_dir: Path) -> list[dict]:
+    """The records of the last evaluation of ``run_dir`` (the digest in its
+    ``eval/summary.json``), sorted by id.
+
+    Raises:
+        ImitateError: ``run_dir`` has no evaluation.
+    """
+    out = Path(run_dir) / "eval"
+    if not (out / "summary.json").is_file():
+        raise ImitateError(f"{out / 'summary.json'} is missing: run `imitate eval {run_dir}` first")
+    digest = json.loads((out / "summary.json").read_text())["suite_digest"]
+    return sorted(read_records(out / RESULTS, digest), key=lambda r: r["id"])
 
 
 def _end_line(path: Path) -> None:

@@ -1,0 +1,74 @@
+"""Two evaluations of the same suite side by side (before and after a change), from their records.
+
+Usage: ``python scripts/compare_evals.py BEFORE_RUN_DIR AFTER_RUN_DIR``: the last ``imitate eval``
+of each (``eval/summary.json``'s digest; run the same suite, ``--n`` and ``--seed`` in both, for
+instance on copies of one ``model.npz`` with the code before and after). Nothing is re-run.
+
+Prints the successes of each, one line per variation whose outcome changed (plan and physics
+clearance [mm], smallest pour fraction), and the plan-minus-physics clearance [mm] of the
+variations whose plan is the same in both (same clearance and iterations): there the difference
+is the execution's alone.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from imitate.errors import ImitateError
+from imitate.evaluation.run import last_records
+
+
+def _state(r: dict) -> str:
+    return (f"{r['outcome']:<16}{r['plan']['min_distance_m'] * 1000:7.1f}"
+            f"{r['physics_min_distance_m'] * 1000:7.1f}{r['pour_min']:6.2f}")
+
+
+def _gaps(records: list[dict]) -> str:
+    gap = np.array([r["clearance_gap_m"] for r in records]) * 1000
+    return (f"median {np.median(gap):5.2f}  mean |gap| {np.abs(gap).mean():5.2f}  "
+            f"p95 {np.percentile(gap, 95):5.2f}  max {gap.max():6.2f}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("before", type=Path)
+    parser.add_argument("after", type=Path)
+    args = parser.parse_args()
+    try:
+        before, after = ({r["id"]: r for r in last_records(d)} for d in (args.before, args.after))
+    except ImitateError as err:
+        sys.exit(f"compare_evals.py: {err}")
+    ids = sorted(before.keys() & after.keys())
+    if not ids or any(before[i]["settings"] != after[i]["settings"] for i in ids):
+        sys.exit("compare_evals.py: the two evaluations do not share their variations "
+                 "(run the same suite, --n and --seed)")
+    for name, records in (("before", before), ("after", after)):
+        wins = sum(records[i]["outcome"] == "success" for i in ids)
+        print(f"{name:<7} success {wins}/{len(ids)}")
+    print(f"\n{'id':>4}  {'before':<16}{'plan':>7}{'phys':>7}{'pour':>6}   "
+          f"{'after':<16}{'plan':>7}{'phys':>7}{'pour':>6}")
+    changed = [i for i in ids if before[i]["outcome"] != after[i]["outcome"]]
+    for i in changed:
+        print(f"{i:>4}  {_state(before[i])}   {_state(after[i])}")
+    print(f"{len(changed)} outcomes changed")
+    same = [
+        i for i in ids
+        if before[i]["plan"]["min_distance_m"] == after[i]["plan"]["min_distance_m"] >= 0
+        and before[i]["plan"]["iterations"] == after[i]["plan"]["iterations"]
+    ]
+    if same:
+        better = sum(abs(after[i]["clearance_gap_m"]) < abs(before[i]["clearance_gap_m"])
+                     for i in same)
+        print(f"\nplan - physics clearance [mm] over the {len(same)} variations whose plan is "
+              f"the same (clear of contact) in both:")
+        print(f"  before: {_gaps([before[i] for i in same])}")
+        print(f"  after:  {_gaps([after[i] for i in same])}")
+        print(f"  smaller in {better} of {len(same)}")
+
+
+if __name__ == "__main__":
+    main()
