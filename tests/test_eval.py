@@ -19,7 +19,7 @@ from imitate.cli import main
 from imitate.errors import ImitateError
 from imitate.evaluation import Suite, evaluate, load_suite
 from imitate.evaluation.report import summarize, text, wilson
-from imitate.evaluation.run import RESULTS, read_records
+from imitate.evaluation.run import RESULTS, last_records, read_records
 from imitate.evaluation.suite import KEYS
 from imitate.evaluation.trial import classify
 from imitate.evaluation.variation import Variation, draw
@@ -179,6 +179,9 @@ def test_tiny_evaluation_same_on_one_worker_after_a_resume(
     assert saved["suite_digest"] == summary["suite_digest"] == two_workers[1]["suite_digest"]
     monkeypatch.setattr(provenance, "code_digest", lambda: "other code")
     assert evaluate(run_dir, suite, n=1, workers=1, videos=0)["run"]["ran"] == 1  # not reused
+    assert [r["id"] for r in last_records(run_dir)] == [0]  # the last evaluation's only
+    with pytest.raises(ImitateError, match="summary.json is missing"):
+        last_records(tmp_path / "elsewhere")
 
 
 def test_tiny_evaluation_same_on_ray(tmp_path, model_arrays, two_workers):
