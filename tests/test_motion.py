@@ -228,6 +228,8 @@ def test_singular_jacobian_is_damped(task):
 def test_bad_input_raises(task, learned):
     with pytest.raises(ImitateError, match="optimizer"):
         PlanConfig(optimizer="sgd")
+    with pytest.raises(ImitateError, match="max_joint_acceleration 0"):
+        PlanConfig(max_joint_acceleration=0.0)
     with pytest.raises(ImitateError, match="plan needs"):
         short = dataclasses.replace(learned, mean=learned.mean[:, :3])
         plan_from_model(task, short, q0=np.zeros(18))

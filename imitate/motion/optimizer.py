@@ -112,11 +112,16 @@ class PlanConfig:
             self.collision_weight,
             self.joint_limit_weight,
             self.path_length_weight,
+            self.joint_acceleration_weight,
         )
         if not self.dt > 0 or not self.omega_per_interval > 0 or min(weights) < 0:
             raise ImitateError(
                 f"PlanConfig needs dt > 0, omega_per_interval > 0 and weights >= 0; got dt="
                 f"{self.dt}, omega_per_interval={self.omega_per_interval}, weights={weights}"
+            )
+        if not self.max_joint_acceleration > 0:
+            raise ImitateError(
+                f"max_joint_acceleration {self.max_joint_acceleration} not accepted: > 0 rad/s^2"
             )
         if self.max_iter < 0 or self.patience < 1 or not self.tol >= 0:
             raise ImitateError(
