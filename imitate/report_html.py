@@ -97,6 +97,8 @@ def eval_page(summary: dict, failures: list[str], links: list[str], title: str) 
         (f"plans that keep the {kept['margin_m'] * 1000:g} mm margin",
          f"{kept['plans']}: touching in physics {kept['physics_contact']}, "
          f"pouring below {kept['pour_threshold']:g} in a replay {kept['low_pour']}"),
+        ("plans with the null-space push",
+         f"{summary['nullspace_push']['plans']}: successes {summary['nullspace_push']['success']}"),
         ("seconds per variation", ", ".join(f"{k} {v:.1f}" for k, v in seconds.items())),
         ("this evaluation",
          f"{run['ran']} run now, {run['backend']}{where}, {run['wall_seconds']:.1f} s"),

@@ -7,7 +7,7 @@ instance on copies of one ``model.npz`` with the code before and after). Nothing
 Prints the successes of each, one line per variation whose outcome changed (plan and physics
 clearance [mm], smallest pour fraction), and the plan-minus-physics clearance [mm] of the
 variations whose plan is the same in both (same clearance and iterations): there the difference
-is the execution's alone.
+is the execution's alone; then the pour over the replays of the plans that keep clear in both.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from imitate.envs.pouring import SUCCESS_FRACTION
 from imitate.errors import ImitateError
 from imitate.evaluation.run import last_records
 
@@ -68,6 +69,13 @@ def main() -> None:
         print(f"  before: {_gaps([before[i] for i in same])}")
         print(f"  after:  {_gaps([after[i] for i in same])}")
         print(f"  smaller in {better} of {len(same)}")
+    clear = [i for i in ids if min(before[i]["plan"]["min_distance_m"],
+                                   after[i]["plan"]["min_distance_m"]) >= 0]
+    print(f"\npour over the replays of the {len(clear)} variations whose plans keep clear in both:")
+    for name, records in (("before", before), ("after", after)):
+        pours = np.array([p["pour_fraction"] for i in clear for p in records[i]["replays"]])
+        print(f"  {name + ':':<8}mean {pours.mean():.3f}, below {SUCCESS_FRACTION:g} in "
+              f"{np.sum(pours < SUCCESS_FRACTION)} of {len(pours)} replays")
 
 
 if __name__ == "__main__":

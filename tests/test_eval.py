@@ -90,9 +90,9 @@ def test_suite_reads_toml_and_json_alike(tmp_path):
     )
     a, b = load_suite(tmp_path / "a.toml"), load_suite(tmp_path / "a.json")
     assert a == b and a["particles"] == (40, 40) and a["shapes"] == ("box",)
-    assert a.digest(0, b"m") == b.digest(0, b"m") != a.digest(1, b"m") != a.digest(0, b"n")
-    assert a.replace(variations=7).digest(0, b"m") == a.digest(0, b"m")  # n may grow
-    assert a.digest(0, b"m", "code") != a.digest(0, b"m", "other code")
+    assert a.digest(0, b"m", "c") == b.digest(0, b"m", "c") != a.digest(1, b"m", "c")
+    assert a.digest(0, b"m", "c") != a.digest(0, b"n", "c") != a.digest(0, b"n", "other code")
+    assert a.replace(variations=7).digest(0, b"m", "c") == a.digest(0, b"m", "c")  # n may grow
 
 
 def test_default_suite_and_readme_document_every_key():
@@ -244,16 +244,20 @@ def _live_processes_in_group(pgid: int) -> list[int]:
     return live
 
 
-def test_summary_counts_what_physics_does_with_plans_that_keep_the_margin():
-    def record(plan_mm, physics_mm, pour):
+def test_summary_counts_the_plans_that_keep_the_margin_and_those_pushed():
+    def record(plan_mm, physics_mm, pour, pushed=False):
         return {
-            "outcome": "success", "settings": {"obstacle": None, "in_path": False},
-            "seconds": 1.0, "plan": {"min_distance_m": plan_mm / 1000},
+            "outcome": "success" if pour >= 0.9 and physics_mm >= 0 else "spill",
+            "settings": {"obstacle": None, "in_path": False}, "seconds": 1.0,
+            "plan": {"min_distance_m": plan_mm / 1000, "nullspace_push": pushed},
             "physics_min_distance_m": physics_mm / 1000,
             "clearance_gap_m": (plan_mm - physics_mm) / 1000, "pour_mean": pour, "pour_min": pour,
         }
 
-    records = [record(12, 11, 1.0), record(12, -1, 1.0), record(13, 12, 0.8), record(5, -2, 0.5)]
+    records = [
+        record(12, 11, 1.0, pushed=True), record(12, -1, 1.0), record(13, 12, 0.8, pushed=True),
+        record(5, -2, 0.5),
+    ]
     summary = summarize(records)
     assert summary["kept_margin"] == {
         "margin_m": 0.011, "pour_threshold": 0.9, "plans": 3, "physics_contact": 1, "low_pour": 1,
@@ -262,3 +266,5 @@ def test_summary_counts_what_physics_does_with_plans_that_keep_the_margin():
            "load_average_start": [0.0] * 3, "load_average_end": [0.0] * 3}
     printed = text({**summary, "run": run, "suite_digest": "d"}, Path("eval"))
     assert "margin: 3; of them touching in physics 1, pouring below 0.9 in a replay 1" in printed
+    assert summary["nullspace_push"] == {"plans": 2, "success": 1}
+    assert "plans with the null-space push: 2; of them successes 1" in printed

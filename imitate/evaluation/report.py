@@ -70,6 +70,7 @@ def summarize(records: Sequence[dict]) -> dict:
         "physics_contact": sum(r["physics_min_distance_m"] < 0 for r in kept),
         "low_pour": sum(r["pour_min"] < SUCCESS_FRACTION for r in kept),
     }
+    pushed = [r for r in records if r["plan"].get("nullspace_push", False)]
     return {
         "variations": n,
         "success_rate": successes / n,
@@ -80,6 +81,9 @@ def summarize(records: Sequence[dict]) -> dict:
         "pour_min": float(np.min([r["pour_min"] for r in records])),
         "clearance_gap_mm": gap,
         "kept_margin": margin,
+        "nullspace_push": {  # plans the attractors alone could not keep clear
+            "plans": len(pushed), "success": sum(r["outcome"] == "success" for r in pushed),
+        },
         "seconds_per_variation": {
             "mean": float(seconds.mean()), "median": float(np.median(seconds)),
             "max": float(seconds.max()),
@@ -98,7 +102,7 @@ def text(summary: dict, out: Path) -> str:
         f"{p} {c['success']}/{sum(c.values())}" for p, c in summary["outcomes_by_obstacle"].items()
     )
     gap, seconds = summary["clearance_gap_mm"], summary["seconds_per_variation"]
-    kept = summary["kept_margin"]
+    kept, push = summary["kept_margin"], summary["nullspace_push"]
     return "\n".join([
         f"eval: {n} variations ({run['ran']} run now on {where} in {run['wall_seconds']:.1f} s, "
         f"1-min load average {run['load_average_start'][0]:.1f} at the start, "
@@ -113,6 +117,7 @@ def text(summary: dict, out: Path) -> str:
         f"plans that keep the {kept['margin_m'] * 1000:g} mm margin: {kept['plans']}; of them "
         f"touching in physics {kept['physics_contact']}, pouring below "
         f"{kept['pour_threshold']:g} in a replay {kept['low_pour']}",
+        f"plans with the null-space push: {push['plans']}; of them successes {push['success']}",
         f"seconds per variation: mean {seconds['mean']:.1f}, median {seconds['median']:.1f}, "
         f"max {seconds['max']:.1f}",
         f"results: {out / 'results.jsonl'}, {out / 'summary.json'}, {out / 'outcomes.png'}",

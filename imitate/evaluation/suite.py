@@ -179,7 +179,7 @@ class Suite:
         """The values as a file would give them (ranges as lists)."""
         return {k: list(v) if isinstance(v, tuple) else v for k, v in self.values.items()}
 
-    def digest(self, seed: int, model: bytes, code: str = "") -> str:
+    def digest(self, seed: int, model: bytes, code: str) -> str:
         """Identifies the results of the variations this suite draws: sha256 (16 hex digits) of
         its values (but ``variations``: a longer evaluation extends a shorter one), ``seed``, the
         learned model's bytes and ``code`` (:func:`imitate.provenance.code_digest`: records
