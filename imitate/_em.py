@@ -138,8 +138,8 @@ def _block_log_densities(
         means, prec_chol, log_coef: The mixture, see :func:`_factor`.
         threshold: Log-ratio to a sample's best term below which terms may be dropped (< 0).
         terms: Output, shape ``(K, >= stop - start)``.
-        diff, partial, tops: Scratch, shapes ``(D, B)``, ``(B,)``, ``(B,)`` with
-            ``B >= stop - start``.
+        diff, partial: Scratch, shapes ``(D, B)`` and ``(B,)`` with ``B >= stop - start``.
+        tops: Output, shape ``(B,)``: each sample's largest term.
     """
     n_components, d = means.shape
     size = stop - start
@@ -164,10 +164,12 @@ def _block_log_densities(
         row = terms[k]
         for i in range(size):
             row[i] = log_coef[k]
-        for j in range(d):
+        for j in range(d):  # partial = (U_k^T d_i)_j, one pass per term, the first one storing
+            u = prec_chol[k, 0, j]
+            diff_e = diff[0]
             for i in range(size):
-                partial[i] = 0.0
-            for e in range(j + 1):
+                partial[i] = 0.0 + u * diff_e[i]
+            for e in range(1, j + 1):
                 u = prec_chol[k, e, j]
                 diff_e = diff[e]
                 for i in range(size):
@@ -181,17 +183,24 @@ def _block_log_densities(
 
 
 @numba.njit(cache=True)
-def _log_norm(terms: np.ndarray, i: int, threshold: float) -> float:
-    """``log sum_k exp(terms[k, i])`` by the log-sum-exp trick, dropping terms below
-    ``exp(threshold)`` of the largest."""
-    top = -np.inf
+def _block_log_norm(
+    terms: np.ndarray, tops: np.ndarray, size: int, threshold: float, sums: np.ndarray
+) -> None:
+    """``tops[i] = log sum_k exp(terms[k, i])`` for one block, by the log-sum-exp trick.
+
+    ``tops`` holds each sample's largest term on entry (as :func:`_block_log_densities` leaves
+    it); terms below ``exp(threshold)`` of it are dropped. Loops over the samples, for every
+    sample the terms in the order of ``k``. ``sums`` is scratch, shape ``(B,)``.
+    """
+    for i in range(size):
+        sums[i] = 0.0
     for k in range(terms.shape[0]):
-        top = max(top, terms[k, i])
-    total = 0.0
-    for k in range(terms.shape[0]):
-        if terms[k, i] - top >= threshold:
-            total += math.exp(terms[k, i] - top)
-    return top + math.log(total)
+        row = terms[k]
+        for i in range(size):
+            if row[i] - tops[i] >= threshold:
+                sums[i] += math.exp(row[i] - tops[i])
+    for i in range(size):
+        tops[i] += math.log(sums[i])
 
 
 _BLOCK = 128  # samples per block: the scratch arrays stay in the L1 cache
@@ -222,8 +231,9 @@ def _e_step(
         stop = min(start + _BLOCK, n)
         _block_log_densities(xt, start, stop, means, prec_chol, log_coef, threshold, terms,
                              diff, partial, tops)
+        _block_log_norm(terms, tops, stop - start, threshold, partial)
         for i in range(stop - start):
-            log_norm[start + i] = _log_norm(terms, i, threshold)
+            log_norm[start + i] = tops[i]
             if resp.shape[0] == n:
                 for k in range(n_components):
                     log_resp = terms[k, i] - log_norm[start + i]
@@ -276,8 +286,8 @@ def _em_loop(
             _block_log_densities(xt, start, stop, means, prec_chol, log_coef, _LOG_FLUSH,
                                  terms, diff, partial, tops)
             size = stop - start
-            for i in range(size):  # log p(x_i), kept in tops
-                tops[i] = _log_norm(terms, i, _LOG_FLUSH)
+            _block_log_norm(terms, tops, size, _LOG_FLUSH, partial)  # log p(x_i), in tops
+            for i in range(size):
                 total += tops[i]
             for k in range(n_components):
                 row = terms[k]
