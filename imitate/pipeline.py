@@ -198,7 +198,10 @@ def replay(run_dir: Path, config: RunConfig) -> dict:
             pours.append(_physics(plan, config, gaze, seed=config.seed + k)[0].pour_fraction)
             bar.update()
         q_free = arrays["sweep_q"][0]
-        free = dataclasses.replace(plan, q=q_free, q_start=q_free[0], x=arrays["sweep_x"][0])
+        free = dataclasses.replace(
+            plan, q=q_free, q_start=q_free[0], approach_bend=np.zeros_like(q_free[0]),
+            x=arrays["sweep_x"][0],
+        )
         _, free_states, _ = _physics(free, config, gaze)
         bar.update()
     save_npz(run_dir / "replay.npz", {

@@ -18,6 +18,7 @@ from imitate.errors import ImitateError
 from imitate.kinematics import Kinematics
 from imitate.models import humanoid, objects
 from imitate.motion import Plan
+from imitate.motion.approach import approach_path
 from imitate.motion.control import ControlConfig
 from imitate.taskspace import TaskMap, task_space
 
@@ -81,7 +82,8 @@ def replay(
     gaze: np.ndarray | None = None,
 ) -> ReplayResult:
     """Drives ``env`` along ``plan`` in physics: from the reset pose to the plan's start in
-    ``approach`` [s] (cosine blend), the plan interpolated at the env's control rate, then
+    ``approach`` [s] along the plan's approach path (cosine blend), the plan interpolated at
+    the env's control rate, then
     ``settle`` [s] holding the last posture; each target led by its speed times
     ``env.servo_lag`` plus half a step (velocity feed-forward). ``on_step(env)``, if given,
     is called after the reset and after every step (to record states for a video, say). The
@@ -97,9 +99,8 @@ def replay(
     q_reset = env.joint_positions()
     targets = []
     n_approach = int(round(approach / dt))
-    for i in range(1, n_approach + 1):
-        s = 0.5 - 0.5 * np.cos(np.pi * i / n_approach)
-        targets.append((1 - s) * q_reset + s * plan.q_start)
+    blend = 0.5 - 0.5 * np.cos(np.pi * np.arange(1, n_approach + 1) / n_approach)
+    targets.extend(approach_path(q_reset, plan.q_start, plan.approach_bend, blend))
     t_play = np.arange(0.0, plan.times[-1] - plan.times[0] + 1e-9, dt)
     play = _resample(plan.times - plan.times[0], plan.q, t_play)
     targets.extend(play)

@@ -216,7 +216,8 @@ def test_replay_stops_where_the_physics_diverges():
     q = np.tile(humanoid.rest_pose(), (3, 1))
     plan = Plan(
         times=np.array([0.0, 0.1, 0.2]), attractors=np.zeros((1, 7)), push=np.zeros((1, 18)),
-        target=np.zeros((3, 7)), x=np.zeros((3, 7)), q=q, q_start=q[0], mean=np.zeros((3, 7)),
+        target=np.zeros((3, 7)), x=np.zeros((3, 7)), q=q, q_start=q[0],
+        approach_bend=np.zeros_like(q[0]), mean=np.zeros((3, 7)),
         variance=np.ones((3, 7)), weights=np.ones((3, 7)), costs={}, min_distance=0.1,
         closest=None, converged=True, clipped=0, message="", n_iter=0, n_evaluations=0,
     )

@@ -12,6 +12,7 @@ from imitate.envs.assembly import Obstacle, SceneConfig
 from imitate.errors import ImitateError
 from imitate.learning import LearningConfig
 from imitate.models import humanoid
+from imitate.models.scene import TABLE_HEIGHT
 from imitate.motion import (
     AttractorDynamics,
     ControlConfig,
@@ -21,6 +22,7 @@ from imitate.motion import (
     rollout,
     setup,
 )
+from imitate.motion.approach import approach_clearance, approach_cost, approach_path, bend_approach
 from imitate.motion.optimizer import _PUSH_SCALE, _TOLERANCE
 from imitate.oracle import oracle_model
 from imitate.replay import planning_task
@@ -249,3 +251,36 @@ def test_task_curvature_is_the_contraction_of_the_rates(task):
     np.testing.assert_allclose(
         task.curvature(a, b, c, d, frame), a @ rates[0] + c @ rates[1], rtol=1e-10, atol=1e-12
     )
+
+
+def test_approach_bends_around_a_post_the_straight_line_crosses():
+    """A thin post under the glass's way from the rest pose to a reach: the straight joint-space
+    approach runs into it, the bend keeps the margin and leaves the head alone, its gradient is
+    the finite differences', and without the post the approach stays straight."""
+    qa, qb = humanoid.rest_pose(), humanoid.rest_pose()
+    joints = humanoid.JOINTS
+    qb[joints.index("left_shoulder_pitch")] -= 0.8
+    qb[joints.index("left_elbow")] += 0.9
+    free = planning_task()
+    free.kin.update(approach_path(qa, qb, np.zeros(free.kin.n), [0.5])[0])
+    x, y, z = free.kin.data.body("glass").xpos
+    top = z + 0.01  # 1 cm above the glass's bottom halfway
+    post = Obstacle("cylinder", (x, y, (TABLE_HEIGHT + top) / 2), (0.01, (top - TABLE_HEIGHT) / 2))
+    task = planning_task(SceneConfig(obstacles=(post,)))
+    c = PlanConfig()
+    for q in (qa, qb):
+        task.kin.update(q)
+        assert task.kin.min_distance()[0] > c.margin + c.epsilon
+    assert approach_clearance(task, qa, qb, np.zeros(task.kin.n))[0] < 0
+    bend = bend_approach(task, qa, qb, c.margin, c.epsilon)
+    assert approach_clearance(task, qa, qb, bend)[0] >= c.margin
+    assert not np.any(bend[~task.driven])
+    point = bend + np.random.default_rng(0).normal(size=bend.shape) * 0.01 * task.driven
+    _, grad = approach_cost(task, qa, qb, point, c.margin, c.epsilon)
+    fd = np.array([
+        (approach_cost(task, qa, qb, point + 1e-6 * e, c.margin, c.epsilon)[0]
+         - approach_cost(task, qa, qb, point - 1e-6 * e, c.margin, c.epsilon)[0]) / 2e-6
+        for e in np.eye(len(point))
+    ])
+    np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
+    assert not np.any(bend_approach(free, qa, qb, c.margin, c.epsilon))

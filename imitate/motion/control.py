@@ -27,7 +27,29 @@ from imitate.errors import ImitateError
 from imitate.kinematics import Distances, Kinematics
 from imitate.taskspace import TaskFrame, TaskMap
 
-__all__ = ["ControlConfig", "JointLimitCost", "Rollout", "backward", "reach", "rollout"]
+__all__ = [
+    "SAMPLE_STEP",
+    "ControlConfig",
+    "JointLimitCost",
+    "Rollout",
+    "backward",
+    "reach",
+    "rollout",
+    "segment_fractions",
+]
+
+# Largest joint step [rad] between two distance samples along a step. The robot moves along the
+# straight line in joint space between steps (the replay interpolates so), and on a long step the
+# distance can dip far below its value at the ends and the midpoint.
+SAMPLE_STEP = 0.05
+
+
+def segment_fractions(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
+    """Fractions ``s`` in (0, 1) of the samples ``(1 - s) qa + s qb`` along a step from ``qa``
+    to ``qb`` ``(n,)``: the midpoint, or equal sub-steps of at most :data:`SAMPLE_STEP` in
+    every joint."""
+    k = max(2, int(np.ceil(np.max(np.abs(qb - qa)) / SAMPLE_STEP)))
+    return np.arange(1, k) / k
 
 
 @dataclass(frozen=True)
@@ -92,10 +114,10 @@ class Rollout:
         frames: ``T`` :class:`TaskFrame` at ``q_0 .. q_{T-1}``.
         distances: ``T + 1`` :class:`Distances` (with gradients) of the pairs closer than the
             rollout's ``distmax``; empty if it was 0.
-        between: ``T`` :class:`Distances` at the midpoints ``(q_t + q_{t+1}) / 2``: the robot
-            moves between the steps along the straight line in joint space (the replay
-            interpolates so), where it can come closer than at either step; empty if
-            ``distmax`` was 0.
+        between: ``(t, s, Distances)`` at the postures ``(1 - s) q_t + s q_{t+1}`` along each
+            step, ``s`` from :func:`segment_fractions`: the robot moves between the steps along
+            the straight line in joint space (the replay interpolates so), where it can come
+            closer than at either step; empty if ``distmax`` was 0.
     """
 
     q: np.ndarray
@@ -108,7 +130,7 @@ class Rollout:
     clipped_at: np.ndarray
     frames: tuple[TaskFrame, ...]
     distances: tuple[Distances, ...]
-    between: tuple[Distances, ...]
+    between: tuple[tuple[int, float, Distances], ...]
 
     @property
     def clipped(self) -> int:
@@ -168,8 +190,9 @@ def rollout(
         jac[t] = J
         frames.append(frame)
         if distmax > 0:
-            kin.update(0.5 * (q[t] + q[t + 1]))
-            between.append(kin.distances(distmax, jacobian=True))
+            for s in segment_fractions(q[t], q[t + 1]):
+                kin.update((1.0 - s) * q[t] + s * q[t + 1])
+                between.append((t, float(s), kin.distances(distmax, jacobian=True)))
     return Rollout(
         q, x, jac, pinv, nullspace_gradient, limits(q[:T])[2], solved, q[1:] != unclipped,
         tuple(frames), tuple(distances), tuple(between),

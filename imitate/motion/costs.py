@@ -9,7 +9,8 @@ rollout is :func:`imitate.motion.control.backward`.
   ``W_t`` from the GMR variances by eq. 21's ramp.
 - :class:`Collision`: CHOMP's potential of ``d - margin`` for every pair closer than
   ``margin + epsilon``: ``(d' - eps)^2 / (2 eps)`` for ``0 <= d' < eps``, ``eps/2 - d'`` below 0,
-  at every step and midway between steps (each sample standing for half a step).
+  at every step and along each step (:func:`imitate.motion.control.segment_fractions`; the
+  samples along a step standing together for as much as one at a step).
 - :class:`JointLimits`: the border cost ``H`` of :class:`imitate.motion.control.JointLimitCost`.
 - :class:`PathLength`: the joint-space trajectory length as ``sum_t |q_{t+1} - q_t|^2 / dt``
   (squared so it is differentiable at rest).
@@ -101,20 +102,25 @@ class Collision:
     def __call__(self, result: Rollout, x: np.ndarray):
         gq = np.zeros_like(result.q)
         total = 0.0
-        # Each sample: its distances and the steps its gradient goes to (a midpoint's half each).
-        samples = [(d, ((t, 1.0),)) for t, d in enumerate(result.distances) if len(d.dist)]
+        # Each sample: its distances, its weight and the steps its gradient goes to, with their
+        # shares. The samples along a step weigh together as much as one at a step; a sample's
+        # gradient goes to the two ends by its place between them.
+        samples = [(d, 1.0, ((t, 1.0),)) for t, d in enumerate(result.distances) if len(d.dist)]
+        along = np.bincount([t for t, _, _ in result.between], minlength=len(result.q))
         samples += [
-            (d, ((t, 0.5), (t + 1, 0.5))) for t, d in enumerate(result.between) if len(d.dist)
+            (d, 1.0 / along[t], ((t, 1.0 - s), (t + 1, s)))
+            for t, s, d in result.between
+            if len(d.dist)
         ]
         if samples:  # the potential of all samples' pairs at once, then summed per sample
             value, slope = potential(
-                np.concatenate([d.dist for d, _ in samples]) - self.margin, self.epsilon
+                np.concatenate([d.dist for d, _, _ in samples]) - self.margin, self.epsilon
             )
             start = 0
-            for d, steps in samples:
+            for d, weight, steps in samples:
                 stop = start + len(d.dist)
-                total += float(value[start:stop].sum())
-                g = slope[start:stop] @ d.jac
+                total += weight * float(value[start:stop].sum())
+                g = weight * (slope[start:stop] @ d.jac)
                 for t, share in steps:
                     gq[t] += share * g
                 start = stop

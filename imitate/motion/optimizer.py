@@ -21,8 +21,17 @@ from scipy.optimize import minimize
 
 from imitate.errors import ImitateError
 from imitate.kinematics import Kinematics
+from imitate.motion.approach import approach_clearance, bend_approach
 from imitate.motion.attractors import AttractorDynamics
-from imitate.motion.control import ControlConfig, JointLimitCost, Rollout, backward, reach, rollout
+from imitate.motion.control import (
+    ControlConfig,
+    JointLimitCost,
+    Rollout,
+    backward,
+    reach,
+    rollout,
+    segment_fractions,
+)
 from imitate.motion.costs import (
     Collision,
     JointAcceleration,
@@ -92,7 +101,7 @@ class PlanConfig:
     collision_weight: float = 10000.0
     joint_limit_weight: float = 1.0
     path_length_weight: float = 0.01
-    joint_acceleration_weight: float = 0.1
+    joint_acceleration_weight: float = 3.0
     max_joint_acceleration: float = 20.0
     margin: float = 0.011
     epsilon: float = 0.004
@@ -339,6 +348,14 @@ def plan_from_model(
         target, final = best["rollout"] or problem.rollout(best["v"])
         min_d, closest = _min_distance(task.kin, final.q)
 
+    q0 = np.asarray(q0, dtype=float)
+    bend = np.zeros(task.kin.n)
+    if c.collision_weight > 0:
+        bend = bend_approach(task, q0, problem.q_start, c.margin, c.epsilon)
+    approach_d, approach_pair = approach_clearance(task, q0, problem.q_start, bend)
+    if approach_d < min_d:
+        min_d, closest = approach_d, approach_pair
+
     v, m = best["v"], task.m
     push = v[:, m:] if v.shape[1] > m else np.zeros((len(v), task.kin.n))
     names = tuple(problem.terms) + ("total",)
@@ -349,6 +366,8 @@ def plan_from_model(
     notes = ["converged" if converged else f"not converged in {c.max_iter} iterations (best plan)"]
     if pushed:
         notes.append(f"null-space push: the attractors alone kept {alone * 1000:.1f} mm")
+    if np.any(bend):
+        notes.append(f"approach bent by up to {np.degrees(np.abs(bend).max()):.1f} deg")
     if min_d < 0:
         notes.append(f"collision: {closest} at {min_d * 1000:.1f} mm")
     worst = float(np.max(task_err[:, :3]))
@@ -358,7 +377,8 @@ def plan_from_model(
         notes.append(f"joint angles clipped at {final.clipped} steps")
     return Plan(
         times=start.times, attractors=v[:, :m], push=push, target=target, x=final.x, q=final.q,
-        q_start=problem.q_start, mean=mu, variance=start.variance, weights=start.weights,
+        q_start=problem.q_start, approach_bend=bend, mean=mu, variance=start.variance,
+        weights=start.weights,
         costs=costs, min_distance=min_d, closest=closest, converged=converged,
         clipped=final.clipped, message="; ".join(notes), n_iter=max(len(history) - 1, 0),
         n_evaluations=problem.n_evaluations,
@@ -384,10 +404,15 @@ def _minimize(problem: Problem, v0: np.ndarray, c: PlanConfig, record, history) 
 
 
 def _min_distance(kin: Kinematics, q: np.ndarray) -> tuple[float, tuple[str, str] | None]:
-    """Smallest distance and its pair over the steps ``q`` ``(T + 1, n)`` and the midpoints
-    between them (the path the robot takes)."""
+    """Smallest distance and its pair over the steps ``q`` ``(T + 1, n)`` and the samples
+    along the straight lines between them (the path the robot takes)."""
+    along = [
+        (1.0 - s) * qa + s * qb
+        for qa, qb in zip(q[:-1], q[1:], strict=True)
+        for s in segment_fractions(qa, qb)
+    ]
     best, pair = np.inf, None
-    for qt in (*q, *(0.5 * (q[:-1] + q[1:]))):
+    for qt in (*q, *along):
         kin.update(qt)
         d, names = kin.min_distance()
         if d < best:

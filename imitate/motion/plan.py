@@ -24,11 +24,14 @@ class Plan:
         x: ``(T + 1, m)`` task state reached, ``phi(q_t)``.
         q: ``(T + 1, n)`` joint angles [rad] in ``Kinematics.joints`` order.
         q_start: ``(n,)`` start posture (``q[0]``), reached from the given posture by RMR.
+        approach_bend: ``(n,)`` bend [rad] of the joint-space path from the given posture to
+            ``q_start`` (:mod:`imitate.motion.approach`); zeros for the straight line.
         mean, variance, weights: GMR mean, variance and eq. 21 weights at ``times``, ``(T+1, m)``.
         costs: ``{term: (n_iter + 1,)}`` weighted cost per iteration of the accepted iterate,
             and ``"total"``.
-        min_distance: Smallest signed distance [m] over the trajectory (its steps and the
-            midpoints between them) and all pairs.
+        min_distance: Smallest signed distance [m] over the approach and the
+            trajectory (its steps and the samples along the straight lines between them) and
+            all pairs.
         closest: Geom names of that pair (``None`` if none is within 0.2 m).
         converged: Whether the stopping rule was met within ``max_iter``.
         clipped: Joint-angle clips in the best rollout.
@@ -44,6 +47,7 @@ class Plan:
     x: np.ndarray
     q: np.ndarray
     q_start: np.ndarray
+    approach_bend: np.ndarray
     mean: np.ndarray
     variance: np.ndarray
     weights: np.ndarray
