@@ -7,8 +7,10 @@ by iRprop- (default; sign-based, robust to the collision cost's kinks) or L-BFGS
 the attractors alone leave less than the margin to an obstacle (one under the glass, where the
 task fixes where the hands are relative to each other), it optimizes once more with a null-space
 push per attractor added to the variables: the robot's redundancy, which moves the body without
-changing the task. It returns a frozen :class:`Plan` with the best variables found, whether or
-not the optimizer converged.
+changing the task. The approach from the given posture to the plan's start is part of the
+movement: its clearance counts in the plan's, and where its straight joint-space line would pass
+within the margin of something it is bent (:mod:`.approach`). It returns a frozen :class:`Plan`
+with the best variables found, whether or not the optimizer converged.
 """
 
 from __future__ import annotations
