@@ -4,8 +4,9 @@ planner beside an earlier commit's on the same problem.
 Usage: ``python scripts/bench_motion.py [--repeats 3] [--max-iter 100]
 [--collision-weight 10000] [--baseline 8a4964a]``.
 
-The problem is the oracle model's 5 s movement (K attractors, one per GMM component), learned
-once here and handed to both planners as arrays. The baseline's ``imitate`` is exported with
+The problem is the oracle model's 5 s movement with the paper's attractors (K, one per GMM
+component: the baseline's; ``PlanConfig.attractor_spacing=None`` here), learned once here and
+handed to both planners as arrays. The baseline's ``imitate`` is exported with
 ``git archive`` into a temporary directory and run from there; the two run in alternation, each
 in its own process, ``--repeats`` plans per process after one untimed plan (numba's kernels
 compiled or loaded). Each row gives the wall time, the processor time of the plan (robust to a
@@ -44,7 +45,10 @@ def child(model_path: Path, repeats: int, max_iter: int, weight: float) -> dict:
     arrays = dict(np.load(model_path))
     task = planning_task(gaze=arrays.pop("gaze"))
     learned = LearnedModel.from_arrays(arrays)
-    config = PlanConfig(collision_weight=weight, max_iter=max_iter)
+    # the baseline's problem: one attractor per GMM component (its only kind)
+    fields = PlanConfig.__dataclass_fields__
+    paper = {"attractor_spacing": None} if "attractor_spacing" in fields else {}
+    config = PlanConfig(collision_weight=weight, max_iter=max_iter, **paper)
     q0 = humanoid.rest_pose()
     plan_from_model(task, learned, q0=q0, config=config)  # untimed: kernels compiled or loaded
     runs = []

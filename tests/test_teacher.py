@@ -4,7 +4,12 @@ import numpy as np
 import pytest
 
 from imitate.envs.observation import tracked_point
-from imitate.envs.teacher_motion import TeacherConfig, script_demonstrations
+from imitate.envs.teacher_motion import (
+    _SWING_ROWS,
+    _WAYPOINTS,
+    TeacherConfig,
+    script_demonstrations,
+)
 from imitate.errors import ImitateError
 
 
@@ -58,6 +63,17 @@ def test_spread_is_centimetres_while_transporting_and_millimetres_while_pouring(
     assert 0.01 < spread["transport"][0] < 0.08
     assert spread["pour"][0] < 0.012 and spread["pour"][1] < 5.0
     assert spread["pour"][0] < spread["transport"][0] / 2
+
+
+@pytest.mark.parametrize("seed", [0, 7, 27])
+def test_swings_spread_around_the_nominal_swing(seed):
+    """The swings' offsets are centred over the session: every session's mean swing is the
+    nominal one, while the swings themselves spread by centimetres."""
+    motion = script_demonstrations(TeacherConfig(seed=seed))
+    nominal = np.array(_WAYPOINTS[_SWING_ROWS[1]][3])
+    mouths = np.array([path(_WAYPOINTS[_SWING_ROWS[1]][0])[4:7] for path in motion.paths])
+    np.testing.assert_allclose(mouths.mean(axis=0), nominal, atol=1e-12)
+    assert 0.02 < mouths[:, 0].std() < 0.12  # towards the robot: the 6 cm spread
 
 
 def test_bottle_is_in_the_hand_the_robot_sees_on_its_right():

@@ -1,9 +1,10 @@
 """Attractor optimization: find the attractor points whose rollout minimises the total cost.
 
 :func:`plan_from_model` resamples the learned GMR mean and variance to the planning step, moves
-the robot's start posture onto the learned start (by RMR), fits one attractor per GMM component
-to the GMR mean in least squares (:func:`setup`) and then minimises ``Phi(a) = sum_i w_i c_i``
-by iRprop- (default; sign-based, robust to the collision cost's kinks) or L-BFGS (scipy). If
+the robot's start posture onto the learned start (by RMR), fits attractors evenly spaced in
+time (or the paper's one per GMM component) to the GMR mean in least squares (:func:`setup`)
+and then minimises ``Phi(a) = sum_i w_i c_i`` by iRprop- (default; sign-based, robust to the
+collision cost's kinks) or L-BFGS (scipy). If
 the attractors alone leave less than the margin to an obstacle (one under the glass, where the
 task fixes where the hands are relative to each other), it optimizes once more with a null-space
 push per attractor added to the variables: the robot's redundancy, which moves the body without
@@ -61,6 +62,10 @@ UNREACHED_ERROR = 0.05
 # iRprop- step factors: growth while a gradient keeps its sign, shrink on a change, and the
 # largest step as a multiple of the initial one.
 _RPROP_GROW, _RPROP_SHRINK, _RPROP_MAX = 1.2, 0.5, 50.0
+# Width of an evenly spaced attractor's soft switch: the standard deviation of its Gaussian
+# share, in spacings (a component's time spread is about as wide relative to the components'
+# spacing).
+_SWITCH_WIDTH = 0.4
 # The null-space push's scale [1/rad] for iRprop-'s initial step, as _TOLERANCE for the
 # attractors: a push of 0.1 moves a joint by 0.5 % of its range per step (nullspace_gain 0.05).
 _PUSH_SCALE = 0.1
@@ -72,6 +77,9 @@ class PlanConfig:
 
     Attributes:
         dt: Planning step [s].
+        attractor_spacing: Time between attractors [s]: evenly spaced over the movement, each
+            switched in softly (a Gaussian of ``_SWITCH_WIDTH`` spacings); ``None`` for the
+            paper's one attractor per GMM component (at its time mean, width and prior).
         omega_per_interval: Attractor stiffness: ``omega = omega_per_interval / L`` [rad/s]
             with ``L`` the mean interval between attractor switches.
         w_max: Eq. 21 weights at zero variance per task dimension ``(m,)``; ``None`` for
@@ -97,6 +105,7 @@ class PlanConfig:
     """
 
     dt: float = 0.08
+    attractor_spacing: float | None = 0.15
     omega_per_interval: float = 2.0
     w_max: tuple[float, ...] | None = None
     sigma_max: tuple[float, ...] | None = None
@@ -130,6 +139,11 @@ class PlanConfig:
             raise ImitateError(
                 f"PlanConfig needs dt > 0, omega_per_interval > 0 and weights >= 0; got dt="
                 f"{self.dt}, omega_per_interval={self.omega_per_interval}, weights={weights}"
+            )
+        if self.attractor_spacing is not None and not self.attractor_spacing > 0:
+            raise ImitateError(
+                f"attractor_spacing={self.attractor_spacing!r} not accepted: a time > 0 [s], "
+                "or None for one attractor per GMM component"
             )
         if not self.max_joint_acceleration > 0:
             raise ImitateError(
@@ -254,8 +268,9 @@ def setup(
     task: TaskMap, model: LearnedModel, *, q0: np.ndarray, config: PlanConfig = PlanConfig()
 ) -> Setup:
     """The problem :func:`plan_from_model` optimizes: resampled GMR, eq. 21 weights, attractor
-    dynamics with one attractor per GMM component (soft switching by the components' time
-    spread and priors), the start posture, the least-squares attractors.
+    dynamics (attractors every ``attractor_spacing`` seconds, or one per GMM component with
+    soft switching by the components' time spread and priors), the start posture, the
+    least-squares attractors.
 
     Args:
         task: Task map of the robot (kinematics, objects, gaze).
@@ -294,12 +309,18 @@ def setup(
     sigma_max = np.asarray(c.sigma_max if c.sigma_max is not None else var.max(axis=0))
     weights = similarity_weights(var, w_max, np.maximum(sigma_max, 1e-12))
 
-    g = model.gmm
-    centres = np.asarray(g.means_[:, 0], dtype=float).ravel()
-    interval = (grid[-1] - grid[0]) / max(len(centres), 1)
+    duration = grid[-1] - grid[0]
+    if c.attractor_spacing is None:  # the paper: one attractor per GMM component
+        g = model.gmm
+        centres = np.asarray(g.means_[:, 0], dtype=float).ravel() - times[0]
+        widths, priors = np.sqrt(g.covariances_[:, 0, 0]), g.weights_
+    else:
+        k = max(2, round(duration / c.attractor_spacing))
+        centres = (np.arange(k) + 0.5) * duration / k
+        widths, priors = np.full(k, _SWITCH_WIDTH * duration / k), None
+    interval = duration / len(centres)
     dynamics = AttractorDynamics(
-        n_steps, c.dt, centres - times[0], c.omega_per_interval / interval,
-        np.sqrt(g.covariances_[:, 0, 0]), g.weights_,
+        n_steps, c.dt, centres, c.omega_per_interval / interval, widths, priors
     )
     limits = JointLimitCost(kin.lower, kin.upper, c.control.free_ratio)
     q_start = reach(task, mu[0], q0, c.control, limits)
