@@ -347,7 +347,8 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
         t += duration + rng.uniform(*config.pause)
     noises = np.array(noises)
     # One swing per demonstration, wide or narrow, spread around the nominal swing: the offsets
-    # are centred over the session (n > 1), so the mean swing is the nominal one.
+    # are centred over the session (n > 1), so the mean swing is the nominal one, and scaled by
+    # sqrt(n / (n - 1)) so that they spread as much as independent draws.
     swing = noises[:, _SWING_ROWS[0], 4:7]
     if config.n_demos > 1:
         swing = (swing - swing.mean(axis=0)) * np.sqrt(config.n_demos / (config.n_demos - 1))
