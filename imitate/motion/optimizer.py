@@ -1,17 +1,16 @@
 """Attractor optimization: find the attractor points whose rollout minimises the total cost.
 
-:func:`plan_from_model` resamples the learned GMR mean and variance to the planning step, moves
-the robot's start posture onto the learned start (by RMR), fits attractors evenly spaced in
-time (or the paper's one per GMM component) to the GMR mean in least squares (:func:`setup`)
-and then minimises ``Phi(a) = sum_i w_i c_i`` by iRprop- (default; sign-based, robust to the
-collision cost's kinks) or L-BFGS (scipy). If
-the attractors alone leave less than the margin to an obstacle (one under the glass, where the
-task fixes where the hands are relative to each other), it optimizes once more with a null-space
-push per attractor added to the variables: the robot's redundancy, which moves the body without
-changing the task. The approach from the given posture to the plan's start is part of the
+:func:`plan_from_model` resamples the learned GMR mean and variance to the planning step, moves the
+robot's start posture onto the learned start (by RMR), fits attractors evenly spaced in time (or the
+paper's one per GMM component) to the GMR mean in least squares (:func:`setup`) and then minimises
+``Phi(a) = sum_i w_i c_i`` by iRprop- (default; sign-based, robust to the collision cost's kinks) or
+L-BFGS (scipy). If the attractors alone leave less than the margin to an obstacle (one under the
+glass, where the task fixes where the hands are relative to each other), it optimizes once more with
+a null-space push per attractor added to the variables: the robot's redundancy, which moves the body
+without changing the task. The approach from the given posture to the plan's start is part of the
 movement: its clearance counts in the plan's, and where its straight joint-space line would pass
-within the margin of something it is bent (:mod:`.approach`). It returns a frozen :class:`Plan`
-with the best variables found, whether or not the optimizer converged.
+within the margin of something it is bent (:mod:`.approach`). It returns a frozen :class:`Plan` with
+the best variables found, whether or not the optimizer converged.
 """
 
 from __future__ import annotations
