@@ -35,6 +35,11 @@ class CollisionPairs:
         """Names of the two geoms of pair ``index``."""
         return model.geom(int(self.geom1[index])).name, model.geom(int(self.geom2[index])).name
 
+    def fixed(self, model: mujoco.MjModel) -> np.ndarray:
+        """``(n_pairs,)`` whether a pair has a geom fixed in the world (the table, an obstacle)."""
+        weld = model.body_weldid[model.geom_bodyid]
+        return (weld[self.geom1] == 0) | (weld[self.geom2] == 0)
+
     @classmethod
     def between(cls, model: mujoco.MjModel, geoms: Sequence[int]) -> CollisionPairs:
         """All pairs among ``geoms`` (ids) that may come into contact and must not."""

@@ -22,7 +22,13 @@ from imitate.motion import (
     rollout,
     setup,
 )
-from imitate.motion.approach import approach_clearance, approach_cost, approach_path, bend_approach
+from imitate.motion.approach import (
+    START_ZONE,
+    approach_clearance,
+    approach_cost,
+    approach_path,
+    bend_approach,
+)
 from imitate.motion.optimizer import _PUSH_SCALE, _TOLERANCE
 from imitate.oracle import oracle_model
 from imitate.replay import planning_task
@@ -187,6 +193,34 @@ def test_nullspace_push_clears_an_obstacle_the_attractors_cannot(task, learned):
     assert plans[False].min_distance < PlanConfig().margin and not np.any(plans[False].push)
     assert plans[True].min_distance >= PlanConfig().margin, plans[True].message
     assert np.any(plans[True].push) and "null-space push" in plans[True].message
+
+
+def test_start_moves_clear_of_an_obstacle_beside_the_learned_start(task, learned):
+    """RMR onto the learned start leaves the left hand 5 mm from a box on the table's edge in
+    front of it; the plan's start moves in the task's null space (the same task state) until it
+    keeps the margin plus START_ZONE to the box, and without the box it is RMR's posture."""
+    c = PlanConfig(dt=DT)
+    free = setup(task, learned, q0=humanoid.rest_pose(), config=c).problem
+    task.kin.update(free.q_start)
+    _, y, z = task.kin.data.body("left_hand").xpos
+    top = z - 0.03
+    half_height = (top - TABLE_HEIGHT) / 2
+    box = Obstacle("box", (0.44, y, TABLE_HEIGHT + half_height), (0.04, 0.04, half_height))
+    near = planning_task(SceneConfig(obstacles=(box,)), task.gaze)
+    fixed = near.kin.pairs.fixed(near.kin.model)
+
+    def clearance(q):  # to the fixed geoms (the table, the box)
+        near.kin.update(q)
+        found = near.kin.distances(1.0)
+        return found.dist[fixed[found.pairs]].min()
+
+    reached = setup(near, learned, q0=humanoid.rest_pose(),
+                    config=dataclasses.replace(c, collision_weight=0.0)).problem
+    cleared = setup(near, learned, q0=humanoid.rest_pose(), config=c).problem
+    np.testing.assert_array_equal(reached.q_start, free.q_start)
+    assert 0 < clearance(reached.q_start) < c.margin
+    assert clearance(cleared.q_start) >= c.margin + START_ZONE - 1e-3
+    np.testing.assert_allclose(cleared.x_start, reached.x_start, atol=1e-6)
 
 
 @pytest.mark.parametrize("term", ["collision", "joint_acceleration"])

@@ -1,4 +1,12 @@
-r"""The approach: the joint-space path from the robot's posture to the plan's start.
+r"""The approach: the joint-space path from the robot's posture to the plan's start, and where
+that start is.
+
+The start is reached by RMR onto the learned start (:func:`~imitate.motion.control.reach`), which
+knows nothing of the scene: an obstacle next to where the demonstrations began can be within
+reach of a hand there, and no attractor moves the start. :func:`clear_start` moves it in the
+task's null space (the task state stays the learned start; the task space is relative, so the
+hands can move together) until it keeps the margin plus :data:`START_ZONE` to every geom fixed in
+the world (the table, obstacles), where the null space allows.
 
 The replay moves the robot from where it stands, ``q_a``, to the plan's first posture ``q_b``
 along
@@ -17,14 +25,22 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import minimize
 
-from imitate.motion.control import SAMPLE_STEP
+from imitate.motion.control import SAMPLE_STEP, ControlConfig, JointLimitCost, rollout
 from imitate.motion.costs import potential
 from imitate.taskspace import TaskMap
 
-__all__ = ["approach_clearance", "approach_cost", "approach_path", "bend_approach"]
+__all__ = [
+    "START_ZONE", "approach_clearance", "approach_cost", "approach_path", "bend_approach",
+    "clear_start",
+]
 
 _MIN_SAMPLES = 20  # samples along the approach, at least
 _WEIGHT = 1e4  # w: the potential's weight against the bend's size [rad^2/m]
+# Clearance [m] beyond the margin that the start keeps to the fixed geoms where it can: a hand
+# leaving the start moves up to a few centimetres in the first step.
+START_ZONE = 0.03
+_START_GAIN = 2.0  # g [1/m]: the push [1/rad] per unit of the potential's gradient [m/rad]
+_START_STEPS = 300  # RMR steps of clear_start, at most
 
 
 def _fractions(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
@@ -88,3 +104,26 @@ def bend_approach(
         method="L-BFGS-B",
     )
     return result.x * task.driven
+
+
+def clear_start(
+    task: TaskMap, q: np.ndarray, goal: np.ndarray, config: ControlConfig,
+    limits: JointLimitCost, margin: float,
+) -> np.ndarray:
+    """The start posture ``q`` ``(n,)`` [rad] moved clear of the fixed geoms (see the module):
+    RMR steps onto the task state ``goal`` ``(m,)`` with the null-space push ``-g dP/dq``, ``P``
+    the collision cost's potential over the pairs with a fixed geom closer than ``margin +
+    START_ZONE`` [m]; at most ``_START_STEPS`` of them. ``q`` itself where none is closer."""
+    kin = task.kin
+    fixed = kin.pairs.fixed(kin.model)
+    target = np.tile(goal, (2, 1))
+    for _ in range(_START_STEPS):
+        kin.update(q)
+        near = kin.distances(margin + START_ZONE, jacobian=True)
+        keep = fixed[near.pairs]
+        if not np.any(keep):
+            break
+        _, slope = potential(near.dist[keep] - margin, START_ZONE)
+        push = -_START_GAIN * (slope @ near.jac[keep])
+        q = rollout(task, target, q, config, limits, push=push[None]).q[-1]
+    return q

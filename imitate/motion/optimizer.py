@@ -7,9 +7,11 @@ paper's one per GMM component) to the GMR mean in least squares (:func:`setup`) 
 L-BFGS (scipy). If the attractors alone leave less than the margin to an obstacle (one under the
 glass, where the task fixes where the hands are relative to each other), it optimizes once more with
 a null-space push per attractor added to the variables: the robot's redundancy, which moves the body
-without changing the task. The approach from the given posture to the plan's start is part of the
-movement: its clearance counts in the plan's, and where its straight joint-space line would pass
-within the margin of something it is bent (:mod:`.approach`). It returns a frozen :class:`Plan` with
+without changing the task. The plan's start, RMR's posture on the learned start, is moved in the
+same null space away from the table and obstacles closer than the margin plus 3 cm. The approach
+from the given posture to the plan's start is part of the movement: its clearance counts in the
+plan's, and where its straight joint-space line would pass within the margin of something it is
+bent (:mod:`.approach`). It returns a frozen :class:`Plan` with
 the best variables found, whether or not the optimizer converged.
 """
 
@@ -23,7 +25,7 @@ from scipy.optimize import minimize
 
 from imitate.errors import ImitateError
 from imitate.kinematics import Kinematics
-from imitate.motion.approach import approach_clearance, bend_approach
+from imitate.motion.approach import approach_clearance, bend_approach, clear_start
 from imitate.motion.attractors import AttractorDynamics
 from imitate.motion.control import (
     ControlConfig,
@@ -323,6 +325,8 @@ def setup(
     )
     limits = JointLimitCost(kin.lower, kin.upper, c.control.free_ratio)
     q_start = reach(task, mu[0], q0, c.control, limits)
+    if c.collision_weight > 0:
+        q_start = clear_start(task, q_start, mu[0], c.control, limits, c.margin)
     problem = Problem(task, dynamics, q_start, mu, weights, c)
     a0 = dynamics.fit(mu, problem.x_start, weights)
     return Setup(grid, mu, var, weights, problem, a0)
