@@ -149,10 +149,10 @@ def check_grasp(obj: str, height: float) -> None:
         )
 
 
-def check_clearance(config: SceneConfig) -> None:
-    """Raise ``ImitateError`` if an obstacle of ``config`` overlaps the robot or an object it
-    holds at the start: the rest pose, the objects at their grasps. The message names the
-    obstacle, the geom it overlaps and by how much."""
+def check_clearance(config: SceneConfig, clearance: float = 0.0) -> None:
+    """Raise ``ImitateError`` if an obstacle of ``config`` comes closer than ``clearance`` [m]
+    (overlaps, for 0) to the robot or an object it holds at the start: the rest pose, the
+    objects at their grasps. The message names the obstacle, the geom and the distance."""
     if not config.obstacles:
         return
     model = build_model(dataclasses.replace(config, teacher=False, particles=0, holder="robot"))
@@ -165,13 +165,14 @@ def check_clearance(config: SceneConfig) -> None:
     others = [g for g in geoms if g not in obstacle_geoms and names[g] != scene.TABLE_TOP]
     for obstacle, o in zip(config.obstacles, obstacle_geoms, strict=True):
         for g in others:
-            distance = mujoco.mj_geomDistance(model, data, o, g, 0.01, None)
-            if distance < 0.0:
+            distance = mujoco.mj_geomDistance(model, data, o, g, clearance + 0.01, None)
+            if distance < clearance:
+                where = (f"overlaps {names[g]!r} by {-distance * 1000:.1f} mm" if distance < 0
+                         else f"is {distance * 1000:.1f} mm from {names[g]!r}")
                 raise ImitateError(
                     f"obstacle {obstacle.shape} at pos={obstacle.pos} size={obstacle.size} "
-                    f"overlaps {names[g]!r} by {-distance * 1000:.1f} mm at the start (rest "
-                    f"pose, objects at their grasps): it must stand clear of the robot and "
-                    f"the objects it holds"
+                    f"{where} at the start (rest pose, objects at their grasps): it must stand "
+                    f"{clearance * 1000:.0f} mm clear of the robot and the objects it holds"
                 )
 
 

@@ -171,6 +171,10 @@ def test_obstacle_touching_the_robot_at_the_start_is_refused():
         assembly.check_clearance(assembly.SceneConfig(obstacles=(on_hand,)))
     clear = assembly.Obstacle("box", (0.55, 0.0, 0.70), (0.03, 0.03, 0.05))  # the README's
     assembly.check_clearance(assembly.SceneConfig(obstacles=(_box(), clear)))
+    lower = assembly.Obstacle("box", (0.45, -0.17, 0.675), (0.05, 0.05, 0.065))  # 6.4 mm under
+    assembly.check_clearance(assembly.SceneConfig(obstacles=(lower,)))
+    with pytest.raises(ImitateError, match="is 6.4 mm from 'right_hand' at the start.*11 mm"):
+        assembly.check_clearance(assembly.SceneConfig(obstacles=(lower,)), clearance=0.011)
 
 
 def test_held_objects_keep_clear_of_table_and_obstacles(model):

@@ -110,9 +110,10 @@ def path_points(learned: LearnedModel, gaze: np.ndarray, max_iter: int) -> np.nd
 
 def draw(suite: Suite, seed: int, index: int, path: np.ndarray) -> Variation:
     """Variation ``index`` of ``suite`` for ``seed``; ``path`` from :func:`path_points` (an
-    obstacle drawn for the path is placed off it when ``path`` is empty). An obstacle that would
-    touch the robot or the objects it holds at the start is drawn again, up to
-    ``_OBSTACLE_DRAWS`` times, then left out."""
+    obstacle drawn for the path is placed off it when ``path`` is empty). An obstacle closer than
+    the planner's margin to the robot or the objects it holds at the start (the reset's noise on
+    the joints can close a few millimetres) is drawn again, up to ``_OBSTACLE_DRAWS`` times,
+    then left out."""
     rng = np.random.default_rng([seed, index])
 
     def uniform(name: str) -> float:
@@ -128,7 +129,7 @@ def draw(suite: Suite, seed: int, index: int, path: np.ndarray) -> Variation:
                 obstacles=(obstacle,), bottle_grasp=bottle_grasp, glass_grasp=glass_grasp
             )
             try:
-                check_clearance(scene)
+                check_clearance(scene, clearance=PlanConfig().margin)
                 break
             except ImitateError:
                 obstacle, in_path = None, False
