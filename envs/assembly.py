@@ -172,7 +172,8 @@ def check_clearance(config: SceneConfig, clearance: float = 0.0) -> None:
                 raise ImitateError(
                     f"obstacle {obstacle.shape} at pos={obstacle.pos} size={obstacle.size} "
                     f"{where} at the start (rest pose, objects at their grasps): it must stand "
-                    f"{clearance * 1000:.0f} mm clear of the robot and the objects it holds"
+                    f"{f'{clearance * 1000:.0f} mm ' if clearance else ''}clear of the robot and "
+                    "the objects it holds"
                 )
 
 
