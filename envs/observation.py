@@ -9,8 +9,8 @@ camera rate. The cameras' parameters are plain arrays (:func:`camera_parameters`
 
 from __future__ import annotations
 
-import multiprocessing
-import signal
+import queue
+import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -44,13 +44,6 @@ class ObservationConfig:
             faster on a CPU (Mesa llvmpipe; the skybox alone is a third of a frame), and the
             tracker's colour masks are the same (it sees the objects and the teacher's skin,
             not the background); ``False`` renders as the scene is set.
-        render_workers: processes that render the pairs while the tracker works on earlier
-            ones (see :func:`frames`; the pairs are the same with any number); 0 renders them
-            in the calling process, the fastest on a 2-core CPU, where Mesa already rasterizes
-            on both cores and a worker's start-up (about a second) and the hand-over of the
-            frames cost more than the overlap with tracking gains
-            (``scripts/bench_observe.py``); more pay where rendering is cheap next to tracking
-            (a GPU) or cores are many.
     """
 
     teacher: teacher_motion.TeacherConfig = field(default_factory=teacher_motion.TeacherConfig)
@@ -59,7 +52,6 @@ class ObservationConfig:
     height: int = 480
     head_tilt: float = 0.08
     fast_render: bool = True
-    render_workers: int = 0
 
     def __post_init__(self):
         if not self.fps > 0:
@@ -67,10 +59,6 @@ class ObservationConfig:
         if not (isinstance(self.width, int) and isinstance(self.height, int)):
             raise ImitateError(
                 f"image size {self.width!r}x{self.height!r} not accepted: integers [px]"
-            )
-        if not (isinstance(self.render_workers, int) and self.render_workers >= 0):
-            raise ImitateError(
-                f"render_workers={self.render_workers!r} not accepted: an integer >= 0"
             )
 
 
@@ -146,7 +134,6 @@ class Session:
         model: the scene.
         data: its data (the robot's pose; objects and arms are set per frame).
         fast_render: shadows and reflections off (see :class:`ObservationConfig`).
-        render_workers: rendering processes of :func:`frames`.
     """
 
     motion: teacher_motion.TeacherMotion
@@ -157,7 +144,6 @@ class Session:
     model: mujoco.MjModel
     data: mujoco.MjData
     fast_render: bool = False
-    render_workers: int = 0
 
 
 def session(config: ObservationConfig = ObservationConfig()) -> Session:
@@ -172,37 +158,43 @@ def session(config: ObservationConfig = ObservationConfig()) -> Session:
         model.vis.quality.offsamples = 0  # read when the renderer's context is made
     return Session(
         motion, times, cameras, config.width, config.height, model, data, config.fast_render,
-        config.render_workers,
     )
 
 
 def frames(
-    sess: Session, timing: dict | None = None, workers: int | None = None
+    sess: Session, timing: dict | None = None, ahead: bool = True
 ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """Render the session's stereo pairs, one per frame time, in order.
 
-    With ``workers >= 1`` the pairs are rendered by that many worker processes (spawned, each
-    with its own OpenGL context, :data:`CHUNK` pairs at a time, round robin) while the caller
-    consumes the earlier ones, e.g. tracks them: the pairs are the same, bit for bit, as those
-    rendered here (``workers=0``), and they come in the same order.
+    With ``ahead`` a thread renders them, with its own OpenGL context, up to
+    :data:`RENDER_AHEAD` pairs ahead of the caller, which meanwhile consumes the earlier ones,
+    e.g. tracks them (MuJoCo's rendering, OpenCV and the tracker's kernels release the GIL):
+    the pairs are the same, bit for bit, as those rendered in the calling thread
+    (``ahead=False``), and they come in the same order.
 
     Args:
         sess: the session.
-        timing: if given, ``timing["render"]`` accumulates the rendering time [s] (with
-            workers: theirs, summed) and, with workers, ``timing["wait"]`` the time spent here
-            waiting for them (their start-up included) [s].
-        workers: rendering processes; ``None`` for the session's ``render_workers``.
+        timing: if given, ``timing["render"]`` accumulates the rendering time [s].
+        ahead: render in a thread, ahead of the caller.
 
     Yields:
         ``(left, right)`` RGB images ``(height, width, 3)`` uint8.
 
     Raises:
-        ImitateError: no OpenGL context, here or in a worker, or a worker that died.
+        ImitateError: no OpenGL context.
     """
-    workers = sess.render_workers if workers is None else int(workers)
-    if workers >= 1 and len(sess.times) > CHUNK:
-        yield from _frames_from_workers(sess, timing, workers)
-        return
+    pairs = _rendered_ahead(sess, timing) if ahead else _rendered(sess, timing)
+    for pair in pairs:
+        yield pair[0], pair[1]
+
+
+# Pairs rendered ahead of the caller at most: enough to smooth out uneven frames, little memory
+# (8 pairs of 640x480 are 15 MB).
+RENDER_AHEAD = 8
+
+
+def _rendered(sess: Session, timing: dict | None) -> Iterator[np.ndarray]:
+    """The session's pairs ``(2, height, width, 3)`` uint8, rendered in the calling thread."""
     eyes = _eye_renderer(sess)
     poses = sess.motion.poses(sess.times)
     try:
@@ -212,14 +204,45 @@ def frames(
             _render_pair(sess, eyes, poses, i, pair)
             if timing is not None:
                 timing["render"] = timing.get("render", 0.0) + time.perf_counter() - start
-            yield pair[0], pair[1]
+            yield pair
     finally:
         eyes[0].close()
 
 
-# Pairs a worker renders and sends at a time: small enough for a quick first chunk and little
-# memory in flight (2 chunks per worker), large enough to make the hand-over cheap.
-CHUNK = 8
+def _rendered_ahead(sess: Session, timing: dict | None) -> Iterator[np.ndarray]:
+    """:func:`_rendered` in a thread, handed over through a queue of :data:`RENDER_AHEAD`
+    pairs; the thread stops when the caller stops iterating, and its error is raised here."""
+    handed: queue.Queue = queue.Queue(RENDER_AHEAD)
+    stop = threading.Event()
+
+    def hand(item) -> bool:
+        while not stop.is_set():
+            try:
+                handed.put(item, timeout=0.1)
+                return True
+            except queue.Full:
+                pass
+        return False
+
+    def render() -> None:
+        try:
+            for pair in _rendered(sess, timing):
+                if not hand(pair):
+                    return
+            hand(None)
+        except BaseException as err:  # raised again in the caller's thread
+            hand(err)
+
+    thread = threading.Thread(target=render, name="imitate-render", daemon=True)
+    thread.start()
+    try:
+        while (item := handed.get()) is not None:
+            if isinstance(item, BaseException):
+                raise item
+            yield item
+    finally:
+        stop.set()
+        thread.join()
 
 
 def _eye_renderer(sess: Session) -> tuple[mujoco.Renderer, mujoco.MjvOption]:
@@ -243,77 +266,3 @@ def _render_pair(sess: Session, eyes, poses: dict, i: int, out: np.ndarray) -> N
     for k, eye in enumerate(EYES):
         renderer.update_scene(sess.data, camera=eye, scene_option=option)
         renderer.render(out=out[k])
-
-
-def _frames_from_workers(sess: Session, timing: dict | None, workers: int):
-    """:func:`frames` rendered by ``workers`` spawned processes, chunk ``c`` by worker
-    ``c % workers``, each sent through its own pipe as raw bytes."""
-    n = len(sess.times)
-    chunks = [(start, min(start + CHUNK, n)) for start in range(0, n, CHUNK)]
-    context = multiprocessing.get_context("spawn")  # no fork of a process with GL contexts
-    pipes, processes = [], []
-    try:
-        for w in range(workers):
-            receiver, sender = context.Pipe(duplex=False)
-            process = context.Process(
-                target=_render_worker,
-                args=(sender, sess, chunks[w::workers]),
-                name=f"imitate-render-{w}",
-                daemon=True,
-            )
-            process.start()
-            sender.close()  # the worker holds it: its exit ends the pipe (EOFError here)
-            pipes.append(receiver)
-            processes.append(process)
-        for c, (start, stop) in enumerate(chunks):
-            w = c % workers
-            begin = time.perf_counter()
-            try:
-                message = pipes[w].recv()
-                if message[0] == "error":
-                    raise ImitateError(f"render worker {w}: {message[1]}")
-                block = np.empty((stop - start, 2, sess.height, sess.width, 3), np.uint8)
-                pipes[w].recv_bytes_into(block.reshape(-1))
-            except (EOFError, OSError) as err:
-                processes[w].join(1.0)
-                raise ImitateError(
-                    f"render worker {w} stopped (exit code {processes[w].exitcode}) before "
-                    f"sending frames {start}..{stop - 1}"
-                ) from err
-            if timing is not None:
-                timing["wait"] = timing.get("wait", 0.0) + time.perf_counter() - begin
-                timing["render"] = timing.get("render", 0.0) + message[1]
-            for pair in block:
-                yield pair[0], pair[1]
-    finally:
-        for pipe in pipes:
-            pipe.close()
-        for process in processes:
-            if process.is_alive():
-                process.terminate()
-            process.join()
-
-
-def _render_worker(sender, sess: Session, chunks: list[tuple[int, int]]) -> None:
-    """A worker of :func:`_frames_from_workers`: renders ``chunks`` of ``sess`` in order and
-    sends each as ``("frames", seconds)`` and the raw pixels, or ``("error", message)``."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C: the parent stops the workers
-    try:
-        eyes = _eye_renderer(sess)
-    except ImitateError as err:
-        sender.send(("error", str(err)))
-        return
-    poses = sess.motion.poses(sess.times)  # all times, as in frames(): the same arithmetic
-    try:
-        for start, stop in chunks:
-            begin = time.perf_counter()
-            block = np.empty((stop - start, 2, sess.height, sess.width, 3), np.uint8)
-            for i in range(start, stop):
-                _render_pair(sess, eyes, poses, i, block[i - start])
-            sender.send(("frames", time.perf_counter() - begin))
-            sender.send_bytes(block.reshape(-1))
-    except (BrokenPipeError, EOFError):  # the parent stopped reading
-        pass
-    finally:
-        eyes[0].close()
-        sender.close()

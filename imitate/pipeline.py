@@ -11,9 +11,11 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import logging
+import os
 import re
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
@@ -186,24 +188,31 @@ def optimize(run_dir: Path, config: RunConfig) -> dict:
 def replay(run_dir: Path, config: RunConfig) -> dict:
     """The plan drives the robot's actuators in full physics, liquid and all; the pour again
     from ``POUR_REPLAYS - 1`` more seeds of the initial-state noise (it is chaotic). The plan of
-    the sweep's smallest collision weight (Fig. 8's top row) too, recorded under ``sweep0_``."""
+    the sweep's smallest collision weight (Fig. 8's top row) too, recorded under ``sweep0_``.
+
+    The replays are independent: they run in threads, one per core at most (MuJoCo's
+    ``mj_step`` releases the GIL), each in its own env, so their results are those of a serial
+    run."""
     arrays = load_npz(run_dir / "plan.npz", required=(*Plan.array_names(), "sweep_q", "sweep_x"))
     plan = Plan.from_arrays(arrays)
     gaze = load_npz(run_dir / "model.npz", required=("gaze",))["gaze"]
-    with tqdm(total=POUR_REPLAYS + 1, desc="replay", unit="replay", disable=_bars()) as bar:
-        result, states, state_dt = _physics(plan, config, gaze)
-        pours = [result.pour_fraction]
-        bar.update()
-        for k in range(1, POUR_REPLAYS):
-            pours.append(_physics(plan, config, gaze, seed=config.seed + k)[0].pour_fraction)
+    q_free = arrays["sweep_q"][0]
+    free = dataclasses.replace(
+        plan, q=q_free, q_start=q_free[0], approach_bend=np.zeros_like(q_free[0]),
+        x=arrays["sweep_x"][0],
+    )
+    jobs = [(plan, config.seed + k) for k in range(POUR_REPLAYS)] + [(free, config.seed)]
+    with (
+        ThreadPoolExecutor(min(len(jobs), os.cpu_count() or 1)) as pool,
+        tqdm(total=len(jobs), desc="replay", unit="replay", disable=_bars()) as bar,
+    ):
+        futures = [pool.submit(_physics, p, config, gaze, seed) for p, seed in jobs]
+        for _ in as_completed(futures):
             bar.update()
-        q_free = arrays["sweep_q"][0]
-        free = dataclasses.replace(
-            plan, q=q_free, q_start=q_free[0], approach_bend=np.zeros_like(q_free[0]),
-            x=arrays["sweep_x"][0],
-        )
-        _, free_states, _ = _physics(free, config, gaze)
-        bar.update()
+        outcomes = [future.result() for future in futures]
+    result, states, state_dt = outcomes[0]
+    pours = [outcome[0].pour_fraction for outcome in outcomes[:POUR_REPLAYS]]
+    free_states = outcomes[-1][1]
     save_npz(run_dir / "replay.npz", {
         **states, "task_error": result.task_error, "state_dt": state_dt,
         "pour_fraction": result.pour_fraction, "spilled": result.spilled,
@@ -224,7 +233,8 @@ def replay(run_dir: Path, config: RunConfig) -> dict:
 
 
 def figures(run_dir: Path, config: RunConfig) -> dict:
-    """The figures (``figures/*.png``) and the video: the teacher, then the robot pouring."""
+    """The figures (``figures/*.png``) and the video: the teacher, then the robot pouring; the
+    video in a thread while the figures are drawn (its rendering and encoding release the GIL)."""
     observations = load_observations(run_dir / "observations.npz")
     boundaries = load_npz(run_dir / "demos.npz", required=("boundaries",))["boundaries"]
     arrays = load_npz(run_dir / "model.npz", required=(
@@ -255,11 +265,14 @@ def figures(run_dir: Path, config: RunConfig) -> dict:
             {w: plan[f"sweep{i}_cost_total"] for i, w in enumerate(weights)}
         ),
     }
-    for name in tqdm(stages.FIGURES, desc="figures", unit="figure", disable=_bars()):
-        plots.save(drawings[name](), run_dir / "figures" / f"{name}.png")
-    n_frames = write_video(
-        run_dir / "video.mp4", _video_frames(config, states, observations), config.video_fps
-    )
+    with ThreadPoolExecutor(1) as pool:  # the video renders while the figures are drawn
+        video = pool.submit(
+            write_video, run_dir / "video.mp4", _video_frames(config, states, observations),
+            config.video_fps,
+        )
+        for name in tqdm(stages.FIGURES, desc="figures", unit="figure", disable=_bars()):
+            plots.save(drawings[name](), run_dir / "figures" / f"{name}.png")
+        n_frames = video.result()
     return {"video": {"frames": n_frames, "seconds": n_frames / config.video_fps}}
 
 
@@ -307,14 +320,14 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
 # --- Helpers -----------------------------------------------------------------------------------
 
 
-def _physics(plan: Plan, config: RunConfig, gaze: np.ndarray, seed: int | None = None):
-    """``plan`` replayed in a fresh ``PouringEnv`` from ``seed`` (the run's by default): the
-    result, the recorded states (:meth:`StateRecorder.arrays`) and their spacing [s]."""
+def _physics(plan: Plan, config: RunConfig, gaze: np.ndarray, seed: int):
+    """``plan`` replayed in a fresh ``PouringEnv`` from ``seed``: the result, the recorded
+    states (:meth:`StateRecorder.arrays`) and their spacing [s]."""
     env = PouringEnv(particles=config.particles, obstacles=config.scene().obstacles)
     recorder = StateRecorder(every=max(1, round(1.0 / (config.video_fps * env.dt))))
     options = {"bottle_grasp": config.bottle_grasp, "glass_grasp": config.glass_grasp}
     result = replay_plan(
-        plan, env, seed=config.seed if seed is None else seed, approach=APPROACH_S,
+        plan, env, seed=seed, approach=APPROACH_S,
         options=options, on_step=recorder, gaze=gaze,
     )
     env.close()

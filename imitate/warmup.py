@@ -75,7 +75,7 @@ def _tracker() -> None:
     start, end = sess.motion.boundaries[0]
     sess = dataclasses.replace(sess, times=sess.times[sess.times >= 0.5 * (start + end)][:1])
     tracker = StereoTracker(*cameras(sess), perception_config())
-    for left, right in frames(sess, workers=0):
+    for left, right in frames(sess, ahead=False):
         tracker.update(left, right)
 
 

@@ -2,6 +2,7 @@
 session against ground truth."""
 
 import dataclasses
+import threading
 
 import mujoco
 import numpy as np
@@ -103,26 +104,39 @@ def test_an_unknown_camera_is_refused_with_the_cameras_named():
         observation.camera_parameters(model, mujoco.MjData(model), "nose", 64, 48)
 
 
-def test_render_workers_give_the_same_pairs_in_order():
+def test_pairs_rendered_ahead_are_those_rendered_here_in_order():
     config = observation.ObservationConfig(
         teacher=TeacherConfig(n_demos=2, seed=1), width=160, height=120, fps=5
     )
     sess = observation.session(config)
-    sess = dataclasses.replace(sess, times=sess.times[: 2 * observation.CHUNK + 3])
-    here = list(observation.frames(sess, workers=0))
+    sess = dataclasses.replace(sess, times=sess.times[: 2 * observation.RENDER_AHEAD + 3])
+    here = list(observation.frames(sess, ahead=False))
     timing = {}
-    spawned = list(observation.frames(sess, timing, workers=2))
-    assert len(spawned) == len(here) == len(sess.times)
-    assert np.array_equal(np.array(here), np.array(spawned))
-    assert timing["render"] > 0 and timing["wait"] > 0
+    ahead = list(observation.frames(sess, timing))
+    assert len(ahead) == len(here) == len(sess.times)
+    assert np.array_equal(np.array(here), np.array(ahead))
+    assert timing["render"] > 0
+
+
+def test_the_render_thread_stops_with_its_caller_and_hands_on_its_error(monkeypatch):
+    config = observation.ObservationConfig(
+        teacher=TeacherConfig(n_demos=2, seed=1), width=64, height=48, fps=10
+    )
+    sess = observation.session(config)
+    pairs = observation.frames(sess)
+    next(pairs)
+    pairs.close()  # the caller stops early: the thread ends, its context closed
+    assert not [t for t in threading.enumerate() if t.name == "imitate-render"]
+
+    def no_context(_sess):
+        raise ImitateError("no OpenGL context")
+
+    monkeypatch.setattr(observation, "_eye_renderer", no_context)
+    with pytest.raises(ImitateError, match="no OpenGL context"):
+        next(observation.frames(sess))
 
 
 def test_the_eyes_render_without_what_the_tracker_does_not_need(rendered_session):
     sess, pairs = rendered_session
     corner = pairs[0][0][0, 0]  # the sky: black, not the skybox's grey
     assert sess.fast_render and not corner.any()
-
-
-def test_a_bad_number_of_render_workers_is_refused():
-    with pytest.raises(ImitateError, match=r"render_workers=-1 not accepted: an integer >= 0"):
-        observation.ObservationConfig(render_workers=-1)

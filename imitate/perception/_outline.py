@@ -13,7 +13,7 @@ from imitate import numba_cache
 numba_cache.ensure_writable()  # before the kernels below are declared
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _extremes(outline: np.ndarray, origin: np.ndarray, direction: np.ndarray) -> np.ndarray:
     """Sub-pixel extremes ``(2,)`` of the ``outline (n, 2)`` along the line ``origin (2,)``,
     ``direction (2,)`` [px, from ``origin``].
@@ -49,7 +49,7 @@ def _extremes(outline: np.ndarray, origin: np.ndarray, direction: np.ndarray) ->
 # implementations of those functions.
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _min_max(values: np.ndarray) -> tuple[float, float]:
     """``(values.min(), values.max())`` of finite ``values (n,)``, ``n >= 1``."""
     low = high = values[0]
@@ -61,7 +61,7 @@ def _min_max(values: np.ndarray) -> tuple[float, float]:
     return low, high
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _interp(x: float, xp: np.ndarray, fp: np.ndarray) -> float:
     """``np.interp(x, xp, fp)`` for a scalar ``x`` and increasing ``xp (m,)``: numba's (and
     NumPy's) arithmetic, edge cases included."""
@@ -88,7 +88,7 @@ def _interp(x: float, xp: np.ndarray, fp: np.ndarray) -> float:
     return value
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _fit_axis_line(
     outline, origin, direction, heights, radii, px_per_m, occluded, offset, end_zone, min_edges
 ):

@@ -25,7 +25,7 @@ _RIM_PHASES = np.linspace(0.0, 2 * np.pi, _RIM_POINTS, endpoint=False)
 _RIM_COS, _RIM_SIN = np.cos(_RIM_PHASES), np.sin(_RIM_PHASES)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _project(intrinsics, rotation, position, point) -> tuple[float, float]:
     """Pixel ``(col, row)`` of world ``point (3,)`` [m]; as ``PinholeCamera.project``."""
     rel = np.empty(3)
@@ -36,7 +36,7 @@ def _project(intrinsics, rotation, position, point) -> tuple[float, float]:
     return pix[0] / pix[2], pix[1] / pix[2]
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _triangulate_pair(intrinsics, rotations, positions, pl, pr) -> np.ndarray:
     """World point ``(3,)`` [m] of pixels ``pl (2,)`` (camera 0) and ``pr (2,)`` (camera 1);
     as ``camera.triangulate``, with cameras given as in :func:`_correct_ends`."""
@@ -61,7 +61,7 @@ def _triangulate_pair(intrinsics, rotations, positions, pl, pr) -> np.ndarray:
     return point
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _rim_fit(ends, radii, intrinsics, rotations, positions, origins, directions, extents):
     """How the rims of ``ends`` appear in the two views, against the views' measurements.
 
@@ -128,7 +128,7 @@ def _rim_fit(ends, radii, intrinsics, rotations, positions, origins, directions,
     return shifted, misfit if misfit < np.inf else np.inf  # NaN: a degenerate axis
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _refine(
     ends, radii, intrinsics, rotations, positions, origins, directions, extents, iterations
 ):
@@ -160,7 +160,7 @@ def _refine(
     return ends, _rim_fit(ends, *args)[1]
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _correct_ends(
     raw, eyes, radii, intrinsics, rotations, positions, origins, directions, extents, iterations
 ):
