@@ -118,19 +118,30 @@ def test_attractor_trajectory_is_exact_and_linear():
     np.testing.assert_allclose(fit, a, atol=1e-8)
 
 
-def _check_gradient(problem, terms):
+def _differences(problem) -> dict[str | None, np.ndarray]:
+    """Central finite differences of every weighted cost term (and of the total, key ``None``)
+    by each variable, from one sweep of rollouts (each gives every term's value)."""
     p, a = problem
-    _, _, grad = p.evaluate(a, terms)
     scale = np.concatenate([_TOLERANCE, np.full(a.shape[1] - len(_TOLERANCE), _PUSH_SCALE)])
     h = scale * 1e-3
-    fd = np.zeros_like(a)
+    fd = {name: np.zeros_like(a) for name in (*p.terms, None)}
     for i in range(a.shape[0]):
         for j in range(a.shape[1]):
             e = np.zeros_like(a)
             e[i, j] = h[j]
-            up = p.evaluate(a + e, terms, gradient=False)[0]
-            down = p.evaluate(a - e, terms, gradient=False)[0]
-            fd[i, j] = (up - down) / (2 * h[j])
+            up, up_terms, _ = p.evaluate(a + e, gradient=False)
+            down, down_terms, _ = p.evaluate(a - e, gradient=False)
+            fd[None][i, j] = (up - down) / (2 * h[j])
+            for name in p.terms:
+                fd[name][i, j] = (up_terms[name] - down_terms[name]) / (2 * h[j])
+    return fd
+
+
+def _check_gradient(problem, fd: dict[str | None, np.ndarray], term: str | None = None):
+    """The analytic gradient of ``term`` (the total for ``None``) against its differences."""
+    p, a = problem
+    grad = p.evaluate(a, None if term is None else (term,))[2]
+    fd = fd[term]
     cosine = np.sum(grad * fd) / (np.linalg.norm(grad) * np.linalg.norm(fd))
     relative = np.linalg.norm(grad - fd) / np.linalg.norm(fd)
     # Exact: measured relative error 1e-9 for the terms without distances. The collision term
@@ -141,11 +152,16 @@ def _check_gradient(problem, terms):
     assert cosine >= 1 - 1e-7 and relative <= 1e-3, (cosine, relative)
 
 
+@pytest.fixture(scope="module")
+def differences(problem):
+    return _differences(problem)
+
+
 @pytest.mark.parametrize(
     "term", ["similarity", "collision", "joint_limits", "path_length", "joint_acceleration"]
 )
-def test_term_gradient_through_rollout(problem, term):
-    _check_gradient(problem, (term,))
+def test_term_gradient_through_rollout(problem, differences, term):
+    _check_gradient(problem, differences, term)
 
 
 def test_collision_gradient_covers_samples_along_long_steps(problem):
@@ -158,8 +174,8 @@ def test_collision_gradient_covers_samples_along_long_steps(problem):
     assert any(along[t] > 1 for t in near)
 
 
-def test_total_gradient_through_rollout(problem):
-    _check_gradient(problem, None)
+def test_total_gradient_through_rollout(problem, differences):
+    _check_gradient(problem, differences)
 
 
 def test_gradient_through_joints_clipped_to_their_ranges(task, learned):
@@ -167,14 +183,17 @@ def test_gradient_through_joints_clipped_to_their_ranges(task, learned):
     swing: clipped steps pass nothing back."""
     p, a = _problem(task, learned, ControlConfig(nullspace_gain=0.0))
     assert p.rollout(a)[1].clipped > 0
-    _check_gradient((p, a), ("joint_limits", "path_length"))
+    fd = _differences((p, a))
+    for term in ("joint_limits", "path_length"):
+        _check_gradient((p, a), fd, term)
 
 
 def test_gradient_with_the_nullspace_push(problem):
     """The variables extended by a push per attractor: the push's gradient is exact too."""
     p, a = problem
     push = np.random.default_rng(1).normal(size=(len(a), p.task.kin.n)) * _PUSH_SCALE
-    _check_gradient((p, np.hstack([a, push])), None)
+    extended = (p, np.hstack([a, push]))
+    _check_gradient(extended, _differences(extended))
 
 
 def test_nullspace_push_clears_an_obstacle_the_attractors_cannot(task, learned):
