@@ -233,8 +233,7 @@ def replay(run_dir: Path, config: RunConfig) -> dict:
 
 
 def figures(run_dir: Path, config: RunConfig) -> dict:
-    """The figures (``figures/*.png``) and the video: the teacher, then the robot pouring; the
-    video in a thread while the figures are drawn (its rendering and encoding release the GIL)."""
+    """The figures (``figures/*.png``) and the video: the teacher, then the robot pouring."""
     observations = load_observations(run_dir / "observations.npz")
     boundaries = load_npz(run_dir / "demos.npz", required=("boundaries",))["boundaries"]
     arrays = load_npz(run_dir / "model.npz", required=(
@@ -265,14 +264,11 @@ def figures(run_dir: Path, config: RunConfig) -> dict:
             {w: plan[f"sweep{i}_cost_total"] for i, w in enumerate(weights)}
         ),
     }
-    with ThreadPoolExecutor(1) as pool:  # the video renders while the figures are drawn
-        video = pool.submit(
-            write_video, run_dir / "video.mp4", _video_frames(config, states, observations),
-            config.video_fps,
-        )
-        for name in tqdm(stages.FIGURES, desc="figures", unit="figure", disable=_bars()):
-            plots.save(drawings[name](), run_dir / "figures" / f"{name}.png")
-        n_frames = video.result()
+    for name in tqdm(stages.FIGURES, desc="figures", unit="figure", disable=_bars()):
+        plots.save(drawings[name](), run_dir / "figures" / f"{name}.png")
+    n_frames = write_video(
+        run_dir / "video.mp4", _video_frames(config, states, observations), config.video_fps
+    )
     return {"video": {"frames": n_frames, "seconds": n_frames / config.video_fps}}
 
 

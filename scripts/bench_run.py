@@ -12,8 +12,8 @@ directory (cold: numba compiles every kernel the run calls), then with the same 
   the kernel's module;
 - the observation stage's own ``timing`` (rendering, tracking, ...);
 - the planner (``plan_from_model``), the physics replays (in threads: their times summed), the
-  video (``write_video``, which renders its frames as it encodes them, in a thread while the
-  figures are drawn) and the figures' snapshot rendering.
+  video (``write_video``, which renders its frames as it encodes them) and the figures'
+  snapshot rendering.
 
 It prints per stage the wall time, its processor time (the child's threads and the processes
 it waited for, as the video encoder: less sensitive than the wall time to a shared machine),
@@ -129,9 +129,9 @@ def child(out: Path, argv: list[str], result: Path) -> int:
     pipeline.watch = observed(pipeline.watch)
     timers.wrap(pipeline, "plan_from_model", "planner (plan_from_model)")
     timers.wrap(pipeline, "replay_plan", "physics replays (summed over their threads)")
-    timers.wrap(pipeline, "write_video", "video (frames + encoding; beside the figures)")
+    timers.wrap(pipeline, "write_video", "video (frames + encoding)")
     timers.wrap(pipeline, "_snapshots", "fig8 snapshot rendering")
-    timers.wrap(video, "write_video", "video (frames + encoding; beside the figures)")
+    timers.wrap(video, "write_video", "video (frames + encoding)")
 
     original_run_stage = pipeline.run_stage
 
