@@ -22,6 +22,7 @@ _LOG_2PI = np.log(2.0 * np.pi)
 # samples they add less than N * 2e-22 to a soft count (below round-off for any component that
 # holds a hundredth of a sample), and skipping them lets most components go unevaluated.
 _LOG_FLUSH = -50.0
+_BLOCK = 128  # samples per block: the scratch arrays stay in the L1 cache
 
 
 @numba.njit(cache=True)
@@ -116,10 +117,35 @@ def _accumulate_moments(
 
 
 @numba.njit(cache=True)
+def _block_log_density(
+    xt: np.ndarray, start: int, stop: int, mean: np.ndarray, prec_chol: np.ndarray,
+    log_coef: float, row: np.ndarray, diff: np.ndarray, partial: np.ndarray,
+) -> None:
+    """``row[i] = log pi N(x_i; mu, Sigma)`` for one component and one block of samples: its
+    ``D (D + 3) / 2`` multiply-adds per sample in loops over the samples (vectorised)."""
+    size = stop - start
+    _block_differences(xt, start, stop, mean, diff)
+    for i in range(size):
+        row[i] = log_coef
+    for j in range(mean.shape[0]):  # partial = (U^T d_i)_j, one pass per term, the first storing
+        u = prec_chol[0, j]
+        diff_e = diff[0]
+        for i in range(size):
+            partial[i] = 0.0 + u * diff_e[i]
+        for e in range(1, j + 1):
+            u = prec_chol[e, j]
+            diff_e = diff[e]
+            for i in range(size):
+                partial[i] += u * diff_e[i]
+        for i in range(size):
+            row[i] -= 0.5 * partial[i] * partial[i]
+
+
+@numba.njit(cache=True)
 def _block_log_densities(
     xt: np.ndarray, start: int, stop: int, means: np.ndarray, prec_chol: np.ndarray,
     log_coef: np.ndarray, threshold: float, terms: np.ndarray, diff: np.ndarray,
-    partial: np.ndarray, tops: np.ndarray,
+    partial: np.ndarray, tops: np.ndarray, kept: np.ndarray, valid: np.ndarray,
 ) -> None:
     """Weighted log-densities ``log pi_k N(x_i; mu_k, Sigma_k)`` of one block of samples.
 
@@ -129,8 +155,7 @@ def _block_log_densities(
     from the largest resulting upper bound down; once a component's bound is more than
     ``-threshold`` below the smallest best-so-far term of the block, it and all following ones
     are left out (``-inf``): their responsibilities would be below ``exp(threshold)``. Each
-    evaluated component costs ``D (D + 3) / 2`` multiply-adds per sample, in loops over the
-    samples (vectorised).
+    evaluated component costs :func:`_block_log_density` (or a copy, see ``kept``).
 
     Args:
         xt: Sorted samples, transposed, shape ``(D, N)``.
@@ -140,8 +165,13 @@ def _block_log_densities(
         terms: Output, shape ``(K, >= stop - start)``.
         diff, partial: Scratch, shapes ``(D, B)`` and ``(B,)`` with ``B >= stop - start``.
         tops: Output, shape ``(B,)``: each sample's largest term.
+        kept, valid: Log-densities kept across calls, shapes ``(K, N)`` and ``(K, N / B)``
+            (rounded up): a component's row of this block is copied from ``kept`` where
+            ``valid``, else computed and kept; shapes ``(0, 0)`` keep nothing.
     """
     n_components, d = means.shape
+    block = start // _BLOCK
+    keep = valid.shape[0] > 0
     size = stop - start
     lo, hi = xt[0, start], xt[0, stop - 1]
     bounds = np.empty(n_components)
@@ -160,22 +190,17 @@ def _block_log_densities(
             for rest in range(rank, n_components):
                 terms[order[rest], :size] = -np.inf
             return
-        _block_differences(xt, start, stop, means[k], diff)
         row = terms[k]
-        for i in range(size):
-            row[i] = log_coef[k]
-        for j in range(d):  # partial = (U_k^T d_i)_j, one pass per term, the first one storing
-            u = prec_chol[k, 0, j]
-            diff_e = diff[0]
+        if keep and valid[k, block]:
             for i in range(size):
-                partial[i] = 0.0 + u * diff_e[i]
-            for e in range(1, j + 1):
-                u = prec_chol[k, e, j]
-                diff_e = diff[e]
+                row[i] = kept[k, start + i]
+        else:
+            _block_log_density(xt, start, stop, means[k], prec_chol[k], log_coef[k], row,
+                               diff, partial)
+            if keep:
                 for i in range(size):
-                    partial[i] += u * diff_e[i]
-            for i in range(size):
-                row[i] -= 0.5 * partial[i] * partial[i]
+                    kept[k, start + i] = row[i]
+                valid[k, block] = True
         floor = np.inf
         for i in range(size):
             tops[i] = max(tops[i], row[i])
@@ -203,13 +228,11 @@ def _block_log_norm(
         tops[i] += math.log(sums[i])
 
 
-_BLOCK = 128  # samples per block: the scratch arrays stay in the L1 cache
-
 
 @numba.njit(cache=True)
 def _e_step(
     xt: np.ndarray, means: np.ndarray, prec_chol: np.ndarray, log_coef: np.ndarray,
-    threshold: float, resp: np.ndarray,
+    threshold: float, resp: np.ndarray, kept: np.ndarray, valid: np.ndarray,
 ) -> np.ndarray:
     """Per-sample log-likelihood ``log p(x_i)`` (eq. 3), shape ``(N,)``, of sorted samples.
 
@@ -219,6 +242,7 @@ def _e_step(
         threshold: Terms below ``exp(threshold)`` of a sample's largest are dropped (< 0).
         resp: Output, shape ``(N, K)``, or ``(0, K)`` to skip it: responsibilities ``p(k | x_i)``
             (eq. 8), exactly 0 where below ``exp(threshold)``.
+        kept, valid: Log-densities kept across calls, see :func:`_block_log_densities`.
     """
     d, n = xt.shape
     n_components = means.shape[0]
@@ -230,7 +254,7 @@ def _e_step(
     for start in range(0, n, _BLOCK):
         stop = min(start + _BLOCK, n)
         _block_log_densities(xt, start, stop, means, prec_chol, log_coef, threshold, terms,
-                             diff, partial, tops)
+                             diff, partial, tops, kept, valid)
         _block_log_norm(terms, tops, stop - start, threshold, partial)
         for i in range(stop - start):
             log_norm[start + i] = tops[i]
@@ -272,6 +296,7 @@ def _em_loop(
     partial = np.empty(_BLOCK)
     tops = np.empty(_BLOCK)
     resp = np.empty(_BLOCK)
+    nothing, nothing_valid = np.empty((0, 0)), np.empty((0, 0), dtype=np.bool_)  # keeps none
     lower_bound = -np.inf
     n_iter = 0
     while n_iter < max_iter:
@@ -284,7 +309,7 @@ def _em_loop(
         for start in range(0, n, _BLOCK):
             stop = min(start + _BLOCK, n)
             _block_log_densities(xt, start, stop, means, prec_chol, log_coef, _LOG_FLUSH,
-                                 terms, diff, partial, tops)
+                                 terms, diff, partial, tops, nothing, nothing_valid)
             size = stop - start
             _block_log_norm(terms, tops, size, _LOG_FLUSH, partial)  # log p(x_i), in tops
             for i in range(size):

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from imitate import numba_cache
-from imitate._em import _e_step, _factor, _sorted_transposed
+from imitate._em import _BLOCK, _e_step, _factor, _sorted_transposed
 from imitate._validation import check_n_components, check_samples
 from imitate.errors import ImitateError
 from imitate.gmm import GMM, _bic, _not_positive_definite
@@ -39,26 +39,45 @@ _LOG_NEGLIGIBLE = -38.0
 
 
 @numba.njit(cache=True)
-def _cluster_log_likelihood(
-    x: np.ndarray, xt: np.ndarray, labels: np.ndarray, k: int, reg_covar: float
-) -> float:
-    """``sum_i log p(x_i)`` (eq. 3) of the mixture taken from hard clusters (the fast BIC).
+def _cluster_log_likelihoods(
+    x: np.ndarray, xt: np.ndarray, labels: np.ndarray, reg_covar: float
+) -> np.ndarray:
+    """``sum_i log p(x_i)`` (eq. 3) of the mixtures taken from hard clusters (the fast BIC), one
+    per clustering ``labels[K - 1]`` of a K-means chain, shape ``(k_max,)``; ``nan`` from the
+    first ``K`` with a singular covariance on.
 
-    Terms below ``exp(-38)`` of a sample's largest term are left out: added to a sum of at least 1
+    Terms below ``exp(-38)`` of a sample's largest are left out: added to a sum of at least 1
     they are below half a unit in the last place. ``x`` (N, D) are the samples, ``xt`` the same
-    sorted and transposed (see :func:`imitate.gmm._e_step`). Returns ``nan`` if a covariance is
-    singular.
+    sorted and transposed (see :func:`imitate._em._e_step`). A chain's ``K``-th clustering keeps
+    the index of each earlier cluster, and a cluster whose samples did not change has the same
+    component: where its weight, mean and factor are those of ``K - 1`` bit for bit, its
+    log-densities computed then are kept, not computed again.
     """
-    weights, means, cov = _cluster_parameters(x, labels, k, reg_covar)
-    prec_chol = np.zeros_like(cov)
-    log_coef = np.empty(k)
-    if not _factor(weights, cov, prec_chol, log_coef):
-        return np.nan
-    log_norm = _e_step(xt, means, prec_chol, log_coef, _LOG_NEGLIGIBLE, np.empty((0, k)))
-    total = 0.0
-    for value in log_norm:  # the order of ndarray.sum in numba: no reduction to compile
-        total += value
-    return total
+    k_max, n = labels.shape
+    d = x.shape[1]
+    kept = np.empty((k_max, n))
+    valid = np.zeros((k_max, -(-n // _BLOCK)), dtype=np.bool_)
+    kept_component = np.full((k_max, 1 + d + d * d), np.nan)  # log_coef, mean, factor
+    totals = np.full(k_max, np.nan)
+    for k in range(1, k_max + 1):
+        weights, means, cov = _cluster_parameters(x, labels[k - 1], k, reg_covar)
+        prec_chol = np.zeros_like(cov)
+        log_coef = np.empty(k)
+        if not _factor(weights, cov, prec_chol, log_coef):
+            return totals
+        for c in range(k):
+            component = np.concatenate((log_coef[c : c + 1], means[c], prec_chol[c].ravel()))
+            if not np.array_equal(component, kept_component[c]):
+                valid[c, :] = False
+                kept_component[c] = component
+        log_norm = _e_step(
+            xt, means, prec_chol, log_coef, _LOG_NEGLIGIBLE, np.empty((0, k)), kept, valid
+        )
+        total = 0.0
+        for value in log_norm:  # the order of ndarray.sum in numba: no reduction to compile
+            total += value
+        totals[k - 1] = total
+    return totals
 
 
 @dataclass(frozen=True)
@@ -132,17 +151,24 @@ def bic_sweep(
         labels = _kmeans_sweep(X, k_max, _FAST_CHAINS, seed, tol=_FAST_TOL).labels
     else:
         labels = _kmeans_sweep(X, k_max, n_init, seed).labels
-    xt = _sorted_transposed(X)[0]
-    curve = np.empty(k_max)
-    for k in range(1, k_max + 1):
-        if method == "fast":
-            log_likelihood = _cluster_log_likelihood(X, xt, labels[k - 1], k, reg_covar)
-            if np.isnan(log_likelihood):
-                raise _not_positive_definite()
-        else:
-            model = GMM(k, reg_covar=reg_covar, tol=tol, max_iter=max_iter).fit_from(
-                X, *kmeans_parameters(X, labels[k - 1], k, reg_covar)
+    if method == "fast":
+        log_likelihoods = _cluster_log_likelihoods(
+            X, _sorted_transposed(X)[0], labels, reg_covar
+        )
+        if np.isnan(log_likelihoods).any():
+            raise _not_positive_definite()
+    else:
+        log_likelihoods = [
+            float(
+                GMM(k, reg_covar=reg_covar, tol=tol, max_iter=max_iter)
+                .fit_from(X, *kmeans_parameters(X, labels[k - 1], k, reg_covar))
+                .score_samples(X)
+                .sum()
             )
-            log_likelihood = float(model.score_samples(X).sum())
-        curve[k - 1] = _bic(log_likelihood, k, n_dims, n_samples)
+            for k in range(1, k_max + 1)
+        ]
+    curve = np.array([
+        _bic(log_likelihood, k, n_dims, n_samples)
+        for k, log_likelihood in enumerate(log_likelihoods, start=1)
+    ])
     return BicSweep(k=int(np.argmin(curve)) + 1, curve=curve, labels=labels)

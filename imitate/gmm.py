@@ -225,7 +225,10 @@ class GMM:
         """``log p(x_i)`` (N,) and responsibilities (N, K) (or (0, K)) in the order of ``X``."""
         xt, order = _sorted_transposed(self._check_fitted(X))
         resp = np.empty((xt.shape[1] if with_resp else 0, self.n_components))
-        log_norm = _e_step(xt, self.means_, self._prec_chol, self._log_coef, _LOG_FLUSH, resp)
+        log_norm = _e_step(
+            xt, self.means_, self._prec_chol, self._log_coef, _LOG_FLUSH, resp,
+            np.empty((0, 0)), np.empty((0, 0), dtype=bool),
+        )
         log_norm[order] = log_norm.copy()
         if with_resp:
             resp[order] = resp.copy()

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from imitate.bic import bic_sweep
+from imitate._em import _e_step, _factor, _sorted_transposed
+from imitate.bic import _LOG_NEGLIGIBLE, bic_sweep
 from imitate.errors import ImitateError
-from imitate.gmm import GMM
+from imitate.gmm import GMM, _bic
 from imitate.kmeans import kmeans_parameters
 
 
@@ -23,6 +24,28 @@ def test_fast_bic_is_the_bic_of_its_kmeans_clusters_and_above_full(demo_data):
     # EM from converged K-means starts fits better than the fast heuristic's clusters (the
     # paper's Fig. 5: the fast curve lies above).
     assert np.all(full <= fast.curve + 1e-6 * np.abs(fast.curve))
+
+
+def test_fast_bic_keeping_unchanged_clusters_densities_is_exact():
+    """The fast sweep keeps the log-densities of clusters that did not change from one K to the
+    next; its curve equals, bit for bit, the mixtures' likelihoods computed afresh for every K
+    (on random walks about half of the clusters carry over)."""
+    rng = np.random.default_rng(3)
+    walks = np.cumsum(rng.normal(size=(3, 400, 4)), axis=1).reshape(-1, 4)
+    X = np.column_stack([np.tile(np.linspace(0.0, 4.0, 400), 3), walks])
+    sweep = bic_sweep(X, 20, "fast")
+    xt = _sorted_transposed(X)[0]
+    nothing = np.empty((0, 0)), np.empty((0, 0), dtype=bool)
+    for k in range(1, 21):
+        weights, means, cov = kmeans_parameters(X, sweep.labels[k - 1], k)
+        prec_chol, log_coef = np.zeros_like(cov), np.empty(k)
+        assert _factor(weights, cov, prec_chol, log_coef)
+        fresh = _e_step(xt, means, prec_chol, log_coef, _LOG_NEGLIGIBLE, np.empty((0, k)),
+                        *nothing)
+        total = 0.0
+        for value in fresh:  # in order, as the sweep sums
+            total += value
+        assert sweep.curve[k - 1] == _bic(total, k, X.shape[1], X.shape[0])
 
 
 def test_bic_sweep_keeps_the_em_start_of_every_k(demo_data):
