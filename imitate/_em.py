@@ -228,7 +228,6 @@ def _block_log_norm(
         tops[i] += math.log(sums[i])
 
 
-
 @numba.njit(cache=True)
 def _e_step(
     xt: np.ndarray, means: np.ndarray, prec_chol: np.ndarray, log_coef: np.ndarray,
