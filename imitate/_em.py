@@ -117,31 +117,6 @@ def _accumulate_moments(
 
 
 @numba.njit(cache=True)
-def _block_log_density(
-    xt: np.ndarray, start: int, stop: int, mean: np.ndarray, prec_chol: np.ndarray,
-    log_coef: float, row: np.ndarray, diff: np.ndarray, partial: np.ndarray,
-) -> None:
-    """``row[i] = log pi N(x_i; mu, Sigma)`` for one component and one block of samples: its
-    ``D (D + 3) / 2`` multiply-adds per sample in loops over the samples (vectorised)."""
-    size = stop - start
-    _block_differences(xt, start, stop, mean, diff)
-    for i in range(size):
-        row[i] = log_coef
-    for j in range(mean.shape[0]):  # partial = (U^T d_i)_j, one pass per term, the first storing
-        u = prec_chol[0, j]
-        diff_e = diff[0]
-        for i in range(size):
-            partial[i] = 0.0 + u * diff_e[i]
-        for e in range(1, j + 1):
-            u = prec_chol[e, j]
-            diff_e = diff[e]
-            for i in range(size):
-                partial[i] += u * diff_e[i]
-        for i in range(size):
-            row[i] -= 0.5 * partial[i] * partial[i]
-
-
-@numba.njit(cache=True)
 def _block_log_densities(
     xt: np.ndarray, start: int, stop: int, means: np.ndarray, prec_chol: np.ndarray,
     log_coef: np.ndarray, threshold: float, terms: np.ndarray, diff: np.ndarray,
@@ -155,7 +130,8 @@ def _block_log_densities(
     from the largest resulting upper bound down; once a component's bound is more than
     ``-threshold`` below the smallest best-so-far term of the block, it and all following ones
     are left out (``-inf``): their responsibilities would be below ``exp(threshold)``. Each
-    evaluated component costs :func:`_block_log_density` (or a copy, see ``kept``).
+    evaluated component costs ``D (D + 3) / 2`` multiply-adds per sample, in loops over the
+    samples (vectorised), or a copy (see ``kept``).
 
     Args:
         xt: Sorted samples, transposed, shape ``(D, N)``.
@@ -195,8 +171,21 @@ def _block_log_densities(
             for i in range(size):
                 row[i] = kept[k, start + i]
         else:
-            _block_log_density(xt, start, stop, means[k], prec_chol[k], log_coef[k], row,
-                               diff, partial)
+            _block_differences(xt, start, stop, means[k], diff)
+            for i in range(size):
+                row[i] = log_coef[k]
+            for j in range(d):  # partial = (U_k^T d_i)_j, one pass per term, the first storing
+                u = prec_chol[k, 0, j]
+                diff_e = diff[0]
+                for i in range(size):
+                    partial[i] = 0.0 + u * diff_e[i]
+                for e in range(1, j + 1):
+                    u = prec_chol[k, e, j]
+                    diff_e = diff[e]
+                    for i in range(size):
+                        partial[i] += u * diff_e[i]
+                for i in range(size):
+                    row[i] -= 0.5 * partial[i] * partial[i]
             if keep:
                 for i in range(size):
                     kept[k, start + i] = row[i]

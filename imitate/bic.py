@@ -57,7 +57,9 @@ def _cluster_log_likelihoods(
     d = x.shape[1]
     kept = np.empty((k_max, n))
     valid = np.zeros((k_max, -(-n // _BLOCK)), dtype=np.bool_)
-    kept_component = np.full((k_max, 1 + d + d * d), np.nan)  # log_coef, mean, factor
+    kept_coef = np.full(k_max, np.nan)  # each cluster's component when its rows were kept
+    kept_means = np.empty((k_max, d))
+    kept_chol = np.empty((k_max, d, d))
     totals = np.full(k_max, np.nan)
     for k in range(1, k_max + 1):
         weights, means, cov = _cluster_parameters(x, labels[k - 1], k, reg_covar)
@@ -65,11 +67,20 @@ def _cluster_log_likelihoods(
         log_coef = np.empty(k)
         if not _factor(weights, cov, prec_chol, log_coef):
             return totals
-        for c in range(k):
-            component = np.concatenate((log_coef[c : c + 1], means[c], prec_chol[c].ravel()))
-            if not np.array_equal(component, kept_component[c]):
-                valid[c, :] = False
-                kept_component[c] = component
+        for c in range(k):  # element loops: no compiled shape checks (see kmeans._copy_row)
+            same = log_coef[c] == kept_coef[c]  # False for a new cluster (nan)
+            for e in range(d):
+                same = same and means[c, e] == kept_means[c, e]
+                for f in range(d):
+                    same = same and prec_chol[c, e, f] == kept_chol[c, e, f]
+            if not same:
+                for block in range(valid.shape[1]):
+                    valid[c, block] = False
+                kept_coef[c] = log_coef[c]
+                for e in range(d):
+                    kept_means[c, e] = means[c, e]
+                    for f in range(d):
+                        kept_chol[c, e, f] = prec_chol[c, e, f]
         log_norm = _e_step(
             xt, means, prec_chol, log_coef, _LOG_NEGLIGIBLE, np.empty((0, k)), kept, valid
         )
