@@ -168,7 +168,8 @@ def _rmr_step(J, x, target, q, winv, damping, gain, low, high, scale, push, lowe
     ``x (m,)`` at ``q`` towards ``target (m,)``; writes ``pinv (n, m)`` ``J^#``, ``solved (m,)``
     ``(J W^-1 J^T + lambda I)^-1 (target - x + gain J W^-1 g)``, ``nullspace_grad (n,)``
     ``g = dH/dq - push``, ``unclipped (n,)`` and ``q_next (n,)``: the step is
-    ``W^-1 J^T solved - gain W^-1 g``.
+    ``W^-1 J^T solved - gain W^-1 g``. Returns the step's largest joint change
+    ``max |q_next - q|`` [rad].
 
     ``damping`` > 0 and ``winv >= 0`` make the system positive definite: it is solved by
     Cholesky. ``low``, ``high``, ``scale`` are the joint-limit cost's borders and scales,
@@ -212,12 +213,15 @@ def _rmr_step(J, x, target, q, winv, damping, gain, low, high, scale, push, lowe
         solved[i] = sol[i, n] + gain * total
         for j in range(n):
             pinv[j, i] = sol[i, j]
+    largest = 0.0
     for j in range(n):
         total = 0.0
         for i in range(m):
             total += JW[i, j] * solved[i]
         unclipped[j] = q[j] + total - gain * winv[j] * nullspace_grad[j]
         q_next[j] = min(max(unclipped[j], lower[j]), upper[j])
+        largest = max(largest, abs(q_next[j] - q[j]))
+    return largest
 
 
 @numba.njit(cache=True)
@@ -283,20 +287,23 @@ def _segment_distance(p, u, h, q, v, k) -> float:
 
 
 @numba.njit(cache=True)
-def _near_pairs(geom_xpos, geom_xmat, geom1, geom2, column, half, radius, distmax, out) -> int:
-    """The pairs ``(geom1[p], geom2[p])`` whose enclosing capsules are closer than ``distmax``:
-    their indices ``p`` in ``out[:count]``, ascending; returns ``count``.
+def _near_pairs(geom_xpos, geom_xmat, geom1, geom2, columns, sizes, distmax, out) -> int:
+    """The pairs ``(geom1[p], geom2[p])`` whose enclosing capsules and slabs are closer than
+    ``distmax``: their indices ``p`` in ``out[:count]``, ascending; returns ``count``.
 
-    Each geom lies inside a capsule: the segment of ``half[g]`` on either side of its centre
-    along its frame's axis ``column[g]``, grown by ``radius[g]`` (``inf`` for an unbounded
-    geom). The distance of two capsules is a lower bound of their geoms' distance.
+    Each geom ``g`` lies inside a capsule: the segment of ``sizes[g, 0]`` on either side of its
+    centre along its frame's axis ``columns[g, 0]``, grown by ``sizes[g, 1]`` (``inf`` for an
+    unbounded geom); and, if ``columns[g, 1] >= 0``, inside the slab of half-thickness
+    ``sizes[g, 2]`` across that axis. The distance of two capsules, and the gap between one's
+    slab and the other's capsule projected on the slab's normal, are lower bounds of the geoms'
+    distance.
     """
     count = 0
     u = np.empty(3)
     v = np.empty(3)
     for p in range(geom1.shape[0]):
         g, h = geom1[p], geom2[p]
-        reach = radius[g] + radius[h] + distmax
+        reach = sizes[g, 1] + sizes[h, 1] + distmax
         if not reach < np.inf:
             out[count] = p
             count += 1
@@ -306,15 +313,98 @@ def _near_pairs(geom_xpos, geom_xmat, geom1, geom2, column, half, radius, distma
         for i in range(3):
             delta = geom_xpos[g, i] - geom_xpos[h, i]
             gap += delta * delta
-        if math.sqrt(gap) >= reach + half[g] + half[h]:
+        if math.sqrt(gap) >= reach + sizes[g, 0] + sizes[h, 0]:
             continue
         for i in range(3):
-            u[i] = geom_xmat[g, 3 * i + column[g]]
-            v[i] = geom_xmat[h, 3 * i + column[h]]
-        if _segment_distance(geom_xpos[g], u, half[g], geom_xpos[h], v, half[h]) < reach:
+            u[i] = geom_xmat[g, 3 * i + columns[g, 0]]
+            v[i] = geom_xmat[h, 3 * i + columns[h, 0]]
+        if _slab_gap(geom_xpos, geom_xmat, g, h, v, columns, sizes) >= distmax:
+            continue
+        if _slab_gap(geom_xpos, geom_xmat, h, g, u, columns, sizes) >= distmax:
+            continue
+        if _segment_distance(geom_xpos[g], u, sizes[g, 0], geom_xpos[h], v, sizes[h, 0]) < reach:
             out[count] = p
             count += 1
     return count
+
+
+@numba.njit(cache=True)
+def _slab_gap(geom_xpos, geom_xmat, g, h, v, columns, sizes) -> float:
+    """Gap [m] between geom ``g``'s slab and geom ``h``'s capsule (axis ``v (3,)``) along the
+    slab's normal; ``-inf`` if ``g`` has no slab (see :func:`_near_pairs`)."""
+    column = columns[g, 1]
+    if column < 0:
+        return -np.inf
+    centre = 0.0
+    along = 0.0
+    for i in range(3):
+        normal = geom_xmat[g, 3 * i + column]
+        centre += normal * (geom_xpos[h, i] - geom_xpos[g, i])
+        along += normal * v[i]
+    return abs(centre) - sizes[g, 2] - sizes[h, 0] * abs(along) - sizes[h, 1]
+
+
+@numba.njit(cache=True)
+def _quat_to_mat(q, out):
+    """MuJoCo's ``mju_quat2Mat``: the rotation ``out (9,)`` (row-major) of a unit quaternion
+    ``q (4,)`` (w, x, y, z)."""
+    if q[0] == 1.0 and q[1] == 0.0 and q[2] == 0.0 and q[3] == 0.0:
+        for i in range(9):
+            out[i] = 1.0 if i % 4 == 0 else 0.0
+        return
+    q00, q01, q02, q03 = q[0] * q[0], q[0] * q[1], q[0] * q[2], q[0] * q[3]
+    q11, q12, q13 = q[1] * q[1], q[1] * q[2], q[1] * q[3]
+    q22, q23, q33 = q[2] * q[2], q[2] * q[3], q[3] * q[3]
+    out[0], out[4], out[8] = q00 + q11 - q22 - q33, q00 - q11 + q22 - q33, q00 - q11 - q22 + q33
+    out[1], out[2], out[3] = 2.0 * (q12 - q03), 2.0 * (q13 + q02), 2.0 * (q12 + q03)
+    out[5], out[6], out[7] = 2.0 * (q23 - q01), 2.0 * (q13 - q02), 2.0 * (q23 + q01)
+
+
+@numba.njit(cache=True)
+def _mul_quat(a, b, out):
+    """MuJoCo's ``mju_mulQuat``: ``out = a b`` for quaternions ``(4,)`` (w, x, y, z)."""
+    out[0] = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3]
+    out[1] = a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2]
+    out[2] = a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1]
+    out[3] = a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]
+
+
+@numba.njit(cache=True)
+def _place_held(held, weld, geom_pos, geom_quat, qpos, xpos, xquat, xmat, geom_xpos, geom_xmat):
+    """Moves each held object with its hand after ``mj_kinematics``: its free joint ``qpos``,
+    its body's ``xpos``, ``xquat``, ``xmat`` and its geoms' ``geom_xpos``, ``geom_xmat``, as
+    ``mj_kinematics`` would place them with the object welded to the hand.
+
+    Args:
+        held: ``(k, 5)`` per object: hand body, object body, its free joint's qpos address, its
+            first geom and its number of geoms.
+        weld: ``(k, 7)`` the object's pose in its hand's frame (position, quaternion).
+        geom_pos, geom_quat: the model's ``(ngeom, 3)``, ``(ngeom, 4)`` geom poses in their
+            bodies' frames.
+    """
+    quat = np.empty(4)
+    for o in range(held.shape[0]):
+        hand, body, adr = held[o, 0], held[o, 1], held[o, 2]
+        for i in range(3):  # mju_mulMatVec3, then mju_addTo3
+            total = xmat[hand, 3 * i] * weld[o, 0]
+            for k in range(1, 3):
+                total += xmat[hand, 3 * i + k] * weld[o, k]
+            xpos[body, i] = total + xpos[hand, i]
+            qpos[adr + i] = xpos[body, i]
+        _mul_quat(xquat[hand], weld[o, 3:], quat)
+        norm = math.sqrt(quat[0] ** 2 + quat[1] ** 2 + quat[2] ** 2 + quat[3] ** 2)
+        for i in range(4):
+            xquat[body, i] = quat[i] / norm
+            qpos[adr + 3 + i] = xquat[body, i]
+        _quat_to_mat(xquat[body], xmat[body])
+        for g in range(held[o, 3], held[o, 3] + held[o, 4]):
+            for i in range(3):
+                total = xmat[body, 3 * i] * geom_pos[g, 0]
+                for k in range(1, 3):
+                    total += xmat[body, 3 * i + k] * geom_pos[g, k]
+                geom_xpos[g, i] = total + xpos[body, i]
+            _mul_quat(xquat[body], geom_quat[g], quat)
+            _quat_to_mat(quat, geom_xmat[g])
 
 
 @numba.njit(cache=True)

@@ -4,16 +4,17 @@ The planner sees the robot as its hinge joints (``joints``, in a fixed order, ``
 the objects it holds as rigid extensions of its hands: every *active* weld equality constraint
 whose second body is a free body (a held object) is read once, and each
 :meth:`Kinematics.update` sets the object's free joint to the hand's pose composed with the weld's
-relative pose and runs ``mj_kinematics`` a second time, so no physics runs. Jacobians of points on
-a held object are ``mj_jac`` of its hand body at that point; their derivatives along a joint
-velocity are ``mj_jacDot``.
+relative pose and its body and geoms there (:func:`imitate._planner._place_held`, as
+``mj_kinematics`` would place them), so no physics runs. Jacobians of points on a held object are
+``mj_jac`` of its hand body at that point; their derivatives along a joint velocity are
+``mj_jacDot``.
 
 Jacobians are translational, ``dp/dq`` of points in the world frame, restricted to the
 ``joints`` columns, shape ``(3, n)`` (orientations enter through points on an object's axis, see
 :class:`imitate.taskspace.TaskMap`).
 Signed distances come from ``mj_geomDistance`` between the pairs of
-:class:`imitate.envs.collision.CollisionPairs`; a compiled test of capsules enclosing the geoms
-(:func:`imitate._planner._near_pairs`) skips the pairs that are far apart first.
+:class:`imitate.envs.collision.CollisionPairs`; a compiled test of capsules and slabs enclosing the
+geoms (:func:`imitate._planner._near_pairs`) skips the pairs that are far apart first.
 """
 
 from __future__ import annotations
@@ -31,34 +32,41 @@ from imitate.errors import ImitateError
 __all__ = ["Distances", "Kinematics"]
 
 
-# Added to ``distmax`` in the capsule test: a pair it skips is at least this much farther than
+# Added to ``distmax`` in the near-pair bounds: a pair they skip is at least this much farther than
 # ``distmax``, beyond any rounding of mj_geomDistance's convex solver [m].
 _SLACK = 1e-4
 
 
-def _enclosing_capsules(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per geom, a capsule that contains it: ``(column (ngeom,), half (ngeom,), radius
-    (ngeom,))``, the segment of ``half`` on either side of the geom's centre along its frame's
-    axis ``column``, grown by ``radius`` [m] (``inf``: a plane or height field, never skipped).
-    """
+def _geom_bounds(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
+    """Per geom, a capsule and a slab that contain it, for
+    :func:`imitate._planner._near_pairs`: ``columns (ngeom, 2)``, the frame axes of the
+    capsule's segment and of the slab's normal (-1: no slab), and ``sizes (ngeom, 3)``, the
+    segment's half-length on either side of the geom's centre, the capsule's radius (``inf``: a
+    plane or height field, never skipped) and the slab's half-thickness [m]. A box's capsule
+    runs along its longest axis and its slab across its thinnest; a cylinder's slab caps its
+    ends."""
     g = mujoco.mjtGeom
-    column = np.full(model.ngeom, 2, dtype=np.intp)
-    half = np.zeros(model.ngeom)
-    radius = model.geom_rbound.copy()  # meshes and others: the bounding sphere
+    columns = np.full((model.ngeom, 2), (2, -1), dtype=np.intp)
+    sizes = np.zeros((model.ngeom, 3))
+    sizes[:, 1] = model.geom_rbound  # meshes and others: the bounding sphere
     for i, (kind, size) in enumerate(zip(model.geom_type.tolist(), model.geom_size, strict=True)):
         if kind in (g.mjGEOM_PLANE.value, g.mjGEOM_HFIELD.value):
-            radius[i] = np.inf
+            sizes[i, 1] = np.inf
         elif kind == g.mjGEOM_SPHERE.value:
-            radius[i] = size[0]
-        elif kind in (g.mjGEOM_CAPSULE.value, g.mjGEOM_CYLINDER.value):
-            half[i], radius[i] = size[1], size[0]
+            sizes[i, 1] = size[0]
+        elif kind == g.mjGEOM_CAPSULE.value:
+            sizes[i, :2] = size[1], size[0]
+        elif kind == g.mjGEOM_CYLINDER.value:
+            columns[i, 1] = 2
+            sizes[i] = size[1], size[0], size[1]
         elif kind == g.mjGEOM_BOX.value:
-            column[i] = int(np.argmax(size))
-            others = np.delete(size, column[i])
-            half[i], radius[i] = size[column[i]], float(np.hypot(*others))
+            longest, thinnest = int(np.argmax(size)), int(np.argmin(size))
+            others = np.delete(size, longest)
+            columns[i] = longest, thinnest
+            sizes[i] = size[longest], float(np.hypot(*others)), size[thinnest]
         elif kind == g.mjGEOM_ELLIPSOID.value:
-            radius[i] = float(np.max(size))
-    return column, half, radius
+            sizes[i, 1] = float(np.max(size))
+    return columns, sizes
 
 
 @dataclass(frozen=True)
@@ -128,7 +136,7 @@ class Kinematics:
             self._pair_arrays = tuple(
                 np.ascontiguousarray(g, dtype=np.intp) for g in (self.pairs.geom1, self.pairs.geom2)
             )
-            self._capsules = _enclosing_capsules(model)
+            self._bounds = _geom_bounds(model)
             self._near = np.empty(len(self.pairs), dtype=np.intp)
             self._fromto = np.zeros((len(self.pairs), 6))
             self._none_near = Distances(  # shared by the queries that find no pair (read only)
@@ -138,12 +146,22 @@ class Kinematics:
         d = self.data
         self._qpos, self._qvel = d.qpos, d.qvel
         self._geom_xpos, self._geom_xmat = d.geom_xpos, d.geom_xmat
-        # Per held object: hand, weld pose, and views of its free joint's position, quaternion.
-        self._poses = []
-        for obj, (hand, rel_pos, rel_quat) in self._held.items():
-            adr = model.jnt_qposadr[model.body_jntadr[obj]]
-            pos, quat = d.qpos[adr : adr + 3], d.qpos[adr + 3 : adr + 7]
-            self._poses.append((d.xpos[hand], d.xquat[hand], rel_pos, rel_quat, pos, quat))
+        # Per held object: hand, object, free joint's qpos address, geoms; its weld pose.
+        self._held_index = np.array(
+            [
+                (hand, obj, model.jnt_qposadr[model.body_jntadr[obj]], model.body_geomadr[obj],
+                 model.body_geomnum[obj])
+                for obj, (hand, _, _) in self._held.items()
+            ],
+            dtype=np.intp,
+        ).reshape(-1, 5)
+        self._weld = np.array(
+            [np.concatenate(pose) for _, *pose in self._held.values()], dtype=float
+        ).reshape(-1, 7)
+        self._placed = (
+            self._held_index, self._weld, model.geom_pos, model.geom_quat, d.qpos, d.xpos,
+            d.xquat, d.xmat, d.geom_xpos, d.geom_xmat,
+        )
         self._jacp = np.zeros((4, 3, model.nv))
 
     @property
@@ -152,7 +170,12 @@ class Kinematics:
         return len(self.joints)
 
     def _held_objects(self) -> dict[int, tuple[int, np.ndarray, np.ndarray]]:
-        """``{object body: (hand body, relative position (3,), relative quaternion (4,))}``."""
+        """``{object body: (hand body, relative position (3,), relative quaternion (4,))}``.
+
+        Raises:
+            ImitateError: If a held object has child bodies, sites, cameras or lights (only its
+                body and geoms are moved with the hand).
+        """
         m = self.model
         held = {}
         for e in range(m.neq):
@@ -162,6 +185,19 @@ class Kinematics:
             jnt = m.body_jntadr[obj]
             if jnt < 0 or m.jnt_type[jnt] != mujoco.mjtJoint.mjJNT_FREE:
                 continue
+            attached = [
+                kind
+                for kind, owners in (
+                    ("bodies", m.body_parentid[1:]), ("sites", m.site_bodyid),
+                    ("cameras", m.cam_bodyid), ("lights", m.light_bodyid),
+                )
+                if np.any(owners == obj)
+            ]
+            if attached:
+                raise ImitateError(
+                    f"held object {m.body(obj).name!r} carries {', '.join(attached)}; the "
+                    "planner moves a held object's body and geoms only: make it one body of geoms"
+                )
             held[obj] = (hand, m.eq_data[e, 3:6].copy(), m.eq_data[e, 6:10].copy())
         return held
 
@@ -172,12 +208,8 @@ class Kinematics:
         m, d = self.model, self.data
         self._qpos[self._q_index] = q
         mujoco.mj_kinematics(m, d)
-        if held and self._poses:
-            for hand_pos, hand_quat, rel_pos, rel_quat, pos, quat in self._poses:
-                mujoco.mju_rotVecQuat(pos, rel_pos, hand_quat)
-                np.add(pos, hand_pos, out=pos)
-                mujoco.mju_mulQuat(quat, hand_quat, rel_quat)
-            mujoco.mj_kinematics(m, d)
+        if held and self._held:
+            _planner._place_held(*self._placed)
         mujoco.mj_comPos(m, d)
 
     def camera_pose(self, camera: str) -> tuple[np.ndarray, np.ndarray]:
@@ -255,7 +287,7 @@ class Kinematics:
         m, d = self.model, self.data
         g1, g2 = self._pair_geoms
         count = _planner._near_pairs(
-            self._geom_xpos, self._geom_xmat, *self._pair_arrays, *self._capsules,
+            self._geom_xpos, self._geom_xmat, *self._pair_arrays, *self._bounds,
             distmax + _SLACK, self._near,
         )
         near = self._near[:count].tolist()

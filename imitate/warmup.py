@@ -104,7 +104,7 @@ def _learning_kmeans() -> None:
 
 
 def _planner() -> None:
-    """One iteration of the planner (task map, RMR, capsule test, adjoint) on the robot, from
+    """One iteration of the planner (task map, RMR, near-pair bounds, adjoint) on the robot, from
     a two-component model of a short synthetic demonstration."""
     from imitate.gmm import GMM
     from imitate.learning import LearnedModel

@@ -52,6 +52,42 @@ def test_held_objects_follow_the_hands(kin):
     assert np.linalg.norm(kin.data.xpos[bottle] - before) > 1e-3
 
 
+def test_held_objects_are_placed_as_mj_kinematics_places_them(kin):
+    """update() moves a held object's body and geoms itself; MuJoCo, run again from the free
+    joint's position it wrote, puts them at the same place."""
+    m, d = kin.model, kin.data
+    for seed in range(5):
+        kin.update(_posture(seed, kin.n))
+        placed = [d.xpos.copy(), d.xmat.copy(), d.geom_xpos.copy(), d.geom_xmat.copy()]
+        mujoco.mj_kinematics(m, d)
+        for ours, mujocos in zip(placed, (d.xpos, d.xmat, d.geom_xpos, d.geom_xmat), strict=True):
+            np.testing.assert_allclose(ours, mujocos, rtol=0, atol=1e-12)
+
+
+def test_near_pair_bounds_skip_no_pair_within_range():
+    """The capsule and slab bounds skip only pairs MuJoCo finds farther than ``distmax``: the
+    same pairs and distances as measuring every pair, in a scene with a box and a cylinder."""
+    obstacles = (
+        assembly.Obstacle("box", (0.45, -0.17, 0.7), (0.05, 0.05, 0.09)),
+        assembly.Obstacle("cylinder", (0.45, 0.17, 0.7), (0.04, 0.09)),
+    )
+    config = replace(assembly.SceneConfig(), particles=0, holder="robot", obstacles=obstacles)
+    model = assembly.build_model(config)
+    kin = Kinematics(model, humanoid.JOINTS, assembly.clearance_geoms(model))
+    distmax, fromto, measured = 0.05, np.zeros(6), 0
+    for seed in range(40):
+        kin.update(humanoid.rest_pose() + np.random.default_rng(seed).uniform(-0.6, 0.6, kin.n))
+        everything = {}
+        for p, (g1, g2) in enumerate(zip(kin.pairs.geom1, kin.pairs.geom2, strict=True)):
+            value = mujoco.mj_geomDistance(model, kin.data, g1, g2, distmax, fromto)
+            if value < distmax:
+                everything[p] = value
+        near = kin.distances(distmax)
+        assert dict(zip(near.pairs.tolist(), near.dist.tolist(), strict=True)) == everything
+        measured += len(everything)
+    assert measured > 40
+
+
 def test_point_jacobians_and_rates_match_finite_differences(kin):
     bodies, local = _bodies_and_points(kin)
     q = _posture(2, kin.n)
@@ -114,3 +150,7 @@ def test_bad_input_raises(kin):
         Kinematics(kin.model, (free,))
     with pytest.raises(ImitateError, match="geoms"):
         Kinematics(kin.model, humanoid.JOINTS).distances(0.1)
+    spec = assembly.build_spec(replace(assembly.SceneConfig(), particles=0, holder="robot"))
+    spec.body(objects.BOTTLE).add_site(name="bottle_tip")
+    with pytest.raises(ImitateError, match="carries sites"):
+        Kinematics(spec.compile(), humanoid.JOINTS)

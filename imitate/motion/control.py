@@ -18,6 +18,7 @@ The task map ``phi`` and its Jacobian are eq. 1 on the held objects,
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -48,8 +49,13 @@ def segment_fractions(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
     """Fractions ``s`` in (0, 1) of the samples ``(1 - s) qa + s qb`` along a step from ``qa``
     to ``qb`` ``(n,)``: the midpoint, or equal sub-steps of at most :data:`SAMPLE_STEP` in
     every joint."""
-    k = max(2, int(np.ceil(np.max(np.abs(qb - qa)) / SAMPLE_STEP)))
+    k = _sub_steps(float(np.max(np.abs(qb - qa))))
     return np.arange(1, k) / k
+
+
+def _sub_steps(largest: float) -> int:
+    """Number of sub-steps of a step whose largest joint change is ``largest`` [rad]."""
+    return max(2, math.ceil(largest / SAMPLE_STEP))
 
 
 @dataclass(frozen=True)
@@ -182,17 +188,19 @@ def rollout(
             distances.append(kin.distances(distmax, jacobian=True))
         if t == T:
             break
-        step(
+        largest = step(
             J, x[t], target[t + 1], q[t], winv, config.damping, config.nullspace_gain,
             limits.low_border, limits.high_border, limits.scale, push[t], kin.lower, kin.upper,
             pinv[t], solved[t], nullspace_gradient[t], unclipped[t], q[t + 1],
         )
         jac[t] = J
         frames.append(frame)
-        if distmax > 0:
-            for s in segment_fractions(q[t], q[t + 1]):
+        if distmax > 0:  # at segment_fractions(q[t], q[t + 1])
+            k = _sub_steps(largest)
+            for i in range(1, k):
+                s = i / k
                 kin.update((1.0 - s) * q[t] + s * q[t + 1])
-                between.append((t, float(s), kin.distances(distmax, jacobian=True)))
+                between.append((t, s, kin.distances(distmax, jacobian=True)))
     return Rollout(
         q, x, jac, pinv, nullspace_gradient, limits(q[:T])[2], solved, q[1:] != unclipped,
         tuple(frames), tuple(distances), tuple(between),

@@ -70,6 +70,9 @@ _SWITCH_WIDTH = 0.4
 # The null-space push's scale [1/rad] for iRprop-'s initial step, as _TOLERANCE for the
 # attractors: a push of 0.1 moves a joint by 0.5 % of its range per step (nullspace_gain 0.05).
 _PUSH_SCALE = 0.1
+# Ranges [m] of _min_distance's queries, the nearer first: a plan's closest pair is almost
+# always within the first, and a pair's distance does not depend on the range it is asked in.
+_MIN_DISTANCE_QUERIES = (0.05, 0.2)
 
 
 @dataclass(frozen=True)
@@ -435,18 +438,22 @@ def _minimize(problem: Problem, v0: np.ndarray, c: PlanConfig, record, history) 
 
 def _min_distance(kin: Kinematics, q: np.ndarray) -> tuple[float, tuple[str, str] | None]:
     """Smallest distance and its pair over the steps ``q`` ``(T + 1, n)`` and the samples
-    along the straight lines between them (the path the robot takes)."""
+    along the straight lines between them (the path the robot takes); ``(0.2, None)`` if
+    nothing comes closer than 0.2 m."""
     along = [
         (1.0 - s) * qa + s * qb
         for qa, qb in zip(q[:-1], q[1:], strict=True)
         for s in segment_fractions(qa, qb)
     ]
-    best, pair = np.inf, None
-    for qt in (*q, *along):
-        kin.update(qt)
-        d, names = kin.min_distance()
-        if d < best:
-            best, pair = d, names
+    for distmax in _MIN_DISTANCE_QUERIES:  # the nearer first: fewer pairs to measure
+        best, pair = distmax, None
+        for qt in (*q, *along):
+            kin.update(qt)
+            d, names = kin.min_distance(distmax)
+            if d < best:
+                best, pair = d, names
+        if pair is not None:
+            break
     return float(best), pair
 
 
