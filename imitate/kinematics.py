@@ -32,8 +32,8 @@ from imitate.errors import ImitateError
 __all__ = ["Distances", "Kinematics"]
 
 
-# Added to ``distmax`` in the near-pair bounds: a pair they skip is at least this much farther than
-# ``distmax``, beyond any rounding of mj_geomDistance's convex solver [m].
+# Added to ``distmax`` in the near-pair bounds: a pair they skip is at least this much farther
+# than ``distmax``, beyond any rounding of mj_geomDistance's convex solver [m].
 _SLACK = 1e-4
 
 

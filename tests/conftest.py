@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import fcntl
+import os
 import shutil
 
 import numpy as np
@@ -23,9 +25,23 @@ def demo_data() -> np.ndarray:
 
 @pytest.fixture(scope="session")
 def quick_run(tmp_path_factory):
-    """A finished ``imitate run --quick`` (seed 0); copy it before changing anything in it."""
-    run_dir = tmp_path_factory.mktemp("quick")
-    assert main(["run", "--quick", "--out", str(run_dir)]) == 0
+    """A finished ``imitate run --quick`` (seed 0); copy it before changing anything in it.
+
+    Under pytest-xdist the workers share one: the first to ask runs it, holding a lock on the
+    session's directory, and the others wait for it and read it.
+    """
+    if "PYTEST_XDIST_WORKER" not in os.environ:
+        run_dir = tmp_path_factory.mktemp("quick")
+        assert main(["run", "--quick", "--out", str(run_dir)]) == 0
+        return run_dir
+    session = tmp_path_factory.getbasetemp().parent  # the workers' common parent
+    run_dir = session / "quick"
+    with open(session / "quick.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (session / "quick.done").exists():
+            shutil.rmtree(run_dir, ignore_errors=True)  # a worker's failed try
+            assert main(["run", "--quick", "--out", str(run_dir)]) == 0
+            (session / "quick.done").touch()
     return run_dir
 
 
