@@ -9,17 +9,18 @@ export MUJOCO_GL
 
 .PHONY: setup setup-test run test test-lowest lint clean
 
-# System libraries, the virtual environment and the package (what `make run` needs).
+# System libraries, the virtual environment and the package (what `make run` needs). pip does
+# not byte-compile (--no-compile): Python compiles what it imports, on first import.
 $(BIN)/.installed: pyproject.toml scripts/install_system_deps.sh
 	bash scripts/install_system_deps.sh
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e .
+	$(BIN)/pip install --quiet --no-compile -e .
 	touch $@
 
 # Plus the test-only dependencies (pytest, ruff and the cross-check libraries).
 $(BIN)/.installed-test: $(BIN)/.installed
-	$(BIN)/pip install --quiet -e ".[test]"
+	$(BIN)/pip install --quiet --no-compile -e ".[test]"
 	touch $@
 
 # numba compiles the tracker's and the learner's kernels into its cache now, two processes at
@@ -52,8 +53,8 @@ test-lowest:
 	rm -rf $(LOWEST)
 	$(PYTHON) -m venv $(LOWEST)
 	$(PYTHON) scripts/lowest_requirements.py > $(LOWEST)/requirements.txt
-	$(LOWEST)/bin/pip install --quiet --only-binary :all: -r $(LOWEST)/requirements.txt pytest
-	$(LOWEST)/bin/pip install --quiet --no-deps -e .
+	$(LOWEST)/bin/pip install --quiet --no-compile --only-binary :all: -r $(LOWEST)/requirements.txt pytest
+	$(LOWEST)/bin/pip install --quiet --no-compile --no-deps -e .
 	NUMBA_CACHE_DIR=$(LOWEST)/numba $(LOWEST)/bin/python -m pytest -q tests/test_env.py tests/test_scene.py
 	NUMBA_CACHE_DIR=$(LOWEST)/numba $(LOWEST)/bin/imitate run --quick --out runs/lowest
 
