@@ -9,18 +9,17 @@ export MUJOCO_GL
 
 .PHONY: setup setup-test run test test-lowest lint clean
 
-# System libraries, the virtual environment and the package (what `make run` needs). pip does
-# not byte-compile (--no-compile): Python compiles what it imports, on first import.
+# System libraries, the virtual environment and the package (what `make run` needs).
 $(BIN)/.installed: pyproject.toml scripts/install_system_deps.sh
 	bash scripts/install_system_deps.sh
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet --no-compile -e .
+	$(BIN)/pip install --quiet -e .
 	touch $@
 
 # Plus the test-only dependencies (pytest, ruff and the cross-check libraries).
 $(BIN)/.installed-test: $(BIN)/.installed
-	$(BIN)/pip install --quiet --no-compile -e ".[test]"
+	$(BIN)/pip install --quiet -e ".[test]"
 	touch $@
 
 # numba compiles the tracker's and the learner's kernels into its cache now, two processes at
@@ -47,7 +46,9 @@ lint: setup-test
 	$(BIN)/ruff check .
 
 # The lowest versions pyproject.toml allows (every lower bound pinned, wheels only) on the env
-# and scene tests and a whole quick run; numba's cache of them kept apart from .venv's.
+# and scene tests and a whole quick run; numba's cache of them kept apart from .venv's. pip does
+# not byte-compile there (--no-compile): two processes import from it, and compiling what they
+# import costs less than compiling every file (even where PYTHONDONTWRITEBYTECODE keeps no .pyc).
 test-lowest:
 	bash scripts/install_system_deps.sh
 	rm -rf $(LOWEST)
