@@ -345,22 +345,6 @@ def _slab_gap(geom_xpos, geom_xmat, g, h, v, columns, sizes) -> float:
 
 
 @numba.njit(cache=True)
-def _quat_to_mat(q, out):
-    """MuJoCo's ``mju_quat2Mat``: the rotation ``out (9,)`` (row-major) of a unit quaternion
-    ``q (4,)`` (w, x, y, z)."""
-    if q[0] == 1.0 and q[1] == 0.0 and q[2] == 0.0 and q[3] == 0.0:
-        for i in range(9):
-            out[i] = 1.0 if i % 4 == 0 else 0.0
-        return
-    q00, q01, q02, q03 = q[0] * q[0], q[0] * q[1], q[0] * q[2], q[0] * q[3]
-    q11, q12, q13 = q[1] * q[1], q[1] * q[2], q[1] * q[3]
-    q22, q23, q33 = q[2] * q[2], q[2] * q[3], q[3] * q[3]
-    out[0], out[4], out[8] = q00 + q11 - q22 - q33, q00 - q11 + q22 - q33, q00 - q11 - q22 + q33
-    out[1], out[2], out[3] = 2.0 * (q12 - q03), 2.0 * (q13 + q02), 2.0 * (q12 + q03)
-    out[5], out[6], out[7] = 2.0 * (q23 - q01), 2.0 * (q13 - q02), 2.0 * (q23 + q01)
-
-
-@numba.njit(cache=True)
 def _mul_quat(a, b, out):
     """MuJoCo's ``mju_mulQuat``: ``out = a b`` for quaternions ``(4,)`` (w, x, y, z)."""
     out[0] = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3]
@@ -370,41 +354,38 @@ def _mul_quat(a, b, out):
 
 
 @numba.njit(cache=True)
-def _place_held(held, weld, geom_pos, geom_quat, qpos, xpos, xquat, xmat, geom_xpos, geom_xmat):
-    """Moves each held object with its hand after ``mj_kinematics``: its free joint ``qpos``,
-    its body's ``xpos``, ``xquat``, ``xmat`` and its geoms' ``geom_xpos``, ``geom_xmat``, as
-    ``mj_kinematics`` would place them with the object welded to the hand.
+def _rot_vec_quat(v, q, out):
+    """MuJoCo's ``mju_rotVecQuat``: ``out = q v q^-1`` for ``v (3,)``, a unit quaternion ``q``."""
+    if v[0] == 0.0 and v[1] == 0.0 and v[2] == 0.0:
+        out[0], out[1], out[2] = 0.0, 0.0, 0.0
+    elif q[0] == 1.0 and q[1] == 0.0 and q[2] == 0.0 and q[3] == 0.0:
+        out[0], out[1], out[2] = v[0], v[1], v[2]
+    else:
+        t0 = q[0] * v[0] + q[2] * v[2] - q[3] * v[1]
+        t1 = q[0] * v[1] + q[3] * v[0] - q[1] * v[2]
+        t2 = q[0] * v[2] + q[1] * v[1] - q[2] * v[0]
+        out[0] = v[0] + 2.0 * (q[2] * t2 - q[3] * t1)
+        out[1] = v[1] + 2.0 * (q[3] * t0 - q[1] * t2)
+        out[2] = v[2] + 2.0 * (q[1] * t1 - q[2] * t0)
+
+
+@numba.njit(cache=True)
+def _hold(held, weld, qpos, xpos, xquat):
+    """Sets each held object's free joint ``qpos`` to its hand's pose ``xpos``, ``xquat``
+    composed with the weld's, by MuJoCo's arithmetic (``mju_rotVecQuat``, ``mju_mulQuat``: the
+    same bits).
 
     Args:
-        held: ``(k, 5)`` per object: hand body, object body, its free joint's qpos address, its
-            first geom and its number of geoms.
+        held: ``(k, 2)`` per object: its hand's body and its free joint's qpos address.
         weld: ``(k, 7)`` the object's pose in its hand's frame (position, quaternion).
-        geom_pos, geom_quat: the model's ``(ngeom, 3)``, ``(ngeom, 4)`` geom poses in their
-            bodies' frames.
     """
-    quat = np.empty(4)
+    rotated = np.empty(3)
     for o in range(held.shape[0]):
-        hand, body, adr = held[o, 0], held[o, 1], held[o, 2]
-        for i in range(3):  # mju_mulMatVec3, then mju_addTo3
-            total = xmat[hand, 3 * i] * weld[o, 0]
-            for k in range(1, 3):
-                total += xmat[hand, 3 * i + k] * weld[o, k]
-            xpos[body, i] = total + xpos[hand, i]
-            qpos[adr + i] = xpos[body, i]
-        _mul_quat(xquat[hand], weld[o, 3:], quat)
-        norm = math.sqrt(quat[0] ** 2 + quat[1] ** 2 + quat[2] ** 2 + quat[3] ** 2)
-        for i in range(4):
-            xquat[body, i] = quat[i] / norm
-            qpos[adr + 3 + i] = xquat[body, i]
-        _quat_to_mat(xquat[body], xmat[body])
-        for g in range(held[o, 3], held[o, 3] + held[o, 4]):
-            for i in range(3):
-                total = xmat[body, 3 * i] * geom_pos[g, 0]
-                for k in range(1, 3):
-                    total += xmat[body, 3 * i + k] * geom_pos[g, k]
-                geom_xpos[g, i] = total + xpos[body, i]
-            _mul_quat(xquat[body], geom_quat[g], quat)
-            _quat_to_mat(quat, geom_xmat[g])
+        hand, adr = held[o, 0], held[o, 1]
+        _rot_vec_quat(weld[o, :3], xquat[hand], rotated)
+        for i in range(3):
+            qpos[adr + i] = rotated[i] + xpos[hand, i]
+        _mul_quat(xquat[hand], weld[o, 3:], qpos[adr + 3 : adr + 7])
 
 
 @numba.njit(cache=True)

@@ -4,10 +4,9 @@ The planner sees the robot as its hinge joints (``joints``, in a fixed order, ``
 the objects it holds as rigid extensions of its hands: every *active* weld equality constraint
 whose second body is a free body (a held object) is read once, and each
 :meth:`Kinematics.update` sets the object's free joint to the hand's pose composed with the weld's
-relative pose and its body and geoms there (:func:`imitate._planner._place_held`, as
-``mj_kinematics`` would place them), so no physics runs. Jacobians of points on a held object are
-``mj_jac`` of its hand body at that point; their derivatives along a joint velocity are
-``mj_jacDot``.
+relative pose (:func:`imitate._planner._hold`) and runs ``mj_kinematics`` a second time, so no
+physics runs. Jacobians of points on a held object are ``mj_jac`` of its hand body at that point;
+their derivatives along a joint velocity are ``mj_jacDot``.
 
 Jacobians are translational, ``dp/dq`` of points in the world frame, restricted to the
 ``joints`` columns, shape ``(3, n)`` (orientations enter through points on an object's axis, see
@@ -146,21 +145,15 @@ class Kinematics:
         d = self.data
         self._qpos, self._qvel = d.qpos, d.qvel
         self._geom_xpos, self._geom_xmat = d.geom_xpos, d.geom_xmat
-        # Per held object: hand, object, free joint's qpos address, geoms; its weld pose.
-        self._held_index = np.array(
-            [
-                (hand, obj, model.jnt_qposadr[model.body_jntadr[obj]], model.body_geomadr[obj],
-                 model.body_geomnum[obj])
-                for obj, (hand, _, _) in self._held.items()
-            ],
-            dtype=np.intp,
-        ).reshape(-1, 5)
-        self._weld = np.array(
-            [np.concatenate(pose) for _, *pose in self._held.values()], dtype=float
-        ).reshape(-1, 7)
-        self._placed = (
-            self._held_index, self._weld, model.geom_pos, model.geom_quat, d.qpos, d.xpos,
-            d.xquat, d.xmat, d.geom_xpos, d.geom_xmat,
+        # Per held object: its hand and free joint's qpos address; its weld pose.
+        self._held_args = (
+            np.array(
+                [(hand, model.jnt_qposadr[model.body_jntadr[obj]])
+                 for obj, (hand, _, _) in self._held.items()],
+                dtype=np.intp,
+            ).reshape(-1, 2),
+            np.array([np.concatenate(pose) for _, *pose in self._held.values()]).reshape(-1, 7),
+            d.qpos, d.xpos, d.xquat,
         )
         self._jacp = np.zeros((4, 3, model.nv))
 
@@ -170,12 +163,7 @@ class Kinematics:
         return len(self.joints)
 
     def _held_objects(self) -> dict[int, tuple[int, np.ndarray, np.ndarray]]:
-        """``{object body: (hand body, relative position (3,), relative quaternion (4,))}``.
-
-        Raises:
-            ImitateError: If a held object has child bodies, sites, cameras or lights (only its
-                body and geoms are moved with the hand).
-        """
+        """``{object body: (hand body, relative position (3,), relative quaternion (4,))}``."""
         m = self.model
         held = {}
         for e in range(m.neq):
@@ -185,19 +173,6 @@ class Kinematics:
             jnt = m.body_jntadr[obj]
             if jnt < 0 or m.jnt_type[jnt] != mujoco.mjtJoint.mjJNT_FREE:
                 continue
-            attached = [
-                kind
-                for kind, owners in (
-                    ("bodies", m.body_parentid[1:]), ("sites", m.site_bodyid),
-                    ("cameras", m.cam_bodyid), ("lights", m.light_bodyid),
-                )
-                if np.any(owners == obj)
-            ]
-            if attached:
-                raise ImitateError(
-                    f"held object {m.body(obj).name!r} carries {', '.join(attached)}; the "
-                    "planner moves a held object's body and geoms only: make it one body of geoms"
-                )
             held[obj] = (hand, m.eq_data[e, 3:6].copy(), m.eq_data[e, 6:10].copy())
         return held
 
@@ -209,7 +184,8 @@ class Kinematics:
         self._qpos[self._q_index] = q
         mujoco.mj_kinematics(m, d)
         if held and self._held:
-            _planner._place_held(*self._placed)
+            _planner._hold(*self._held_args)
+            mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
 
     def camera_pose(self, camera: str) -> tuple[np.ndarray, np.ndarray]:
