@@ -213,7 +213,32 @@ def build_spec(config: SceneConfig = SceneConfig()) -> mujoco.MjSpec:
 
 def build_model(config: SceneConfig = SceneConfig()) -> mujoco.MjModel:
     """Compile the scene; the welds are set to hold each object at its configured grasp."""
-    model = build_spec(config).compile()
+    return _with_grasps(build_spec(config).compile(), config)
+
+
+def planning_model(config: SceneConfig = SceneConfig()) -> mujoco.MjModel:
+    """The scene as the planner sees it: the robot holding the bottle and glass, the table and
+    ``config``'s obstacles, with the :func:`clearance_geoms` only (no teacher, no liquid, no
+    drawn-only or container-wall geoms for ``mj_kinematics`` to place). Every body keeps
+    the whole scene's mass and inertia, so poses, Jacobians and distances are the whole scene's
+    bit for bit."""
+    config = dataclasses.replace(config, teacher=False, particles=0, holder="robot")
+    whole = build_model(config)
+    keep = {whole.geom(g).name for g in clearance_geoms(whole)}
+    spec = build_spec(config)
+    for geom in list(spec.geoms):
+        if geom.name not in keep:
+            spec.delete(geom)
+    for body in spec.bodies:
+        if body.name != "world":
+            b = whole.body(body.name)
+            body.mass, body.ipos, body.iquat, body.inertia = b.mass[0], b.ipos, b.iquat, b.inertia
+            body.explicitinertial = True
+    return _with_grasps(spec.compile(), config)
+
+
+def _with_grasps(model: mujoco.MjModel, config: SceneConfig) -> mujoco.MjModel:
+    """``model`` with its welds set to hold each object at ``config``'s grasp."""
     for holder in HOLDERS if config.teacher else ("robot",):
         set_grasp(model, holder, objects.BOTTLE, config.bottle_grasp)
         set_grasp(model, holder, objects.GLASS, config.glass_grasp)

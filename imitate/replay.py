@@ -8,7 +8,7 @@ physics and measures the pour, or stops where the physics diverges.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -30,8 +30,8 @@ def planning_task(
     gaze: np.ndarray | None = None,
     control: ControlConfig | None = None,
 ) -> TaskMap:
-    """Task map on a particle-free copy of the scene (default: ``PouringEnv``'s), objects held
-    by the robot, its kinematics updated to the rest pose.
+    """Task map on the scene's planning model (:func:`assembly.planning_model`; default:
+    ``PouringEnv``'s scene), objects held by the robot, its kinematics updated to the rest pose.
 
     Args:
         config: The scene; ``None`` for ``PouringEnv``'s default.
@@ -40,7 +40,7 @@ def planning_task(
         control: Its ``fixed_joints`` get zero Jacobian columns; ``None`` for the default.
     """
     config, control = config or assembly.SceneConfig(), control or ControlConfig()
-    model = assembly.build_model(replace(config, particles=0, holder="robot"))
+    model = assembly.planning_model(config)
     kin = Kinematics(model, humanoid.JOINTS, assembly.clearance_geoms(model))
     kin.update(humanoid.rest_pose())
     if gaze is None:

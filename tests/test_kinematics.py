@@ -91,6 +91,39 @@ def test_near_pair_bounds_skip_no_pair_within_range():
     assert measured > 40
 
 
+def test_planning_model_is_the_whole_scene_bit_for_bit():
+    """The planner's model (clearance geoms only, no teacher) gives the whole scene's poses,
+    Jacobians, Jacobian rates and distances, bit for bit, with an obstacle and a cylinder."""
+    obstacles = (assembly.Obstacle("cylinder", (0.45, 0.0, 0.72), (0.04, 0.09)),)
+    config = replace(assembly.SceneConfig(), obstacles=obstacles)
+    whole_model = assembly.build_model(replace(config, particles=0, holder="robot"))
+    models = (whole_model, assembly.planning_model(config))
+    assert models[1].ngeom < models[0].ngeom / 4 and models[1].nbody < models[0].nbody
+    kins = [Kinematics(m, humanoid.JOINTS, assembly.clearance_geoms(m)) for m in models]
+    bodies = [objects.BOTTLE, objects.GLASS, humanoid.RIGHT_HAND, humanoid.LEFT_HAND]
+    geoms = [models[1].geom(g).name for g in assembly.clearance_geoms(models[1])]
+    found = 0
+    for seed in range(20):
+        q = humanoid.rest_pose() + np.random.default_rng(seed).uniform(-0.5, 0.5, kins[0].n)
+        seen = []
+        for kin in kins:
+            kin.update(q)
+            ids = [kin.model.body(b).id for b in bodies]
+            points = kin.data.xpos[ids] + 0.1
+            near = kin.distances(0.05, jacobian=True)
+            seen.append((
+                kin.data.xpos[ids], kin.data.xquat[ids],
+                np.array([kin.data.geom(g).xpos for g in geoms]),
+                kin.point_jacobians(ids, points),
+                kin.point_jacobian_rates(ids, points, np.linspace(-1.0, 1.0, kin.n)),
+                [kin.pairs.names(kin.model, p) for p in near.pairs], near.dist, near.jac,
+            ))
+        for whole, planning in zip(*seen, strict=True):
+            np.testing.assert_array_equal(whole, planning)
+        found += len(seen[0][-2])
+    assert found > 5
+
+
 def test_point_jacobians_and_rates_match_finite_differences(kin):
     bodies, local = _bodies_and_points(kin)
     q = _posture(2, kin.n)
