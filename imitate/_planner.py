@@ -389,6 +389,13 @@ def _hold(held, weld, qpos, xpos, xquat):
 
 
 @numba.njit(cache=True)
+def _lerp(qa, qb, s, qpos, adr):
+    """``qpos[adr] = (1 - s) qa + s qb`` (``(n,)`` each; the same bits as NumPy's)."""
+    for i in range(adr.shape[0]):
+        qpos[adr[i]] = (1.0 - s) * qa[i] + s * qb[i]
+
+
+@numba.njit(cache=True)
 def _adjoint_update(gq, ln, alpha, winv, hessian, curvature, lam):
     """``lam = gq + ln - alpha (ln W^-1) H'' + curvature`` (all ``(n,)``, ``lam`` written): the
     backward recursion's step (see :func:`imitate.motion.control.backward`)."""

@@ -130,6 +130,7 @@ class Kinematics:
             owner[obj] = hand
         self._owners = owner.tolist()  # a list, for the inner loops
         self.pairs = CollisionPairs.between(model, geoms) if geoms is not None else None
+        self._geom_body = model.geom_bodyid.tolist()
         if self.pairs is not None:
             self._pair_geoms = (self.pairs.geom1.tolist(), self.pairs.geom2.tolist())
             self._pair_arrays = tuple(
@@ -180,8 +181,18 @@ class Kinematics:
         """Sets the joint angles ``q`` ``(n,)`` [rad] and updates all body and geom poses (no
         physics); ``held=False`` leaves the held objects where they were (enough for Jacobians
         of points given in the world frame)."""
-        m, d = self.model, self.data
         self._qpos[self._q_index] = q
+        self._place(held)
+
+    def update_between(self, qa: np.ndarray, qb: np.ndarray, s: float) -> None:
+        """:meth:`update` to ``(1 - s) qa + s qb`` (``qa``, ``qb`` ``(n,)`` [rad]), the posture
+        at ``s`` along a straight step, formed in a compiled kernel."""
+        _planner._lerp(qa, qb, s, self._qpos, self.qpos_adr)
+        self._place(True)
+
+    def _place(self, held: bool) -> None:
+        """Body and geom poses, and the held objects' if ``held``, at the set ``qpos``."""
+        m, d = self.model, self.data
         mujoco.mj_kinematics(m, d)
         if held and self._held:
             _planner._hold(*self._held_args)
@@ -194,13 +205,6 @@ class Kinematics:
         c = self.model.camera(camera).id
         return self.data.cam_xpos[c].copy(), self.data.cam_xmat[c].reshape(3, 3).copy()
 
-    def point_jacobian(self, body: int, point: np.ndarray) -> np.ndarray:
-        """Translational Jacobian ``(3, n)`` [m/rad] of a point ``(3,)`` [m] fixed to ``body``
-        (id; a held object moves with its hand)."""
-        jacp = self._jacp[0]
-        mujoco.mj_jac(self.model, self.data, jacp, None, point, self._owners[int(body)])
-        return jacp[:, self.dof_adr].copy()
-
     def point_jacobians(
         self, bodies: Sequence[int], points: np.ndarray, out: np.ndarray | None = None
     ) -> np.ndarray:
@@ -212,22 +216,29 @@ class Kinematics:
         return jacp[: len(bodies)].take(self.dof_adr, axis=2, out=out)
 
     def frame_jacobians(
-        self, bodies: Sequence[int], points: np.ndarray, out: np.ndarray, qdot=None
+        self, bodies: Sequence[int], points: np.ndarray, out: np.ndarray
     ) -> np.ndarray:
         """Translational and rotational Jacobians of ``k`` points ``(k, 3)`` [m] fixed to
         ``bodies`` (ids; held objects move with their hands), all ``nv`` columns, into ``out``
-        ``(k, 2, 3, nv)``; with ``qdot`` ``(n,)`` [rad/s] their derivatives along it
-        (``mj_comVel``, ``mj_jacDot``) instead. The planned joints are the columns
-        :attr:`dof_adr`."""
+        ``(k, 2, 3, nv)``. The planned joints are the columns :attr:`dof_adr`."""
         m, d, owner = self.model, self.data, self._owners
-        if qdot is None:
-            for k, b in enumerate(bodies):
-                mujoco.mj_jac(m, d, out[k, 0], out[k, 1], points[k], owner[b])
-            return out
-        self._qvel[self._dof_index] = qdot
-        mujoco.mj_comVel(m, d)
         for k, b in enumerate(bodies):
-            mujoco.mj_jacDot(m, d, out[k, 0], out[k, 1], points[k], owner[b])
+            mujoco.mj_jac(m, d, out[k, 0], out[k, 1], points[k], owner[b])
+        return out
+
+    def frame_jacobian_rates(
+        self, bodies: Sequence[int], points: np.ndarray, qdots: Sequence[np.ndarray],
+        out: np.ndarray,
+    ) -> np.ndarray:
+        """Derivatives of :meth:`frame_jacobians` along each joint velocity of ``qdots``
+        (``(n,)`` each [rad/s]; ``mj_comVel``, ``mj_jacDot``), into ``out``
+        ``(len(qdots), k, 2, 3, nv)``."""
+        m, d, owner = self.model, self.data, self._owners
+        for i, qdot in enumerate(qdots):
+            self._qvel[self._dof_index] = qdot
+            mujoco.mj_comVel(m, d)
+            for k, b in enumerate(bodies):
+                mujoco.mj_jacDot(m, d, out[i, k, 0], out[i, k, 1], points[k], owner[b])
         return out
 
     def point_jacobian_rates(
@@ -266,6 +277,8 @@ class Kinematics:
             self._geom_xpos, self._geom_xmat, *self._pair_arrays, *self._bounds,
             distmax + _SLACK, self._near,
         )
+        if not count:
+            return self._none_near
         near = self._near[:count].tolist()
         kept, dist = [], []
         fromto, geom_distance = self._fromto, mujoco.mj_geomDistance
@@ -291,8 +304,9 @@ class Kinematics:
         if norm < 1e-12:
             return np.zeros(self.n)
         normal = np.sign(dist) * gap / norm if dist != 0 else gap / norm
-        j1 = self.point_jacobian(self.model.geom_bodyid[g1], p1)
-        j2 = self.point_jacobian(self.model.geom_bodyid[g2], p2)
+        j1, j2 = self.point_jacobians(
+            (self._geom_body[g1], self._geom_body[g2]), fromto.reshape(2, 3)
+        )
         return normal @ (j2 - j1)
 
     def min_distance(self, distmax: float = 0.2) -> tuple[float, tuple[str, str] | None]:

@@ -322,8 +322,7 @@ class TaskMap:
         ``D J`` (``mj_jacDot`` of the objects' origins along ``b`` and ``d``, translational
         and rotational, then one compiled pass). Same preconditions as :meth:`rates`."""
         kin, rates = self.kin, self._rates
-        kin.frame_jacobians(self._objects, frame.points, rates[0], qdot=b)
-        kin.frame_jacobians(self._objects, frame.points, rates[1], qdot=d)
+        kin.frame_jacobian_rates(self._objects, frame.points, (b, d), rates)
         out = np.empty(kin.n)
         _planner._curvature(
             a, b, c, d, rates, self._dof, frame.axes, frame.rows, frame.proj, frame.inv,

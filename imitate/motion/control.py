@@ -199,7 +199,7 @@ def rollout(
             k = _sub_steps(largest)
             for i in range(1, k):
                 s = i / k
-                kin.update((1.0 - s) * q[t] + s * q[t + 1])
+                kin.update_between(q[t], q[t + 1], s)
                 between.append((t, s, kin.distances(distmax, jacobian=True)))
     return Rollout(
         q, x, jac, pinv, nullspace_gradient, limits(q[:T])[2], solved, q[1:] != unclipped,
