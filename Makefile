@@ -9,18 +9,24 @@ export MUJOCO_GL
 
 .PHONY: setup setup-test run test test-lowest lint clean
 
-# System libraries, the virtual environment and the package (what `make run` needs).
-$(BIN)/.installed: pyproject.toml scripts/install_system_deps.sh
+# System libraries, the virtual environment and the package with $(1) (extras, or nothing).
+define install
 	bash scripts/install_system_deps.sh
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e .
+	$(BIN)/pip install --quiet -e ".$(1)"
+endef
+
+# What `make run` needs.
+$(BIN)/.installed: pyproject.toml scripts/install_system_deps.sh
+	$(call install,)
 	touch $@
 
-# Plus the test-only dependencies (pytest, ruff and the cross-check libraries).
-$(BIN)/.installed-test: $(BIN)/.installed
-	$(BIN)/pip install --quiet -e ".[test]"
-	touch $@
+# Plus the test-only dependencies (pytest, ruff and the cross-check libraries), in the same
+# pip call on a fresh machine (each editable install builds the package once more).
+$(BIN)/.installed-test: pyproject.toml scripts/install_system_deps.sh
+	$(call install,[test])
+	touch $(BIN)/.installed $@
 
 # numba compiles the tracker's and the learner's kernels into its cache now, two processes at
 # once, so that the first run loads them (again whenever a kernel's source changes).
@@ -46,7 +52,8 @@ lint: setup-test
 	$(BIN)/ruff check .
 
 # The lowest versions pyproject.toml allows (every lower bound pinned, wheels only) on the env
-# and scene tests and a whole quick run; numba's cache of them kept apart from .venv's. pip does
+# and scene tests and a whole quick run; numba's cache of them kept apart from .venv's and filled
+# by the warm-up first (two processes at once, as `make setup` does). pip does
 # not byte-compile there (--no-compile): two processes import from it, and compiling what they
 # import costs less than compiling every file (even where PYTHONDONTWRITEBYTECODE keeps no .pyc).
 test-lowest:
@@ -56,6 +63,7 @@ test-lowest:
 	$(PYTHON) scripts/lowest_requirements.py > $(LOWEST)/requirements.txt
 	$(LOWEST)/bin/pip install --quiet --no-compile --only-binary :all: -r $(LOWEST)/requirements.txt pytest
 	$(LOWEST)/bin/pip install --quiet --no-compile --no-deps -e .
+	NUMBA_CACHE_DIR=$(LOWEST)/numba $(LOWEST)/bin/python -m imitate.warmup
 	NUMBA_CACHE_DIR=$(LOWEST)/numba $(LOWEST)/bin/python -m pytest -q tests/test_env.py tests/test_scene.py
 	NUMBA_CACHE_DIR=$(LOWEST)/numba $(LOWEST)/bin/imitate run --quick --out runs/lowest
 

@@ -13,12 +13,27 @@ with the ``(T+1, 2)`` free response ``S_x`` and the ``(T+1, K)`` matrix ``Psi`` 
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from scipy.linalg import expm
 
 from imitate.errors import ImitateError
 
 __all__ = ["AttractorDynamics"]
+
+
+@functools.lru_cache(maxsize=64)
+def _zero_order_hold(omega: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(A_d (2, 2), B_d (2,))`` of the critically damped system over one step ``dt`` [s].
+    Kept per ``(omega, dt)``: an evaluation plans many times with one model, and each
+    ``scipy.linalg.expm`` call wakes OpenBLAS's worker threads, which then spin on the other
+    cores for about 0.1 s of processor time."""
+    M = np.array([[0.0, 1.0], [-omega**2, -2.0 * omega]])
+    A = expm(M * dt)
+    B = np.linalg.solve(M, (A - np.eye(2)) @ np.array([0.0, omega**2]))
+    A.flags.writeable = B.flags.writeable = False
+    return A, B
 
 
 class AttractorDynamics:
@@ -70,9 +85,7 @@ class AttractorDynamics:
             log = np.log(prior) - np.log(sd) - 0.5 * ((mid[:, None] - sorted_centres) / sd) ** 2
             h = np.exp(log - log.max(axis=1, keepdims=True))
             self.blend = h / h.sum(axis=1, keepdims=True)
-        M = np.array([[0.0, 1.0], [-omega**2, -2.0 * omega]])
-        A = expm(M * dt)
-        B = np.linalg.solve(M, (A - np.eye(2)) @ np.array([0.0, omega**2]))
+        A, B = _zero_order_hold(self.omega, self.dt)
         free = np.empty((n_steps + 1, 2, 2))  # state response to s_0 = e_0, e_1
         forced = np.zeros((n_steps + 1, 2, K))
         free[0] = np.eye(2)
