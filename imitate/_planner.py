@@ -162,19 +162,24 @@ def _curvature(a, b, c, d, rates, dof, axes, rows, proj, inv, axis_jac, rot_jac,
 
 
 @numba.njit(cache=True)
-def _rmr_step(J, x, target, q, winv, damping, gain, low, high, scale, push, lower, upper,
-              pinv, solved, nullspace_grad, unclipped, q_next):
-    """One RMR step (see :mod:`imitate.motion.control`) from ``q (n,)`` with ``J (m, n)`` and
-    ``x (m,)`` at ``q`` towards ``target (m,)``; writes ``pinv (n, m)`` ``J^#``, ``solved (m,)``
-    ``(J W^-1 J^T + lambda I)^-1 (target - x + gain J W^-1 g)``, ``nullspace_grad (n,)``
-    ``g = dH/dq - push``, ``unclipped (n,)`` and ``q_next (n,)``: the step is
-    ``W^-1 J^T solved - gain W^-1 g``. Returns the step's largest joint change
-    ``max |q_next - q|`` [rad].
+def _rmr_step(t, J, xs, targets, qs, winv, damping, gain, low, high, scale, pushes, lower,
+              upper, jac, pinvs, solveds, nullspace_grads, unclippeds):
+    """Step ``t`` of an RMR rollout (see :mod:`imitate.motion.control`), the rollout's arrays
+    indexed here: from ``q = qs[t] (n,)`` with ``J (m, n)`` and ``x = xs[t] (m,)`` at ``q``
+    towards ``target = targets[t + 1] (m,)``; writes ``jac[t] = J``, ``pinvs[t] (n, m)``
+    ``J^#``, ``solveds[t] (m,)`` ``(J W^-1 J^T + lambda I)^-1 (target - x + gain J W^-1 g)``,
+    ``nullspace_grads[t] (n,)`` ``g = dH/dq - push`` (``push = pushes[t]``), ``unclippeds[t]
+    (n,)`` and ``qs[t + 1] (n,)``: the step is ``W^-1 J^T solved - gain W^-1 g``. Returns the
+    step's largest joint change ``max |qs[t + 1] - q|`` [rad].
 
     ``damping`` > 0 and ``winv >= 0`` make the system positive definite: it is solved by
     Cholesky. ``low``, ``high``, ``scale`` are the joint-limit cost's borders and scales,
-    ``push (n,)`` the null-space push, ``lower``, ``upper`` the joint ranges.
+    ``lower``, ``upper`` the joint ranges.
     """
+    x, target, q, q_next, push = xs[t], targets[t + 1], qs[t], qs[t + 1], pushes[t]
+    pinv, solved = pinvs[t], solveds[t]
+    nullspace_grad, unclipped = nullspace_grads[t], unclippeds[t]
+    jac[t] = J
     m, n = J.shape
     JW = np.empty((m, n))
     for i in range(m):
@@ -225,17 +230,24 @@ def _rmr_step(J, x, target, q, winv, damping, gain, low, high, scale, push, lowe
 
 
 @numba.njit(cache=True)
-def _adjoint_directions(lam, pinv, J, solved, winv, nullspace_step, p, ln, b, d, dx):
-    """The backward pass's products at one step: ``p = lam J^#``, ``ln = lam - p J``,
-    ``b = W^-1 (lam - J^T p)`` and ``d = W^-1 J^T u - s`` (``u = solved``, ``s =
-    nullspace_step``, the null-space step's ``gain W^-1 g``), all written; ``dx += p``."""
+def _adjoint_directions(t, lam, clipped_at, pinvs, jacs, solveds, winv, nullspace_steps, p, ln,
+                        b, d, dx):
+    """The backward pass's products at step ``t`` of a rollout (its arrays indexed here):
+    ``lam`` zeroed at the joints ``clipped_at[t]``, then ``p = lam J^#``, ``ln = lam - p J``,
+    ``b = W^-1 (lam - J^T p)`` and ``d = W^-1 J^T u - s`` (``J^# = pinvs[t]``, ``J =
+    jacs[t]``, ``u = solveds[t]``, ``s = nullspace_steps[t]``, the null-space step's ``gain
+    W^-1 g``), all written; ``dx[t + 1] += p``."""
+    pinv, J, solved, step, row = pinvs[t], jacs[t], solveds[t], nullspace_steps[t], dx[t + 1]
     n, m = pinv.shape
+    for j in range(n):
+        if clipped_at[t, j]:
+            lam[j] = 0.0
     for i in range(m):
         total = 0.0
         for j in range(n):
             total += lam[j] * pinv[j, i]
         p[i] = total
-        dx[i] += total
+        row[i] += total
     for j in range(n):
         jp = 0.0
         ju = 0.0
@@ -244,7 +256,7 @@ def _adjoint_directions(lam, pinv, J, solved, winv, nullspace_step, p, ln, b, d,
             ju += J[i, j] * solved[i]
         ln[j] = lam[j] - jp
         b[j] = winv[j] * ln[j]
-        d[j] = winv[j] * ju - nullspace_step[j]
+        d[j] = winv[j] * ju - step[j]
 
 
 @numba.njit(cache=True)
@@ -396,8 +408,10 @@ def _lerp(qa, qb, s, qpos, adr):
 
 
 @numba.njit(cache=True)
-def _adjoint_update(gq, ln, alpha, winv, hessian, curvature, lam):
-    """``lam = gq + ln - alpha (ln W^-1) H'' + curvature`` (all ``(n,)``, ``lam`` written): the
-    backward recursion's step (see :func:`imitate.motion.control.backward`)."""
+def _adjoint_update(t, gq, ln, alpha, winv, hessians, curvature, lam):
+    """``lam = gq[t] + ln - alpha (ln W^-1) H''_t + curvature`` (all ``(n,)``, ``H''_t =
+    hessians[t]``, ``lam`` written): the backward recursion's step (see
+    :func:`imitate.motion.control.backward`)."""
+    gq, hessian = gq[t], hessians[t]
     for j in range(lam.shape[0]):
         lam[j] = gq[j] + ln[j] - alpha * (ln[j] * winv[j]) * hessian[j] + curvature[j]

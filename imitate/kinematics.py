@@ -133,10 +133,6 @@ class Kinematics:
         self._geom_body = model.geom_bodyid.tolist()
         if self.pairs is not None:
             self._pair_geoms = (self.pairs.geom1.tolist(), self.pairs.geom2.tolist())
-            self._pair_arrays = tuple(
-                np.ascontiguousarray(g, dtype=np.intp) for g in (self.pairs.geom1, self.pairs.geom2)
-            )
-            self._bounds = _geom_bounds(model)
             self._near = np.empty(len(self.pairs), dtype=np.intp)
             self._fromto = np.zeros((len(self.pairs), 6))
             self._none_near = Distances(  # shared by the queries that find no pair (read only)
@@ -145,7 +141,9 @@ class Kinematics:
         # Views kept once: MjData attribute access builds a new array each time.
         d = self.data
         self._qpos, self._qvel = d.qpos, d.qvel
-        self._geom_xpos, self._geom_xmat = d.geom_xpos, d.geom_xmat
+        if self.pairs is not None:  # _near_pairs' arguments but the range and the output
+            pairs = (np.ascontiguousarray(g, dtype=np.intp) for g in self._pair_geoms)
+            self._near_args = (d.geom_xpos, d.geom_xmat, *pairs, *_geom_bounds(model))
         # Per held object: its hand and free joint's qpos address; its weld pose.
         self._held_args = (
             np.array(
@@ -271,14 +269,11 @@ class Kinematics:
         """
         if self.pairs is None:
             raise ImitateError("distances need the Kinematics to be built with geoms")
-        m, d = self.model, self.data
-        g1, g2 = self._pair_geoms
-        count = _planner._near_pairs(
-            self._geom_xpos, self._geom_xmat, *self._pair_arrays, *self._bounds,
-            distmax + _SLACK, self._near,
-        )
+        count = _planner._near_pairs(*self._near_args, distmax + _SLACK, self._near)
         if not count:
             return self._none_near
+        m, d = self.model, self.data
+        g1, g2 = self._pair_geoms
         near = self._near[:count].tolist()
         kept, dist = [], []
         fromto, geom_distance = self._fromto, mujoco.mj_geomDistance

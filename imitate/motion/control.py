@@ -189,11 +189,10 @@ def rollout(
         if t == T:
             break
         largest = step(
-            J, x[t], target[t + 1], q[t], winv, config.damping, config.nullspace_gain,
-            limits.low_border, limits.high_border, limits.scale, push[t], kin.lower, kin.upper,
-            pinv[t], solved[t], nullspace_gradient[t], unclipped[t], q[t + 1],
+            t, J, x, target, q, winv, config.damping, config.nullspace_gain, limits.low_border,
+            limits.high_border, limits.scale, push, kin.lower, kin.upper, jac, pinv, solved,
+            nullspace_gradient, unclipped,
         )
-        jac[t] = J
         frames.append(frame)
         if distmax > 0:  # at segment_fractions(q[t], q[t + 1])
             k = _sub_steps(largest)
@@ -254,14 +253,13 @@ def backward(
     directions, update = _planner._adjoint_directions, _planner._adjoint_update
     nullspace_steps = alpha * winv * result.nullspace_gradient
     for t in range(T - 1, -1, -1):
-        lam[result.clipped_at[t]] = 0.0
-        directions(lam, result.pinv[t], result.jac[t], result.solved[t], winv,
-                   nullspace_steps[t], p, ln, b, d, dx[t + 1])
+        directions(t, lam, result.clipped_at, result.pinv, result.jac, result.solved, winv,
+                   nullspace_steps, p, ln, b, d, dx)
         if push_gradient is not None:
             push_gradient[t] = alpha * b
         kin.update(result.q[t], held=False)
         curvature = task.curvature(result.solved[t], b, -p, d, result.frames[t])
-        update(gq[t], ln, alpha, winv, result.limit_hessian[t], curvature, lam)
+        update(t, gq, ln, alpha, winv, result.limit_hessian, curvature, lam)
     return dx
 
 
