@@ -408,10 +408,10 @@ def _lerp(qa, qb, s, qpos, adr):
 
 
 @numba.njit(cache=True)
-def _adjoint_update(t, gq, ln, alpha, winv, hessians, curvature, lam):
-    """``lam = gq[t] + ln - alpha (ln W^-1) H''_t + curvature`` (all ``(n,)``, ``H''_t =
-    hessians[t]``, ``lam`` written): the backward recursion's step (see
+def _adjoint_update(t, gqs, ln, alpha, winv, hessians, curvature, lam):
+    """``lam = gq + ln - alpha (ln W^-1) H'' + curvature`` (all ``(n,)``, ``gq = gqs[t]``,
+    ``H'' = hessians[t]``, ``lam`` written): the backward recursion's step at step ``t`` (see
     :func:`imitate.motion.control.backward`)."""
-    gq, hessian = gq[t], hessians[t]
+    gq, hessian = gqs[t], hessians[t]
     for j in range(lam.shape[0]):
         lam[j] = gq[j] + ln[j] - alpha * (ln[j] * winv[j]) * hessian[j] + curvature[j]

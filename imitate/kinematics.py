@@ -18,6 +18,7 @@ geoms (:func:`imitate._planner._near_pairs`) skips the pairs that are far apart 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -131,19 +132,19 @@ class Kinematics:
         self._owners = owner.tolist()  # a list, for the inner loops
         self.pairs = CollisionPairs.between(model, geoms) if geoms is not None else None
         self._geom_body = model.geom_bodyid.tolist()
+        d = self.data
         if self.pairs is not None:
             self._pair_geoms = (self.pairs.geom1.tolist(), self.pairs.geom2.tolist())
+            pairs = (np.ascontiguousarray(g, dtype=np.intp) for g in self._pair_geoms)
+            # _near_pairs' arguments but the range and the output
+            self._near_args = (d.geom_xpos, d.geom_xmat, *pairs, *_geom_bounds(model))
             self._near = np.empty(len(self.pairs), dtype=np.intp)
             self._fromto = np.zeros((len(self.pairs), 6))
             self._none_near = Distances(  # shared by the queries that find no pair (read only)
                 np.zeros(0, dtype=int), np.zeros(0), np.zeros((0, 6)), np.zeros((0, len(ids)))
             )
         # Views kept once: MjData attribute access builds a new array each time.
-        d = self.data
         self._qpos, self._qvel = d.qpos, d.qvel
-        if self.pairs is not None:  # _near_pairs' arguments but the range and the output
-            pairs = (np.ascontiguousarray(g, dtype=np.intp) for g in self._pair_geoms)
-            self._near_args = (d.geom_xpos, d.geom_xmat, *pairs, *_geom_bounds(model))
         # Per held object: its hand and free joint's qpos address; its weld pose.
         self._held_args = (
             np.array(
@@ -293,12 +294,11 @@ class Kinematics:
 
     def _distance_gradient(self, g1: int, g2: int, dist: float, fromto: np.ndarray) -> np.ndarray:
         """``dd/dq`` ``(n,)`` = ``n^T (J(p2) - J(p1))``; ``n`` flips when penetrating."""
-        p1, p2 = fromto[:3], fromto[3:]
-        gap = p2 - p1
-        norm = np.linalg.norm(gap)
+        gap = fromto[3:] - fromto[:3]
+        norm = math.sqrt(gap.dot(gap))  # np.linalg.norm's arithmetic
         if norm < 1e-12:
             return np.zeros(self.n)
-        normal = np.sign(dist) * gap / norm if dist != 0 else gap / norm
+        normal = (-gap if dist < 0 else gap) / norm
         j1, j2 = self.point_jacobians(
             (self._geom_body[g1], self._geom_body[g2]), fromto.reshape(2, 3)
         )
