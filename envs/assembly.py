@@ -223,9 +223,9 @@ def planning_model(config: SceneConfig = SceneConfig()) -> mujoco.MjModel:
     the whole scene's mass and inertia, so poses, Jacobians and distances are the whole scene's
     bit for bit."""
     config = dataclasses.replace(config, teacher=False, particles=0, holder="robot")
-    whole = build_model(config)
-    keep = {whole.geom(g).name for g in clearance_geoms(whole)}
     spec = build_spec(config)
+    whole = spec.compile()
+    keep = {whole.geom(g).name for g in clearance_geoms(whole)}
     for geom in list(spec.geoms):
         if geom.name not in keep:
             spec.delete(geom)
