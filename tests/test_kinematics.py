@@ -67,6 +67,18 @@ def test_held_objects_are_placed_with_mujocos_arithmetic(kin):
             np.testing.assert_array_equal(d.qpos[adr + 3 : adr + 7], quat)
 
 
+def test_update_between_is_update_at_the_interpolated_posture(kin):
+    """The posture along a step, formed in a kernel, has NumPy's bits: the same poses."""
+    rng = np.random.default_rng(3)
+    for s in (0.5, 1 / 3, 0.9):
+        qa, qb = _posture(int(rng.integers(100)), kin.n), _posture(int(rng.integers(100)), kin.n)
+        kin.update_between(qa, qb, s)
+        between = kin.data.geom_xpos.copy(), kin.data.xquat.copy()
+        kin.update((1.0 - s) * qa + s * qb)
+        np.testing.assert_array_equal(between[0], kin.data.geom_xpos)
+        np.testing.assert_array_equal(between[1], kin.data.xquat)
+
+
 def test_near_pair_bounds_skip_no_pair_within_range():
     """The capsule and slab bounds skip only pairs MuJoCo finds farther than ``distmax``: the
     same pairs and distances as measuring every pair, in a scene with a box and a cylinder."""
