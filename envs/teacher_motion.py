@@ -99,11 +99,19 @@ def _segment_quat(start: np.ndarray, end: np.ndarray) -> np.ndarray:
     """Orientation whose local -z points from ``start`` to ``end``."""
     z = -_unit(end - start)
     helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x = _unit(np.cross(helper, z))
-    y = np.cross(z, x)
+    x = _unit(_cross(helper, z))
+    y = _cross(z, x)
     quat = np.zeros(4)
     mujoco.mju_mat2Quat(quat, np.column_stack([x, y, z]).ravel())
     return quat
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.cross`` of two 3-vectors, its arithmetic without its generality (a third of the
+    teacher's posing time per frame)."""
+    return np.array(
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    )
 
 
 def _set_mocap(model, data, body: str, pos, quat) -> None:

@@ -31,7 +31,7 @@ import sys
 import tempfile
 import threading
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -245,12 +245,17 @@ def main(argv: list[str] | None = None) -> int:
             except ImitateError as err:
                 parser.error(str(err))
             log.debug("run directory %s, settings %s", run_dir, config.to_json())
-            for stage in stages:
-                log.info("== %s", stage)
-                notice = numba_cache.compile_notice(stage)
-                if notice:
-                    log.info(notice)
-                report = pipeline.run_stage(stage, run_dir, config, force=args.force)
+            with ExitStack() as later:
+                for stage in stages:
+                    if stage == "learn" and stages[-1] == "figures":
+                        # the figures' worker process loads beside learn, optimize and replay
+                        # (observe keeps every core busy)
+                        later.enter_context(pipeline.drawing_ahead())
+                    log.info("== %s", stage)
+                    notice = numba_cache.compile_notice(stage)
+                    if notice:
+                        log.info(notice)
+                    report = pipeline.run_stage(stage, run_dir, config, force=args.force)
     except ImitateError as err:
         return _fail(args.command, str(err), 1)
     except OSError as err:

@@ -11,11 +11,17 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import logging
+import multiprocessing
 import os
 import re
+import signal
 import sys
+import threading
 import time
-from concurrent.futures import ThreadPoolExecutor, as_completed
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
+from contextlib import contextmanager, nullcontext
+from contextvars import ContextVar
 from pathlib import Path
 
 import numpy as np
@@ -50,7 +56,7 @@ from imitate.replay import planning_task
 from imitate.replay import replay as replay_plan
 from imitate.segment import StillnessConfig, load_demos, save_demos, segment, task_demo
 
-__all__ = ["figures", "learn", "observe", "optimize", "replay", "run_stage"]
+__all__ = ["drawing_ahead", "figures", "learn", "observe", "optimize", "replay", "run_stage"]
 
 log = logging.getLogger(__name__)
 
@@ -233,7 +239,11 @@ def replay(run_dir: Path, config: RunConfig) -> dict:
 
 
 def figures(run_dir: Path, config: RunConfig) -> dict:
-    """The figures (``figures/*.png``) and the video: the teacher, then the robot pouring."""
+    """The figures (``figures/*.png``) and the video: the teacher, then the robot pouring.
+
+    A worker process draws the figures while this one renders and encodes the video (matplotlib
+    holds the GIL: in a thread it would stall the video's frames); the one :func:`drawing_ahead`
+    started, if any, else one of the stage's own."""
     observations = load_observations(run_dir / "observations.npz")
     boundaries = load_npz(run_dir / "demos.npz", required=("boundaries",))["boundaries"]
     arrays = load_npz(run_dir / "model.npz", required=(
@@ -249,27 +259,83 @@ def figures(run_dir: Path, config: RunConfig) -> dict:
     weights = plan["sweep_weights"]
     sweep = dict(zip(weights, plan["sweep_x"], strict=True))
     clearance = dict(zip(weights, plan["sweep_clearance"], strict=True))
-    drawings = {
-        "observation": lambda: plots.plot_observation(observations, boundaries),
-        "fig4_gmm_dtw": lambda: plots.plot_gmm_with_and_without_dtw(raw, model),
-        "fig5_bic": lambda: plots.plot_bic_curves(
-            {"fast (K-means only)": arrays["bic_fast"], "full (EM)": arrays["bic_full"]}
+    drawings = {  # name: (plots' function, its arguments); Fig. 8's snapshots rendered below
+        "observation": (plots.plot_observation, observations, boundaries),
+        "fig4_gmm_dtw": (plots.plot_gmm_with_and_without_dtw, raw, model),
+        "fig5_bic": (plots.plot_bic_curves, {
+            "fast (K-means only)": arrays["bic_fast"], "full (EM)": arrays["bic_full"],
+        }),
+        "gmr": (plots.plot_gmr, model, list(arrays["aligned"])),
+        "fig9_collision_sweep": (
+            plots.plot_collision_sweep, plan["times"], plan["mean"], plan["variance"], sweep,
+            clearance,
         ),
-        "gmr": lambda: plots.plot_gmr(model, list(arrays["aligned"])),
-        "fig8_snapshots": lambda: plots.plot_snapshots(*_snapshots(config, states, plan)),
-        "fig9_collision_sweep": lambda: plots.plot_collision_sweep(
-            plan["times"], plan["mean"], plan["variance"], sweep, clearance
-        ),
-        "costs": lambda: plots.plot_costs(
-            {w: plan[f"sweep{i}_cost_total"] for i, w in enumerate(weights)}
+        "costs": (
+            plots.plot_costs, {w: plan[f"sweep{i}_cost_total"] for i, w in enumerate(weights)}
         ),
     }
-    for name in tqdm(stages.FIGURES, desc="figures", unit="figure", disable=_bars()):
-        plots.save(drawings[name](), run_dir / "figures" / f"{name}.png")
-    n_frames = write_video(
-        run_dir / "video.mp4", _video_frames(config, states, observations), config.video_fps
-    )
+    ahead = _DRAWER.get()
+    with nullcontext(ahead) if ahead else _drawer() as drawer:
+        pngs = {name: drawer.submit(plots.png, *drawing) for name, drawing in drawings.items()}
+        try:
+            pngs["fig8_snapshots"] = drawer.submit(
+                plots.png, plots.plot_snapshots, *_snapshots(config, states, plan)
+            )
+            n_frames = write_video(
+                run_dir / "video.mp4", _video_frames(config, states, observations),
+                config.video_fps,
+            )
+            for name in tqdm(stages.FIGURES, desc="figures", unit="figure", disable=_bars()):
+                plots.save_png(pngs[name].result(), run_dir / "figures" / f"{name}.png")
+        finally:
+            for future in pngs.values():
+                future.cancel()
     return {"video": {"frames": n_frames, "seconds": n_frames / config.video_fps}}
+
+
+@contextmanager
+def drawing_ahead() -> Iterator[None]:
+    """Within the block, :func:`figures` draws in a worker process started now, whose imports
+    (a second or two) are done while the earlier stages run; without it, the stage starts its
+    own."""
+    with _drawer() as drawer:
+        token = _DRAWER.set(drawer)
+        try:
+            yield
+        finally:
+            _DRAWER.reset(token)
+
+
+_DRAWER: ContextVar[ProcessPoolExecutor | None] = ContextVar("drawer", default=None)
+
+
+@contextmanager
+def _drawer() -> Iterator[ProcessPoolExecutor]:
+    """One worker process, started now, that draws figures (:func:`plots.png`): spawned, not
+    forked, as this process has threads (rendering, BLAS), and deaf to Ctrl-C, which stops it
+    through this process (no traceback of its own)."""
+    drawer = ProcessPoolExecutor(
+        1, mp_context=multiprocessing.get_context("spawn"), initializer=plots.use_agg
+    )
+    try:
+        with _ignoring_ctrl_c():  # the worker inherits it
+            drawer.submit(int)  # starts the worker
+        yield drawer
+    finally:
+        drawer.shutdown(cancel_futures=True)
+
+
+@contextmanager
+def _ignoring_ctrl_c() -> Iterator[None]:
+    """SIGINT ignored within the block (in the main thread; signals go to no other)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 # --- Running -----------------------------------------------------------------------------------

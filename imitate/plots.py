@@ -3,14 +3,17 @@ Fig. 5 (BIC), GMR bands, Fig. 8 (snapshots without and with the collision cost),
 (reproductions over a sweep of collision weights), costs.
 
 Every ``plot_*`` function draws on a new matplotlib figure and returns it; :func:`save` writes
-one atomically and frees it. The backend is matplotlib's choice (Agg where there is no display);
-the ``imitate`` command sets Agg.
+one atomically and frees it; :func:`png` returns it as PNG bytes for :func:`save_png` (in a
+worker process too: the functions and their arguments pickle). The backend is matplotlib's
+choice (Agg where there is no display); the ``imitate`` command and :func:`use_agg` set Agg.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import io
+from collections.abc import Callable, Sequence
 
+import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
@@ -32,7 +35,10 @@ __all__ = [
     "plot_gmr",
     "plot_observation",
     "plot_snapshots",
+    "png",
     "save",
+    "save_png",
+    "use_agg",
 ]
 
 
@@ -287,3 +293,26 @@ def save(fig: Figure, path, dpi: int = DPI) -> None:
     """Write ``fig`` as a PNG to ``path`` atomically and close it."""
     write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi))
     plt.close(fig)
+
+
+def png(draw: Callable[..., Figure], *args, dpi: int = DPI) -> bytes:
+    """The figure ``draw(*args)`` returns, as PNG bytes (the same as :func:`save` writes); the
+    figure is closed."""
+    fig = draw(*args)
+    buffer = io.BytesIO()
+    try:
+        fig.savefig(buffer, format="png", dpi=dpi)
+    finally:
+        plt.close(fig)
+    return buffer.getvalue()
+
+
+def save_png(data: bytes, path) -> None:
+    """Write the PNG bytes ``data`` (from :func:`png`) to ``path`` atomically."""
+    write_atomic(path, lambda tmp: tmp.write_bytes(data))
+
+
+def use_agg() -> None:
+    """Draw with Agg, matplotlib's raster backend, display or not: the initializer of a worker
+    process that draws (naming it loads this module)."""
+    matplotlib.use("Agg")

@@ -11,6 +11,8 @@ import os
 import signal
 import subprocess
 import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -248,6 +250,43 @@ def test_6_ctrl_c_is_one_line_and_exit_130(run_dir, monkeypatch, capsys):
     line = one_error_line(capsys.readouterr().err, "learn")
     assert "interrupted (Ctrl-C) in stage learn" in line
     assert snapshot(run_dir) == before
+
+
+def test_6_ctrl_c_while_figures_are_drawn_stops_the_drawing_process_quietly(run_dir):
+    """Ctrl-C reaches every process of the terminal's group: the process that draws the figures
+    (started by the stage) leaves it to the stage, which stops it."""
+    before = snapshot(run_dir)
+    command = [sys.executable, "-m", "imitate.cli", "figures", str(run_dir)]
+    stage = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        for _ in range(600):  # up to 60 s for its drawing process to start
+            if _drawing_processes(stage.pid):
+                break
+            time.sleep(0.1)
+        assert _drawing_processes(stage.pid)
+        os.killpg(stage.pid, signal.SIGINT)
+        _, err = stage.communicate(timeout=120)
+    finally:
+        stage.kill()
+    assert stage.returncode == 130
+    assert "interrupted (Ctrl-C) in stage figures" in one_error_line(err, "figures")
+    assert snapshot(run_dir) == before
+    for _ in range(100):
+        if not _drawing_processes(stage.pid):
+            break
+        time.sleep(0.1)
+    assert not _drawing_processes(stage.pid)
+
+
+def _drawing_processes(group: int) -> list[int]:
+    """The pids of the multiprocessing workers in process ``group``."""
+    pids = []
+    for cmdline in Path("/proc").glob("[0-9]*/cmdline"):
+        with contextlib.suppress(OSError):
+            pid = int(cmdline.parent.name)
+            if b"spawn_main" in cmdline.read_bytes() and os.getpgid(pid) == group:
+                pids.append(pid)
+    return pids
 
 
 def test_6_sigterm_is_one_line_and_exit_143(run_dir, monkeypatch, capsys):

@@ -8,6 +8,7 @@ from imitate.envs.teacher_motion import (
     _SWING_ROWS,
     _WAYPOINTS,
     TeacherConfig,
+    _cross,
     script_demonstrations,
 )
 from imitate.errors import ImitateError
@@ -88,3 +89,9 @@ def test_bottle_is_in_the_hand_the_robot_sees_on_its_right():
 def test_bad_configs_are_refused(kwargs):
     with pytest.raises(ImitateError, match="not accepted"):
         TeacherConfig(**kwargs)
+
+
+def test_the_posing_cross_product_is_numpys_bit_for_bit():
+    rng = np.random.default_rng(0)
+    for a, b in rng.normal(size=(1000, 2, 3)) * rng.lognormal(0, 3, size=(1000, 2, 1)):
+        assert np.array_equal(_cross(a, b), np.cross(a, b))
