@@ -7,7 +7,7 @@ RUN ?= runs/latest
 MUJOCO_GL ?= egl
 export MUJOCO_GL
 
-.PHONY: setup setup-test run test test-lowest lint clean
+.PHONY: setup setup-test run test suite lowest test-lowest lint clean
 
 # System libraries, the virtual environment and the package with $(1) (extras, or nothing).
 define install
@@ -43,10 +43,15 @@ setup-test: $(BIN)/.installed-test $(BIN)/.compiled
 run: setup
 	$(BIN)/imitate run --out $(RUN)
 
+# The suite and the lowest versions' installation side by side (pip mostly downloads and
+# unpacks), then the lowest versions' tests.
 test: setup-test lint
+	$(MAKE) -j2 suite lowest
+	$(MAKE) test-lowest
+
+suite: setup-test
 	$(BIN)/python -m pytest -n auto --dist loadfile
 	$(BIN)/python scripts/render_ci_video.py --out runs/ci/video.mp4 --width 160 --height 120 --check
-	$(MAKE) test-lowest
 
 lint: setup-test
 	$(BIN)/ruff check .
@@ -56,13 +61,17 @@ lint: setup-test
 # by the warm-up first (two processes at once, as `make setup` does). pip does
 # not byte-compile there (--no-compile): two processes import from it, and compiling what they
 # import costs less than compiling every file (even where PYTHONDONTWRITEBYTECODE keeps no .pyc).
-test-lowest:
+lowest: $(LOWEST)/.installed
+$(LOWEST)/.installed: pyproject.toml scripts/lowest_requirements.py scripts/install_system_deps.sh
 	bash scripts/install_system_deps.sh
 	rm -rf $(LOWEST)
 	$(PYTHON) -m venv $(LOWEST)
 	$(PYTHON) scripts/lowest_requirements.py > $(LOWEST)/requirements.txt
 	$(LOWEST)/bin/pip install --quiet --no-compile --only-binary :all: -r $(LOWEST)/requirements.txt pytest
 	$(LOWEST)/bin/pip install --quiet --no-compile --no-deps -e .
+	touch $@
+
+test-lowest: $(LOWEST)/.installed
 	NUMBA_CACHE_DIR=$(LOWEST)/numba $(LOWEST)/bin/python -m imitate.warmup
 	NUMBA_CACHE_DIR=$(LOWEST)/numba $(LOWEST)/bin/python -m pytest -q tests/test_env.py tests/test_scene.py
 	NUMBA_CACHE_DIR=$(LOWEST)/numba $(LOWEST)/bin/imitate run --quick --out runs/lowest

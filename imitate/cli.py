@@ -245,12 +245,12 @@ def main(argv: list[str] | None = None) -> int:
             except ImitateError as err:
                 parser.error(str(err))
             log.debug("run directory %s, settings %s", run_dir, config.to_json())
-            with ExitStack() as later:
+            with ExitStack() as ahead:
                 for stage in stages:
                     if stage == "learn" and stages[-1] == "figures":
                         # the figures' worker process loads beside learn, optimize and replay
                         # (observe keeps every core busy)
-                        later.enter_context(pipeline.drawing_ahead())
+                        ahead.enter_context(pipeline.drawing_ahead())
                     log.info("== %s", stage)
                     notice = numba_cache.compile_notice(stage)
                     if notice:

@@ -243,7 +243,8 @@ def figures(run_dir: Path, config: RunConfig) -> dict:
 
     A worker process draws the figures while this one renders and encodes the video (matplotlib
     holds the GIL: in a thread it would stall the video's frames); the one :func:`drawing_ahead`
-    started, if any, else one of the stage's own."""
+    started, if any, else one of the stage's own. It is spawned: a script that calls this
+    guards its own code with ``if __name__ == "__main__":``."""
     observations = load_observations(run_dir / "observations.npz")
     boundaries = load_npz(run_dir / "demos.npz", required=("boundaries",))["boundaries"]
     arrays = load_npz(run_dir / "model.npz", required=(
@@ -327,7 +328,7 @@ def _drawer() -> Iterator[ProcessPoolExecutor]:
 
 @contextmanager
 def _ignoring_ctrl_c() -> Iterator[None]:
-    """SIGINT ignored within the block (in the main thread; signals go to no other)."""
+    """SIGINT ignored within the block (in the main thread: no other may set a handler)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
