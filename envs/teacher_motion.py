@@ -107,8 +107,8 @@ def _segment_quat(start: np.ndarray, end: np.ndarray) -> np.ndarray:
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``np.cross`` of two 3-vectors, its arithmetic without its generality (a third of the
-    teacher's posing time per frame)."""
+    """``np.cross`` of two 3-vectors: its arithmetic without its generality, which took two
+    thirds of the teacher's posing time per frame."""
     return np.array(
         [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
     )

@@ -231,8 +231,8 @@ def captioned(frames: Iterable[np.ndarray], text: str) -> Iterator[np.ndarray]:
         yield caption(frame, text)
 
 
-# x264's veryfast preset at imageio's quality 6 (of 10): half the encoding time of its default
-# (the medium preset at quality 5) at a PSNR as high, in files about 40 % larger.
+# x264's veryfast preset at imageio's quality 6 (of 10): less encoding time than imageio's default
+# (the medium preset at quality 5) at a higher PSNR, in larger files (scripts/bench_video.py).
 ENCODER = {"codec": "libx264", "quality": 6, "ffmpeg_params": ["-preset", "veryfast"]}
 
 

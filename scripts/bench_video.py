@@ -55,7 +55,7 @@ def encode(frames: list[np.ndarray], path: Path, fps: float, settings: dict) -> 
         writer.append_data(frame)
     writer.close()
     wall, cpu = time.perf_counter() - start, children_cpu() - cpu
-    decoded = list(imageio.get_reader(path))
+    decoded = [frame for frame in imageio.get_reader(path)]
     assert len(decoded) == len(frames), (len(decoded), len(frames))
     quality = np.mean([psnr(a, b) for a, b in zip(frames[::10], decoded[::10], strict=True)])
     return {"wall": wall, "cpu": cpu, "psnr": quality, "mb": path.stat().st_size / 1e6}
@@ -68,7 +68,7 @@ def main() -> None:
     args = parser.parse_args()
     reader = imageio.get_reader(args.run_dir / "video.mp4")
     fps = reader.get_meta_data()["fps"]
-    frames = list(reader)
+    frames = [frame for frame in reader]  # list() would ask its length: inf
     height, width = frames[0].shape[:2]
     print(f"{len(frames)} frames {width}x{height} at {fps:g} fps from {args.run_dir / 'video.mp4'};"
           f" {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
