@@ -237,7 +237,7 @@ def main(argv: list[str] | None = None) -> int:
     fresh = _starts_run(args.command)
     try:
         with _terminated_as_exception(), locked(run_dir, command, create=fresh):
-            from imitate import pipeline  # the stages (matplotlib, rendering): once it is ours
+            from imitate import drawing, pipeline  # the stages: once the directory is ours
 
             base = RunConfig() if fresh else load_config(run_dir)
             try:
@@ -250,7 +250,7 @@ def main(argv: list[str] | None = None) -> int:
                     if stage == "learn" and stages[-1] == "figures":
                         # the figures' worker process loads beside learn, optimize and replay
                         # (observe keeps every core busy)
-                        ahead.enter_context(pipeline.drawing_ahead())
+                        ahead.enter_context(drawing.ahead())
                     log.info("== %s", stage)
                     notice = numba_cache.compile_notice(stage)
                     if notice:

@@ -11,23 +11,17 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import logging
-import multiprocessing
 import os
 import re
-import signal
 import sys
-import threading
 import time
-from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
-from contextlib import contextmanager, nullcontext
-from contextvars import ContextVar
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
-from imitate import plots, provenance, report_html, stages
+from imitate import drawing, plots, provenance, report_html, stages
 from imitate.artifacts import load_json, load_npz, save_json, save_npz, staged
 from imitate.bic import bic_sweep
 from imitate.config import RunConfig
@@ -56,7 +50,7 @@ from imitate.replay import planning_task
 from imitate.replay import replay as replay_plan
 from imitate.segment import StillnessConfig, load_demos, save_demos, segment, task_demo
 
-__all__ = ["drawing_ahead", "figures", "learn", "observe", "optimize", "replay", "run_stage"]
+__all__ = ["figures", "learn", "observe", "optimize", "replay", "run_stage"]
 
 log = logging.getLogger(__name__)
 
@@ -241,10 +235,8 @@ def replay(run_dir: Path, config: RunConfig) -> dict:
 def figures(run_dir: Path, config: RunConfig) -> dict:
     """The figures (``figures/*.png``) and the video: the teacher, then the robot pouring.
 
-    A worker process draws the figures while this one renders and encodes the video (matplotlib
-    holds the GIL: in a thread it would stall the video's frames); the one :func:`drawing_ahead`
-    started, if any, else one of the stage's own. It is spawned: a script that calls this
-    guards its own code with ``if __name__ == "__main__":``."""
+    A worker process (:mod:`imitate.drawing`) draws the figures while this one renders and
+    encodes the video."""
     observations = load_observations(run_dir / "observations.npz")
     boundaries = load_npz(run_dir / "demos.npz", required=("boundaries",))["boundaries"]
     arrays = load_npz(run_dir / "model.npz", required=(
@@ -275,11 +267,10 @@ def figures(run_dir: Path, config: RunConfig) -> dict:
             plots.plot_costs, {w: plan[f"sweep{i}_cost_total"] for i, w in enumerate(weights)}
         ),
     }
-    ahead = _DRAWER.get()
-    with nullcontext(ahead) if ahead else _drawer() as drawer:
-        pngs = {name: drawer.submit(plots.png, *drawing) for name, drawing in drawings.items()}
+    with drawing.worker() as worker:
+        pngs = {name: worker.submit(plots.png, *draw) for name, draw in drawings.items()}
         try:
-            pngs["fig8_snapshots"] = drawer.submit(
+            pngs["fig8_snapshots"] = worker.submit(
                 plots.png, plots.plot_snapshots, *_snapshots(config, states, plan)
             )
             n_frames = write_video(
@@ -292,51 +283,6 @@ def figures(run_dir: Path, config: RunConfig) -> dict:
             for future in pngs.values():
                 future.cancel()
     return {"video": {"frames": n_frames, "seconds": n_frames / config.video_fps}}
-
-
-@contextmanager
-def drawing_ahead() -> Iterator[None]:
-    """Within the block, :func:`figures` draws in a worker process started now, whose imports
-    (a second or two) are done while the earlier stages run; without it, the stage starts its
-    own."""
-    with _drawer() as drawer:
-        token = _DRAWER.set(drawer)
-        try:
-            yield
-        finally:
-            _DRAWER.reset(token)
-
-
-_DRAWER: ContextVar[ProcessPoolExecutor | None] = ContextVar("drawer", default=None)
-
-
-@contextmanager
-def _drawer() -> Iterator[ProcessPoolExecutor]:
-    """One worker process, started now, that draws figures (:func:`plots.png`): spawned, not
-    forked, as this process has threads (rendering, BLAS), and deaf to Ctrl-C, which stops it
-    through this process (no traceback of its own)."""
-    drawer = ProcessPoolExecutor(
-        1, mp_context=multiprocessing.get_context("spawn"), initializer=plots.use_agg
-    )
-    try:
-        with _ignoring_ctrl_c():  # the worker inherits it
-            drawer.submit(int)  # starts the worker
-        yield drawer
-    finally:
-        drawer.shutdown(cancel_futures=True)
-
-
-@contextmanager
-def _ignoring_ctrl_c() -> Iterator[None]:
-    """SIGINT ignored within the block (in the main thread: no other may set a handler)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
 
 
 # --- Running -----------------------------------------------------------------------------------

@@ -313,6 +313,6 @@ def save_png(data: bytes, path) -> None:
 
 
 def use_agg() -> None:
-    """Draw with Agg, matplotlib's raster backend, display or not: the initializer of a worker
-    process that draws (naming it loads this module)."""
+    """Draw with Agg, matplotlib's raster backend, display or not (as the drawing worker process
+    does, :mod:`imitate.drawing`)."""
     matplotlib.use("Agg")

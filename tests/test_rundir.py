@@ -278,6 +278,23 @@ def test_6_ctrl_c_while_figures_are_drawn_stops_the_drawing_process_quietly(run_
     assert not _drawing_processes(stage.pid)
 
 
+def test_1_drawing_process_of_a_killed_stage_exits_by_itself(run_dir):
+    command = [sys.executable, "-m", "imitate.cli", "figures", str(run_dir)]
+    stage = subprocess.Popen(command, stderr=subprocess.DEVNULL, start_new_session=True)
+    for _ in range(600):  # up to 60 s for its drawing process to start
+        if _drawing_processes(stage.pid):
+            break
+        time.sleep(0.1)
+    assert _drawing_processes(stage.pid)
+    stage.kill()
+    stage.wait()
+    for _ in range(100):  # it looks for its parent every drawing.PARENT_POLL_S
+        if not _drawing_processes(stage.pid):
+            break
+        time.sleep(0.1)
+    assert not _drawing_processes(stage.pid)
+
+
 def _drawing_processes(group: int) -> list[int]:
     """The pids of the multiprocessing workers in process ``group``."""
     pids = []

@@ -1,0 +1,92 @@
+"""The worker process that draws a run's figures while the figures stage makes the video.
+
+matplotlib holds the GIL: drawn in a thread, the figures would stall the video's frames. One
+worker process draws them instead (:func:`imitate.plots.png`). It is spawned, not forked (the
+stage's process has threads: rendering, BLAS), so a script that calls the stages guards its own
+code with ``if __name__ == "__main__":``. Ctrl-C is left to the stage's process, which stops the
+worker; a worker whose process was killed exits by itself.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+import threading
+import time
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
+from contextvars import ContextVar
+
+from imitate import plots
+
+__all__ = ["ahead", "worker"]
+
+PARENT_POLL_S = 1.0  # how often the worker checks that its parent is alive [s]
+
+_AHEAD: ContextVar[ProcessPoolExecutor | None] = ContextVar("drawing_ahead", default=None)
+
+
+@contextmanager
+def ahead() -> Iterator[None]:
+    """Within the block, :func:`worker` gives one worker process started now, whose imports (a
+    second or two) are done while the stages before the figures run."""
+    with _started() as pool:
+        token = _AHEAD.set(pool)
+        try:
+            yield
+        finally:
+            _AHEAD.reset(token)
+
+
+@contextmanager
+def worker() -> Iterator[ProcessPoolExecutor]:
+    """The worker process of the enclosing :func:`ahead`, else one started for this block."""
+    pool = _AHEAD.get()
+    if pool is not None:
+        yield pool
+        return
+    with _started() as pool:
+        yield pool
+
+
+@contextmanager
+def _started() -> Iterator[ProcessPoolExecutor]:
+    """One worker process, started now, stopped when the block ends."""
+    pool = ProcessPoolExecutor(
+        1, mp_context=multiprocessing.get_context("spawn"), initializer=_start,
+        initargs=(os.getpid(),),
+    )
+    try:
+        with _ignoring_ctrl_c():  # the worker inherits it
+            pool.submit(int)  # starts the worker
+        yield pool
+    finally:
+        pool.shutdown(cancel_futures=True)
+
+
+def _start(parent: int) -> None:
+    """The worker's initializer: Agg, and exit (at once) when process ``parent`` is no longer
+    its parent (gone, perhaps before this ran)."""
+    plots.use_agg()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+
+
+@contextmanager
+def _ignoring_ctrl_c() -> Iterator[None]:
+    """SIGINT ignored within the block (in the main thread: no other may set a handler)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
