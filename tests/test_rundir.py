@@ -256,14 +256,8 @@ def test_6_ctrl_c_while_figures_are_drawn_stops_the_drawing_process_quietly(run_
     """Ctrl-C reaches every process of the terminal's group: the process that draws the figures
     (started by the stage) leaves it to the stage, which stops it."""
     before = snapshot(run_dir)
-    command = [sys.executable, "-m", "imitate.cli", "figures", str(run_dir)]
-    stage = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    stage = _figures_with_its_drawing_process(run_dir, stderr=subprocess.PIPE)
     try:
-        for _ in range(600):  # up to 60 s for its drawing process to start
-            if _drawing_processes(stage.pid):
-                break
-            time.sleep(0.1)
-        assert _drawing_processes(stage.pid)
         os.killpg(stage.pid, signal.SIGINT)
         _, err = stage.communicate(timeout=120)
     finally:
@@ -271,28 +265,35 @@ def test_6_ctrl_c_while_figures_are_drawn_stops_the_drawing_process_quietly(run_
     assert stage.returncode == 130
     assert "interrupted (Ctrl-C) in stage figures" in one_error_line(err, "figures")
     assert snapshot(run_dir) == before
-    for _ in range(100):
-        if not _drawing_processes(stage.pid):
-            break
-        time.sleep(0.1)
-    assert not _drawing_processes(stage.pid)
+    assert _no_drawing_process_left(stage.pid)
 
 
-def test_1_drawing_process_of_a_killed_stage_exits_by_itself(run_dir):
-    command = [sys.executable, "-m", "imitate.cli", "figures", str(run_dir)]
-    stage = subprocess.Popen(command, stderr=subprocess.DEVNULL, start_new_session=True)
-    for _ in range(600):  # up to 60 s for its drawing process to start
-        if _drawing_processes(stage.pid):
-            break
-        time.sleep(0.1)
-    assert _drawing_processes(stage.pid)
+def test_6_drawing_process_of_a_killed_stage_exits_by_itself(run_dir):
+    stage = _figures_with_its_drawing_process(run_dir, stderr=subprocess.DEVNULL)
     stage.kill()
     stage.wait()
-    for _ in range(100):  # it looks for its parent every drawing.PARENT_POLL_S
-        if not _drawing_processes(stage.pid):
-            break
+    assert _no_drawing_process_left(stage.pid)  # it looks for its parent every PARENT_POLL_S
+
+
+def _figures_with_its_drawing_process(run_dir, stderr) -> subprocess.Popen:
+    """``imitate figures run_dir`` in a process group of its own, once its drawing process runs."""
+    command = [sys.executable, "-m", "imitate.cli", "figures", str(run_dir)]
+    stage = subprocess.Popen(command, stderr=stderr, text=True, start_new_session=True)
+    for _ in range(600):  # up to 60 s
+        if _drawing_processes(stage.pid):
+            return stage
         time.sleep(0.1)
-    assert not _drawing_processes(stage.pid)
+    stage.kill()
+    raise AssertionError("no drawing process started within 60 s")
+
+
+def _no_drawing_process_left(group: int) -> bool:
+    """Whether process ``group``'s drawing processes are all gone within 10 s."""
+    for _ in range(100):
+        if not _drawing_processes(group):
+            return True
+        time.sleep(0.1)
+    return False
 
 
 def _drawing_processes(group: int) -> list[int]:
