@@ -36,20 +36,25 @@ $(BIN)/.compiled: $(BIN)/.installed $(KERNELS)
 	$(BIN)/python -m imitate.warmup
 	touch $@
 
+# (The warm-up after the test packages' installation, which also stands for .installed: in
+# `make -j2` the two would otherwise install into one venv at once.)
 setup: $(BIN)/.installed $(BIN)/.compiled
-setup-test: $(BIN)/.installed-test $(BIN)/.compiled
+setup-test: $(BIN)/.installed-test
+	@$(MAKE) -s --no-print-directory $(BIN)/.compiled
 
 # The whole pipeline on the default settings: watch, learn, optimize, pour, figures, video.
 run: setup
 	$(BIN)/imitate run --out $(RUN)
 
-# The suite and the lowest versions' installation side by side (pip mostly downloads and
-# unpacks), then the lowest versions' tests.
-test: setup-test lint
-	$(MAKE) -j2 suite lowest
-	$(MAKE) test-lowest
+# Two jobs side by side, each installing and compiling what it needs: the suite, and the
+# lowest versions' check, which yields the processor to the suite (nice) and so runs where the
+# suite leaves a core idle (pip, the warm-up, the suite's last test files). The system
+# libraries first, once, so that the two jobs never run apt-get at the same time.
+test:
+	bash scripts/install_system_deps.sh
+	$(MAKE) -j2 suite test-lowest
 
-suite: setup-test
+suite: setup-test lint
 	$(BIN)/python -m pytest -n auto --dist loadfile
 	$(BIN)/python scripts/render_ci_video.py --out runs/ci/video.mp4 --width 160 --height 120 --check
 
@@ -57,24 +62,32 @@ lint: setup-test
 	$(BIN)/ruff check .
 
 # The lowest versions pyproject.toml allows (every lower bound pinned, wheels only) on the env
-# and scene tests and a whole quick run; numba's cache of them kept apart from .venv's and filled
-# by the warm-up first (two processes at once, as `make setup` does). pip does
-# not byte-compile there (--no-compile): two processes import from it, and compiling what they
-# import costs less than compiling every file (even where PYTHONDONTWRITEBYTECODE keeps no .pyc).
+# and scene tests and a whole quick run, at a lower priority (nice); numba's cache of them kept
+# apart from .venv's and filled by the warm-up first (two processes at once, as `make setup`
+# does). pip does not byte-compile there (--no-compile): two processes import from it, and
+# compiling what they import costs less than compiling every file (even where
+# PYTHONDONTWRITEBYTECODE keeps no .pyc; not so for .venv, whose packages a hundred processes
+# of the suite import).
+LOWEST_ENV := NUMBA_CACHE_DIR=$(LOWEST)/numba nice -n 10
 lowest: $(LOWEST)/.installed
 $(LOWEST)/.installed: pyproject.toml scripts/lowest_requirements.py scripts/install_system_deps.sh
 	bash scripts/install_system_deps.sh
 	rm -rf $(LOWEST)
 	$(PYTHON) -m venv $(LOWEST)
 	$(PYTHON) scripts/lowest_requirements.py > $(LOWEST)/requirements.txt
-	$(LOWEST)/bin/pip install --quiet --no-compile --only-binary :all: -r $(LOWEST)/requirements.txt pytest
+	nice -n 10 $(LOWEST)/bin/pip install --quiet --no-compile --only-binary :all: -r $(LOWEST)/requirements.txt pytest
 	$(LOWEST)/bin/pip install --quiet --no-compile --no-deps -e .
 	touch $@
 
+# Its output goes to a log, printed as one block when it ends (it runs beside the suite).
 test-lowest: $(LOWEST)/.installed
-	NUMBA_CACHE_DIR=$(LOWEST)/numba $(LOWEST)/bin/python -m imitate.warmup
-	NUMBA_CACHE_DIR=$(LOWEST)/numba $(LOWEST)/bin/python -m pytest -q tests/test_env.py tests/test_scene.py
-	NUMBA_CACHE_DIR=$(LOWEST)/numba $(LOWEST)/bin/imitate run --quick --out runs/lowest
+	@echo "lowest versions: warm-up, env and scene tests, quick run (output when they end)"
+	@{ $(LOWEST_ENV) $(LOWEST)/bin/python -m imitate.warmup && \
+	   $(LOWEST_ENV) $(LOWEST)/bin/python -m pytest -q -p no:cacheprovider \
+		tests/test_env.py tests/test_scene.py && \
+	   $(LOWEST_ENV) $(LOWEST)/bin/imitate run --quick --out runs/lowest; \
+	 } > $(LOWEST)/test.log 2>&1; status=$$?; \
+	 echo "== lowest versions ($(LOWEST)/test.log)"; cat $(LOWEST)/test.log; exit $$status
 
 clean:
 	rm -rf $(VENV) $(LOWEST) runs build *.egg-info
