@@ -9,8 +9,6 @@ camera rate. The cameras' parameters are plain arrays (:func:`camera_parameters`
 
 from __future__ import annotations
 
-import queue
-import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -21,7 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from imitate.envs import teacher_motion
 from imitate.envs.assembly import SceneConfig, build_model, hold
-from imitate.envs.rendering import make_renderer
+from imitate.envs.rendering import in_thread, make_renderer
 from imitate.errors import ImitateError
 from imitate.models import humanoid, objects
 
@@ -183,9 +181,13 @@ def frames(
     Raises:
         ImitateError: no OpenGL context.
     """
-    pairs = _rendered_ahead(sess, timing) if ahead else _rendered(sess, timing)
-    for pair in pairs:
-        yield pair[0], pair[1]
+    if not ahead:
+        for pair in _rendered(sess, timing):
+            yield pair[0], pair[1]
+        return
+    with in_thread(lambda: _rendered(sess, timing), RENDER_AHEAD) as pairs:
+        for pair in pairs:
+            yield pair[0], pair[1]
 
 
 # Pairs rendered ahead of the caller at most: enough to smooth out uneven frames, little memory
@@ -207,42 +209,6 @@ def _rendered(sess: Session, timing: dict | None) -> Iterator[np.ndarray]:
             yield pair
     finally:
         eyes[0].close()
-
-
-def _rendered_ahead(sess: Session, timing: dict | None) -> Iterator[np.ndarray]:
-    """:func:`_rendered` in a thread, handed over through a queue of :data:`RENDER_AHEAD`
-    pairs; the thread stops when the caller stops iterating, and its error is raised here."""
-    handed: queue.Queue = queue.Queue(RENDER_AHEAD)
-    stop = threading.Event()
-
-    def hand(item) -> bool:
-        while not stop.is_set():
-            try:
-                handed.put(item, timeout=0.1)
-                return True
-            except queue.Full:
-                pass
-        return False
-
-    def render() -> None:
-        try:
-            for pair in _rendered(sess, timing):
-                if not hand(pair):
-                    return
-            hand(None)
-        except BaseException as err:  # raised again in the caller's thread
-            hand(err)
-
-    thread = threading.Thread(target=render, name="imitate-render", daemon=True)
-    thread.start()
-    try:
-        while (item := handed.get()) is not None:
-            if isinstance(item, BaseException):
-                raise item
-            yield item
-    finally:
-        stop.set()
-        thread.join()
 
 
 def _eye_renderer(sess: Session) -> tuple[mujoco.Renderer, mujoco.MjvOption]:

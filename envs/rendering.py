@@ -10,16 +10,24 @@ so a library user renders headless whether ``mujoco`` was imported first or not,
 MuJoCo reads ``MUJOCO_GL`` once, when ``mujoco`` is imported, and a value whose library is
 missing breaks that import; the ``imitate`` command calls :func:`import_mujoco` before anything
 else imports it.
+
+Rendering releases the GIL: :func:`in_thread` renders ahead of a caller that does other work
+meanwhile, and :func:`interleaved` renders the frames of a sequence in several threads at once,
+each thread with its own OpenGL context.
 """
 
 from __future__ import annotations
 
+import contextlib
 import ctypes.util
 import functools
 import logging
 import os
+import queue
 import sys
-from typing import TYPE_CHECKING
+import threading
+from collections.abc import Callable, Iterator
+from typing import TYPE_CHECKING, TypeVar
 
 from imitate.errors import ImitateError
 
@@ -27,6 +35,7 @@ if TYPE_CHECKING:
     import mujoco
 
 log = logging.getLogger(__name__)
+T = TypeVar("T")
 
 BACKENDS = ("egl", "osmesa")  # headless, in order of preference
 _LIBRARIES = {"egl": "EGL", "osmesa": "OSMesa"}
@@ -144,3 +153,70 @@ def make_renderer(
         ) from err
     renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = shadows
     return renderer
+
+
+
+@contextlib.contextmanager
+def in_thread(items: Callable[[], Iterator[T]], ahead: int) -> Iterator[Iterator[T]]:
+    """Makes the items of the iterator ``items()`` in a thread of its own, up to ``ahead`` items
+    ahead of the caller. On entering, the iterator over them, in order (the thread's error is
+    raised there); on leaving, the thread stops. A renderer made in ``items()`` has its OpenGL
+    context in that thread."""
+    handed: queue.Queue = queue.Queue(ahead)
+    stop = threading.Event()
+
+    def hand(item) -> bool:
+        while not stop.is_set():
+            try:
+                handed.put(item, timeout=0.1)
+                return True
+            except queue.Full:
+                pass
+        return False
+
+    def make() -> None:
+        try:
+            for item in items():
+                if not hand(item):
+                    return
+            hand(_END)
+        except BaseException as err:  # raised again in the caller's thread
+            hand(err)
+
+    def received() -> Iterator[T]:
+        while (item := handed.get()) is not _END:
+            if isinstance(item, BaseException):
+                raise item
+            yield item
+
+    thread = threading.Thread(target=make, name="imitate-render", daemon=True)
+    thread.start()
+    try:
+        yield received()
+    finally:
+        stop.set()
+        thread.join()
+
+
+def interleaved(part: Callable[[slice], Iterator[T]], threads: int) -> Iterator[T]:
+    """The items of a sequence, made by ``threads`` threads at once and yielded in order:
+    thread ``k`` iterates ``part(slice(k, None, threads))``, the items ``k``, ``k + threads``,
+    ... (each thread renders with a context of its own); one thread: ``part(slice(None))``,
+    here. The items are one thread's when each depends on its index alone."""
+    if threads <= 1:
+        yield from part(slice(None))
+        return
+    with contextlib.ExitStack() as stack:
+        parts = [
+            stack.enter_context(in_thread(functools.partial(part, slice(k, None, threads)), 2))
+            for k in range(threads)
+        ]
+        while True:
+            for items in parts:
+                item = next(items, _END)
+                if item is _END:
+                    return
+                yield item
+
+
+_END = object()  # the end of a thread's items

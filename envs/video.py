@@ -23,7 +23,7 @@ from imitate.envs.assembly import SceneConfig, build_model, clearance_geoms
 from imitate.envs.collision import CollisionPairs, signed_distances
 from imitate.envs.observation import ObservationConfig, watching_scene
 from imitate.envs.pouring import PouringEnv
-from imitate.envs.rendering import make_renderer
+from imitate.envs.rendering import interleaved, make_renderer
 from imitate.models import humanoid, objects
 from imitate.models import scene as scene_names
 
@@ -68,6 +68,7 @@ def teacher_frames(
     marks: np.ndarray | None = None,
     projection: np.ndarray | None = None,
     image_size: tuple[int, int] | None = None,
+    threads: int = 1,
 ) -> Iterator[np.ndarray]:
     """The teacher's session at ``times`` [s] over the robot's shoulder, and the robot's left-eye
     view inset in the top-right corner: ``(height, width, 3) uint8``.
@@ -77,26 +78,33 @@ def teacher_frames(
             axes) drawn on the eye view; NaN ones are skipped.
         projection: ``(3, 4)`` the left eye's projection matrix for images of ``image_size``
             ``(width, height)`` [px], which the marks are projected with.
+        threads: render in this many threads at once (:func:`interleaved`); the same frames.
     """
-    model, data = watching_scene(ObservationConfig())
-    inset_size = (2 * (width // 6), 2 * (height // 6))
-    renderer = make_renderer(model, height, width, shadows=False)
-    model.vis.quality.offsamples = 0  # the eye renders as the robot saw (fast_render), 2x faster
-    eye = make_renderer(model, inset_size[1], inset_size[0], shadows=False)
-    try:
-        for i, t in enumerate(times):
-            poses = motion.poses(np.array([t]))
-            teacher_motion.show(model, data, {obj: (p[0], q[0]) for obj, (p, q) in poses.items()})
-            renderer.update_scene(data, scene_names.TEACHER_VIEW)
-            frame = renderer.render().copy()
-            eye.update_scene(data, humanoid.LEFT_EYE)
-            view = eye.render().copy()
-            if marks is not None:
-                _draw_marks(view, marks[i], projection, image_size)
-            yield _inset(frame, view)
-    finally:
-        renderer.close()
-        eye.close()
+
+    def part(every: slice) -> Iterator[np.ndarray]:
+        model, data = watching_scene(ObservationConfig())
+        inset_size = (2 * (width // 6), 2 * (height // 6))
+        renderer = make_renderer(model, height, width, shadows=False)
+        model.vis.quality.offsamples = 0  # the eye as the robot saw (fast_render): 2x faster
+        eye = make_renderer(model, inset_size[1], inset_size[0], shadows=False)
+        try:
+            for i in range(len(times))[every]:
+                poses = motion.poses(times[i : i + 1])
+                teacher_motion.show(
+                    model, data, {obj: (p[0], q[0]) for obj, (p, q) in poses.items()}
+                )
+                renderer.update_scene(data, scene_names.TEACHER_VIEW)
+                frame = renderer.render()
+                eye.update_scene(data, humanoid.LEFT_EYE)
+                view = eye.render()
+                if marks is not None:
+                    _draw_marks(view, marks[i], projection, image_size)
+                yield _inset(frame, view)
+        finally:
+            renderer.close()
+            eye.close()
+
+    return interleaved(part, threads)
 
 
 def _draw_marks(view: np.ndarray, segments: np.ndarray, projection, image_size) -> None:
@@ -132,21 +140,27 @@ def replay_frames(
     height: int,
     camera: str = scene_names.POUR_VIEW,
     shadows: bool = False,
+    threads: int = 1,
 ) -> Iterator[np.ndarray]:
     """Recorded replay ``states`` (:meth:`StateRecorder.arrays`) of the scene ``config``, seen
-    from ``camera``, the liquid drawn so that it shows."""
-    model = build_model(config)
-    _show_liquid(model)
-    data = mujoco.MjData(model)
-    renderer = make_renderer(model, height, width, shadows=shadows)
-    try:
-        for state in _states(states):
-            _pose(model, data, *state)
-            mujoco.mj_camlight(model, data)
-            renderer.update_scene(data, camera)
-            yield renderer.render()
-    finally:
-        renderer.close()
+    from ``camera``, the liquid drawn so that it shows; in ``threads`` threads at once
+    (:func:`interleaved`), the same frames."""
+
+    def part(every: slice) -> Iterator[np.ndarray]:
+        model = build_model(config)
+        _show_liquid(model)
+        data = mujoco.MjData(model)
+        renderer = make_renderer(model, height, width, shadows=shadows)
+        try:
+            for state in _states({name: value[every] for name, value in states.items()}):
+                _pose(model, data, *state)
+                mujoco.mj_camlight(model, data)
+                renderer.update_scene(data, camera)
+                yield renderer.render()
+        finally:
+            renderer.close()
+
+    return interleaved(part, threads)
 
 
 def penetrations(

@@ -385,6 +385,11 @@ def _collision(distance: float, pair: tuple[str, str]) -> str | None:
     )
 
 
+# The video's frames render in two threads at once: one renderer leaves part of the second core
+# idle (Mesa's rasterizer waits while MuJoCo submits the next frame).
+VIDEO_THREADS = 2
+
+
 def _video_frames(config: RunConfig, states: dict[str, np.ndarray], observations: Observations):
     """The teacher (the robot's eye view and its tracked objects inset), then the robot."""
     size = (config.video_width, config.video_height)
@@ -395,11 +400,15 @@ def _video_frames(config: RunConfig, states: dict[str, np.ndarray], observations
         teacher_frames(
             motion, times, *size, marks=_tracked_axes(tracks, times),
             projection=observations.projections[0], image_size=observations.image_size,
+            threads=VIDEO_THREADS,
         ),
         TEACHER_CAPTION.format(speedup=config.teacher_speedup),
     )
     robot = captioned(
-        replay_frames(config.scene(), {name: states[name] for name in STATE_NAMES}, *size),
+        replay_frames(
+            config.scene(), {name: states[name] for name in STATE_NAMES}, *size,
+            threads=VIDEO_THREADS,
+        ),
         ROBOT_CAPTION.format(weight=config.collision_weight),
     )
     total = len(times) + len(states["qpos"])

@@ -1,4 +1,7 @@
-"""What a viewer sees: captions that read with any OpenCV version, and the liquid in the video."""
+"""What a viewer sees: captions that read with any OpenCV version, the liquid in the video, and
+the same frames whether one thread renders them or several."""
+
+import threading
 
 import cv2
 import imageio.v3 as iio
@@ -10,7 +13,18 @@ from imitate.artifacts import load_npz
 from imitate.config import load_config
 from imitate.envs.assembly import build_model
 from imitate.envs.observation import camera_parameters
-from imitate.envs.video import CAPTION_BOX_RGB, FONT, caption, caption_error, caption_layout
+from imitate.envs.rendering import interleaved
+from imitate.envs.teacher_motion import script_demonstrations
+from imitate.envs.video import (
+    CAPTION_BOX_RGB,
+    FONT,
+    caption,
+    caption_error,
+    caption_layout,
+    replay_frames,
+    teacher_frames,
+)
+from imitate.errors import ImitateError
 from imitate.models import objects
 from imitate.models import scene as scene_names
 from imitate.pipeline import ROBOT_CAPTION, STATE_NAMES, TEACHER_CAPTION
@@ -78,6 +92,47 @@ def test_video_shows_liquid_in_the_glass_while_pouring(quick_run):
         counts.append(np.count_nonzero(_liquid(frame) & _glass_region(model, data, width, height)))
     assert counts, "the replay never tilts the bottle past horizontal"
     assert max(counts) >= 10, counts
+
+
+def test_frames_rendered_in_two_threads_are_those_of_one(quick_run):
+    """Frame ``i`` depends on ``i`` alone: two threads, each with its own renderer, give the
+    teacher's and the robot's frames bit for bit, in order (5 and 6 of them: an odd count ends
+    in the first thread)."""
+    config = load_config(quick_run)
+    times = np.linspace(1.0, 6.0, 5)
+    motion = script_demonstrations(config.teacher())
+    states = load_npz(quick_run / "replay.npz")
+    shown = np.linspace(0, len(states["qpos"]) - 1, 6).astype(int)
+    states = {name: states[name][shown] for name in STATE_NAMES}
+    for frames in (
+        lambda threads: teacher_frames(motion, times, 96, 72, threads=threads),
+        lambda threads: replay_frames(config.scene(), states, 96, 72, threads=threads),
+    ):
+        one, two = list(frames(1)), list(frames(2))
+        assert len(one) == len(two) in (5, 6)
+        assert np.array_equal(np.array(one), np.array(two))
+        assert not np.array_equal(one[0], one[-1])  # the frames differ: their order counts
+
+
+def test_interleaved_threads_stop_with_their_caller_and_hand_on_an_error():
+    def part(every: slice):
+        yield from range(10)[every]
+
+    items = interleaved(part, 3)
+    assert [next(items) for _ in range(4)] == [0, 1, 2, 3]
+    items.close()  # the caller stops early: every thread ends
+    assert not [t for t in threading.enumerate() if t.name == "imitate-render"]
+    assert list(interleaved(part, 3)) == list(range(10)) == list(interleaved(part, 1))
+
+    def failing(every: slice):
+        yield every.start
+        if every.start == 1:
+            raise ImitateError("no OpenGL context")
+        yield every.start + 2
+
+    with pytest.raises(ImitateError, match="no OpenGL context"):
+        list(interleaved(failing, 2))
+    assert not [t for t in threading.enumerate() if t.name == "imitate-render"]
 
 
 def _liquid(frame: np.ndarray) -> np.ndarray:
