@@ -1,17 +1,24 @@
-"""The video's encoding: x264 presets and qualities on a run's frames, time, quality and size.
+"""The video: its frames rendered in one thread or several, and x264 presets and qualities on
+them (time, quality, size).
 
-    python scripts/bench_video.py [RUN_DIR] [--repeats 2]
+    python scripts/bench_video.py [RUN_DIR] [--repeats 2] [--render]
 
 Decodes ``RUN_DIR/video.mp4`` (default ``runs/latest``) once and encodes its frames again with
 each encoder setting below, interleaved ``--repeats`` times: imageio's default for H.264 (x264's
 medium preset at quality 5 of 10) and the settings of ``imitate.envs.video.ENCODER`` among
 others. Prints the wall time, the encoder's processor time (ffmpeg, a child process), the mean
 PSNR against the frames encoded (every 10th frame) and the file's size.
+
+With ``--render``, first renders the run's video frames as the figures stage does (not encoded)
+in 1 thread and in ``imitate.pipeline.VIDEO_THREADS``, interleaved ``--repeats`` times: the wall
+time, this process's processor time, and whether the frames are those of one thread.
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
+import json
 import os
 import resource
 import tempfile
@@ -21,7 +28,11 @@ from pathlib import Path
 import imageio.v2 as imageio
 import numpy as np
 
+from imitate import pipeline
+from imitate.artifacts import load_npz
+from imitate.config import RunConfig
 from imitate.envs.video import ENCODER
+from imitate.perception import load_observations
 
 
 def x264(preset: str, quality: int) -> dict:
@@ -61,11 +72,42 @@ def encode(frames: list[np.ndarray], path: Path, fps: float, settings: dict) -> 
     return {"wall": wall, "cpu": cpu, "psnr": quality, "mb": path.stat().st_size / 1e6}
 
 
+def render(run_dir: Path, threads: int) -> dict:
+    """The run's video frames rendered as the figures stage does, in ``threads`` threads."""
+    config = RunConfig.from_json(json.loads((run_dir / "config.json").read_text()))
+    states = load_npz(run_dir / "replay.npz", required=pipeline.STATE_NAMES)
+    observations = load_observations(run_dir / "observations.npz")
+    pipeline.VIDEO_THREADS, threads_before = threads, pipeline.VIDEO_THREADS
+    digest = hashlib.sha256()
+    cpu, start = time.process_time(), time.perf_counter()
+    count = 0
+    try:
+        for frame in pipeline._video_frames(config, states, observations):
+            digest.update(frame.tobytes())
+            count += 1
+    finally:
+        pipeline.VIDEO_THREADS = threads_before
+    return {"wall": time.perf_counter() - start, "cpu": time.process_time() - cpu,
+            "frames": count, "digest": digest.hexdigest()}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run_dir", nargs="?", type=Path, default=Path("runs/latest"))
     parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--render", action="store_true",
+                        help="first render the frames in 1 thread and in VIDEO_THREADS")
     args = parser.parse_args()
+    if args.render:
+        print(f"{'rendering the frames':40s} {'wall [s]':>9s} {'cpu [s]':>8s} {'frames/s':>9s}"
+              f"  same frames as 1 thread")
+        one = None
+        for _ in range(args.repeats):
+            for threads in (1, pipeline.VIDEO_THREADS):
+                r = render(args.run_dir, threads)
+                one = one or r["digest"]
+                print(f"{f'{threads} thread(s)':40s} {r['wall']:9.2f} {r['cpu']:8.2f} "
+                      f"{r['frames'] / r['wall']:9.1f}  {r['digest'] == one}")
     reader = imageio.get_reader(args.run_dir / "video.mp4")
     fps = reader.get_meta_data()["fps"]
     frames = [frame for frame in reader]  # list() would ask its length: inf
