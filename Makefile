@@ -36,8 +36,8 @@ $(BIN)/.compiled: $(BIN)/.installed $(KERNELS)
 	$(BIN)/python -m imitate.warmup
 	touch $@
 
-# (The warm-up after the test packages' installation, which also stands for .installed: in
-# `make -j2` the two would otherwise install into one venv at once.)
+# setup-test compiles once the test packages are installed (their stamp stands for .installed
+# too): as two prerequisites, `make -j2` would install both into one venv at once.
 setup: $(BIN)/.installed $(BIN)/.compiled
 setup-test: $(BIN)/.installed-test
 	@$(MAKE) -s --no-print-directory $(BIN)/.compiled
