@@ -4,7 +4,8 @@ matplotlib holds the GIL: drawn in a thread, the figures would stall the video's
 worker process draws them instead (:func:`imitate.plots.png`). It is spawned, not forked (the
 stage's process has threads: rendering, BLAS), so a script that calls the stages guards its own
 code with ``if __name__ == "__main__":``. Ctrl-C is left to the stage's process, which stops the
-worker; a worker whose process was killed exits by itself.
+worker (the worker starts with SIGINT blocked, and a Ctrl-C while it starts is acted on once it
+has started, not lost); a worker whose process was killed exits by itself.
 """
 
 from __future__ import annotations
@@ -59,7 +60,7 @@ def _started() -> Iterator[ProcessPoolExecutor]:
         initargs=(os.getpid(),),
     )
     try:
-        with _ignoring_ctrl_c():  # the worker inherits it
+        with _holding_ctrl_c():  # the worker inherits SIGINT blocked
             pool.submit(int)  # starts the worker
         yield pool
     finally:
@@ -80,13 +81,20 @@ def _start(parent: int) -> None:
 
 
 @contextmanager
-def _ignoring_ctrl_c() -> Iterator[None]:
-    """SIGINT ignored within the block (in the main thread: no other may set a handler)."""
+def _holding_ctrl_c() -> Iterator[None]:
+    """SIGINT blocked in the calling thread within the block, so that a process started there
+    inherits it blocked, and a Ctrl-C meanwhile held and raised again after the block (in the
+    main thread only: no other may set a handler)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    held = []
+    previous = signal.signal(signal.SIGINT, lambda signum, _frame: held.append(signum))
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         yield
     finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # a pending Ctrl-C arrives: held
         signal.signal(signal.SIGINT, previous)
+        if held:
+            signal.raise_signal(signal.SIGINT)

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imitate import provenance, stages
+from imitate import drawing, provenance, stages
 from imitate.cli import main
 from imitate.config import load_config
 from imitate.rundir import LOCK, locked
@@ -273,6 +273,28 @@ def test_6_drawing_process_of_a_killed_stage_exits_by_itself(run_dir):
     stage.kill()
     stage.wait()
     assert _no_drawing_process_left(stage.pid)  # it looks for its parent every PARENT_POLL_S
+
+
+def test_6_ctrl_c_while_the_drawing_process_starts_is_not_lost():
+    """The stage starts its drawing process with SIGINT blocked (the process inherits it so); a
+    Ctrl-C in that moment is raised once it has started. Ignored instead, it was lost: under
+    load, a Ctrl-C there let the stage run to its end."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    held = False
+    try:
+        with pytest.raises(KeyboardInterrupt):  # raised as the block is left
+            with drawing._holding_ctrl_c():
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(0.2)  # a signal not held would interrupt here
+                held = True
+        assert held
+        with drawing.worker() as pool:
+            (pid,) = pool._processes
+            status = Path(f"/proc/{pid}/status").read_text()
+        blocked = int(status.split("SigBlk:")[1].split()[0], 16)
+        assert blocked & (1 << (signal.SIGINT - 1))
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _figures_with_its_drawing_process(run_dir, stderr) -> subprocess.Popen:
