@@ -70,10 +70,10 @@ def test_quiet_keeps_warnings(run_dir, capsys):
 def test_default_and_verbose(run_dir, capsys):
     assert main(["replay", str(run_dir)]) == 0
     assert capsys.readouterr().err == "== replay\n"
-    assert main(["-v", "replay", str(run_dir)]) == 0
+    assert main(["-v", "learn", str(run_dir)]) == 0  # learn: a second, not replay's four
     err = capsys.readouterr().err.splitlines()
     assert err[0].startswith(f"debug: run directory {run_dir}, settings {{")
-    assert "== replay" in err and any(line.startswith("debug: replay wrote") for line in err)
+    assert "== learn" in err and any(line.startswith("debug: learn wrote") for line in err)
 
 
 def test_import_sets_nothing_and_renders_headless():
