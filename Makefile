@@ -7,7 +7,7 @@ RUN ?= runs/latest
 MUJOCO_GL ?= egl
 export MUJOCO_GL
 
-.PHONY: setup setup-test run test suite lowest test-lowest lint clean
+.PHONY: setup setup-test run test suite test-lowest lint clean
 
 # System libraries, the virtual environment and the package with $(1) (extras, or nothing).
 define install
@@ -69,7 +69,6 @@ lint: setup-test
 # PYTHONDONTWRITEBYTECODE keeps no .pyc; not so for .venv, whose packages a hundred processes
 # of the suite import).
 LOWEST_ENV := NUMBA_CACHE_DIR=$(LOWEST)/numba nice -n 10
-lowest: $(LOWEST)/.installed
 $(LOWEST)/.installed: pyproject.toml scripts/lowest_requirements.py scripts/install_system_deps.sh
 	bash scripts/install_system_deps.sh
 	rm -rf $(LOWEST)
