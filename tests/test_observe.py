@@ -48,6 +48,35 @@ def test_tracking_rendered_frames_matches_ground_truth(rendered_session):
     assert np.degrees(np.median(turn)) < 2.0 and np.degrees(turn.max()) < 6.0
 
 
+def test_tracking_runs_opencv_in_one_thread_and_restores_its_threads(rendered_session):
+    import cv2
+
+    sess, pairs = rendered_session
+    tracker = lambda: StereoTracker(*cameras(sess), perception_config())  # noqa: E731
+    threads = cv2.getNumThreads()
+    seen = []
+
+    def counted():
+        for pair in pairs:
+            seen.append(cv2.getNumThreads())
+            yield pair
+
+    cv2.setNumThreads(2)  # OpenCV's own threads where the tracker used them before
+    try:
+        reference = StereoTracker(*cameras(sess), perception_config())
+        expected = [reference.update(*pair) for pair in pairs]
+        tracks = track(tracker(), counted(), sess.times)
+        assert seen == [1] * len(pairs) and cv2.getNumThreads() == 2
+        for k, obj in enumerate(tracks.objects):
+            ends = np.array([m[obj].ends for m in expected])
+            assert np.array_equal(tracks.position[k], ends.mean(axis=1))
+        with pytest.raises(ImitateError):  # restored after an error too
+            track(tracker(), pairs, sess.times[:2])
+        assert cv2.getNumThreads() == 2
+    finally:
+        cv2.setNumThreads(threads)
+
+
 def test_tracker_recovers_after_an_object_leaves_the_view(rendered_session):
     sess, pairs = rendered_session
     tracker = StereoTracker(*cameras(sess), perception_config())
