@@ -1,7 +1,7 @@
 """The video: its frames rendered in one thread or several, and x264 presets and qualities on
 them (time, quality, size).
 
-    python scripts/bench_video.py [RUN_DIR] [--repeats 2] [--render]
+    python scripts/bench_video.py [RUN_DIR] [--repeats 2] [--render [--threads N ...]]
 
 Decodes ``RUN_DIR/video.mp4`` (default ``runs/latest``) once and encodes its frames again with
 each encoder setting below, interleaved ``--repeats`` times: imageio's default for H.264 (x264's
@@ -10,8 +10,9 @@ others. Prints the wall time, the encoder's processor time (ffmpeg, a child proc
 PSNR against the frames encoded (every 10th frame) and the file's size.
 
 With ``--render``, first renders the run's video frames as the figures stage does (not encoded)
-in 1 thread and in ``imitate.pipeline.VIDEO_THREADS``, interleaved ``--repeats`` times: the wall
-time, this process's processor time, and whether the frames are those of one thread.
+in 1 thread and in ``imitate.pipeline.VIDEO_THREADS`` (or in each of ``--threads``), interleaved
+``--repeats`` times: the wall time, this process's processor time, and whether the frames are
+those of the first thread count.
 """
 
 from __future__ import annotations
@@ -97,13 +98,18 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--render", action="store_true",
                         help="first render the frames in 1 thread and in VIDEO_THREADS")
+    parser.add_argument("--threads", type=int, nargs="+", metavar="N",
+                        help="with --render: these thread counts (default: 1 and VIDEO_THREADS)")
     args = parser.parse_args()
+    counts = args.threads or [1, pipeline.VIDEO_THREADS]
+    if min(counts) < 1:
+        parser.error(f"--threads {counts} not accepted: counts of at least 1")
     if args.render:
         print(f"{'rendering the frames':40s} {'wall [s]':>9s} {'cpu [s]':>8s} {'frames/s':>9s}"
-              f"  same frames as 1 thread")
+              f"  same frames as {counts[0]} thread(s)")
         one = None
         for _ in range(args.repeats):
-            for threads in (1, pipeline.VIDEO_THREADS):
+            for threads in counts:
                 r = render(args.run_dir, threads)
                 one = one or r["digest"]
                 print(f"{f'{threads} thread(s)':40s} {r['wall']:9.2f} {r['cpu']:8.2f} "

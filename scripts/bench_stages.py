@@ -1,0 +1,136 @@
+"""The parts of a run's stages measured one at a time: what bounds each stage on a machine.
+
+    python scripts/bench_stages.py [RUN_DIR] [--parts observe replay video] [--threads 1 2 4]
+
+On the run ``RUN_DIR`` (default ``runs/latest``; its config, plan and replay):
+
+- observe: the session's stereo pairs rendered in this thread (kept in memory: 1.7 GB for the
+  default 905 pairs), tracked from memory with OpenCV's own threads and with one (as
+  :func:`imitate.perception.track` does), then rendered ahead in a thread and tracked as the
+  stage does. Every tracking must give the tracks of the first.
+- replay: each of the stage's physics replays alone, then all of them in threads as the stage
+  runs them (each one's wall time there too).
+- video: the video's frames rendered in each of ``--threads`` threads (not encoded), as
+  ``scripts/bench_video.py --render`` does.
+
+Prints the wall time and this process's processor time (all its threads) of each.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import dataclasses
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from imitate import pipeline
+from imitate.artifacts import load_npz
+from imitate.config import load_config
+from imitate.envs.observation import ObservationConfig, frames, session
+from imitate.motion import Plan
+from imitate.observe import cameras
+from imitate.perception import StereoTracker, load_observations, perception_config, track
+from imitate.perception import tracks as tracks_module
+
+
+def timed(label: str, work):
+    """``work()``, its wall and processor time printed after ``label``."""
+    cpu, start = time.process_time(), time.perf_counter()
+    result = work()
+    print(f"{label:56s} {time.perf_counter() - start:8.2f} {time.process_time() - cpu:8.2f}",
+          flush=True)
+    return result
+
+
+def observe(run_dir: Path, config, threads) -> None:
+    watching = ObservationConfig(
+        teacher=config.teacher(), fps=config.fps, width=config.width, height=config.height
+    )
+    sess = session(watching)
+
+    def tracked(pairs):
+        return track(StereoTracker(*cameras(sess), perception_config()), pairs, sess.times)
+
+    pairs = timed(f"observe: render {len(sess.times)} pairs in this thread",
+                  lambda: list(frames(sess, ahead=False)))
+    one_thread = tracks_module._one_opencv_thread
+    try:  # OpenCV's own threads, as the tracker used them before
+        tracks_module._one_opencv_thread = contextlib.nullcontext
+        first = timed("observe: track them, OpenCV's own threads", lambda: tracked(iter(pairs)))
+    finally:
+        tracks_module._one_opencv_thread = one_thread
+    others = [timed("observe: track them, one OpenCV thread", lambda: tracked(iter(pairs)))]
+    pairs.clear()  # 1.7 GB for the default session
+    others.append(timed("observe: render ahead in a thread and track (the stage)",
+                        lambda: tracked(frames(sess))))
+    same = all(np.array_equal(t.position, first.position, equal_nan=True) for t in others)
+    print(f"  the same tracks each time: {same}")
+
+
+def replay(run_dir: Path, config, threads) -> None:
+    arrays = load_npz(run_dir / "plan.npz", required=(*Plan.array_names(), "sweep_q", "sweep_x"))
+    plan = Plan.from_arrays(arrays)
+    gaze = load_npz(run_dir / "model.npz", required=("gaze",))["gaze"]
+    q_free = arrays["sweep_q"][0]
+    free = dataclasses.replace(  # as pipeline.replay makes it
+        plan, q=q_free, q_start=q_free[0], approach_bend=np.zeros_like(q_free[0]),
+        x=arrays["sweep_x"][0],
+    )
+    jobs = [(plan, config.seed + k) for k in range(pipeline.POUR_REPLAYS)] + [(free, config.seed)]
+    for k, (p, seed) in enumerate(jobs):
+        timed(f"replay: replay {k} alone",
+              lambda p=p, seed=seed: pipeline._physics(p, config, gaze, seed))
+    walls = [0.0] * len(jobs)
+
+    def one(k):
+        start = time.perf_counter()
+        pipeline._physics(jobs[k][0], config, gaze, jobs[k][1])
+        walls[k] = time.perf_counter() - start
+
+    workers = min(len(jobs), os.cpu_count() or 1)
+    with ThreadPoolExecutor(workers) as pool:
+        timed(f"replay: all {len(jobs)} in {workers} threads (the stage)",
+              lambda: list(pool.map(one, range(len(jobs)))))
+    print("  each one's wall time there [s]: " + ", ".join(f"{w:.2f}" for w in walls))
+
+
+def video(run_dir: Path, config, threads) -> None:
+    states = load_npz(run_dir / "replay.npz", required=pipeline.STATE_NAMES)
+    observations = load_observations(run_dir / "observations.npz")
+    before = pipeline.VIDEO_THREADS
+    try:
+        for n in threads:
+            pipeline.VIDEO_THREADS = n
+            timed(f"video: its frames in {n} thread(s)",
+                  lambda: sum(1 for _ in pipeline._video_frames(config, states, observations)))
+    finally:
+        pipeline.VIDEO_THREADS = before
+
+
+PARTS = {"observe": observe, "replay": replay, "video": video}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("run_dir", nargs="?", type=Path, default=Path("runs/latest"))
+    parser.add_argument("--parts", nargs="+", choices=list(PARTS), default=list(PARTS))
+    parser.add_argument("--threads", type=int, nargs="+", default=[1, 2, 4],
+                        help="the video's thread counts")
+    args = parser.parse_args()
+    if min(args.threads) < 1:
+        parser.error(f"--threads {args.threads} not accepted: counts of at least 1")
+    config = load_config(args.run_dir)
+    print(f"{args.run_dir}; {os.cpu_count()} cores, load average "
+          + " ".join(f"{x:.2f}" for x in os.getloadavg()))
+    print(f"{'part':56s} {'wall [s]':>8s} {'cpu [s]':>8s}")
+    for part in args.parts:
+        PARTS[part](args.run_dir, config, args.threads)
+
+
+if __name__ == "__main__":
+    main()
