@@ -4,6 +4,7 @@ session against ground truth."""
 import dataclasses
 import threading
 
+import cv2
 import mujoco
 import numpy as np
 import pytest
@@ -49,12 +50,12 @@ def test_tracking_rendered_frames_matches_ground_truth(rendered_session):
 
 
 def test_tracking_runs_opencv_in_one_thread_and_restores_its_threads(rendered_session):
-    import cv2
-
     sess, pairs = rendered_session
-    tracker = lambda: StereoTracker(*cameras(sess), perception_config())  # noqa: E731
     threads = cv2.getNumThreads()
     seen = []
+
+    def tracker():
+        return StereoTracker(*cameras(sess), perception_config())
 
     def counted():
         for pair in pairs:
@@ -63,7 +64,7 @@ def test_tracking_runs_opencv_in_one_thread_and_restores_its_threads(rendered_se
 
     cv2.setNumThreads(2)  # OpenCV's own threads where the tracker used them before
     try:
-        reference = StereoTracker(*cameras(sess), perception_config())
+        reference = tracker()
         expected = [reference.update(*pair) for pair in pairs]
         tracks = track(tracker(), counted(), sess.times)
         assert seen == [1] * len(pairs) and cv2.getNumThreads() == 2
