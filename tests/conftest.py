@@ -5,6 +5,8 @@ from __future__ import annotations
 import fcntl
 import os
 import shutil
+import signal
+import subprocess
 
 import numpy as np
 import pytest
@@ -21,6 +23,23 @@ def demo_data() -> np.ndarray:
     sd = pouring_demos()
     return time_stacked(list(align(sd.demos).aligned), sd.rate)
 
+
+
+@pytest.fixture
+def in_a_terminal():
+    """``start(command, **popen_kwargs) -> Popen``: ``command`` in a process group of its own
+    (Ctrl-C is ``os.killpg(process.pid, SIGINT)``), acting on SIGINT as in a terminal even where
+    the tests run with it ignored (a non-interactive shell ignores it in what it starts in the
+    background, and an ignored signal stays ignored across exec; a caught one does not)."""
+
+    def start(command: list[str], **kwargs) -> subprocess.Popen:
+        previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+        try:
+            return subprocess.Popen(command, start_new_session=True, **kwargs)
+        finally:
+            signal.signal(signal.SIGINT, previous)
+
+    return start
 
 
 @pytest.fixture(scope="session")

@@ -208,14 +208,14 @@ def test_eval_command_errors(tmp_path, model_arrays, capsys):
     assert "--n 0 not accepted" in capsys.readouterr().err
 
 
-def test_ctrl_c_stops_eval_and_its_workers_in_one_line(tmp_path, model_arrays):
+def test_ctrl_c_stops_eval_and_its_workers_in_one_line(tmp_path, model_arrays, in_a_terminal):
     """Ctrl-C (SIGINT to the terminal's process group) during an evaluation on two workers:
     exit status 130, one line on stderr, no traceback, no process left; records kept."""
     run_dir = _run_dir(tmp_path, model_arrays)
     (tmp_path / "suite.json").write_text(json.dumps({**TINY, "variations": 40}))
     command = [sys.executable, "-m", "imitate", "eval", str(run_dir), "--suite",
                str(tmp_path / "suite.json"), "--workers", "2", "--videos", "0"]
-    process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    process = in_a_terminal(command, stderr=subprocess.PIPE, text=True)
     results = run_dir / "eval" / RESULTS
     deadline = time.monotonic() + 300
     while not (results.exists() and results.stat().st_size) and time.monotonic() < deadline:

@@ -252,11 +252,11 @@ def test_6_ctrl_c_is_one_line_and_exit_130(run_dir, monkeypatch, capsys):
     assert snapshot(run_dir) == before
 
 
-def test_6_ctrl_c_while_figures_are_drawn_stops_the_drawing_process_quietly(run_dir):
+def test_6_ctrl_c_while_figures_are_drawn_stops_the_drawing_process_quietly(run_dir, in_a_terminal):
     """Ctrl-C reaches every process of the terminal's group: the process that draws the figures
     (started by the stage) leaves it to the stage, which stops it."""
     before = snapshot(run_dir)
-    stage = _figures_with_its_drawing_process(run_dir, stderr=subprocess.PIPE)
+    stage = _figures_with_its_drawing_process(in_a_terminal, run_dir, stderr=subprocess.PIPE)
     try:
         os.killpg(stage.pid, signal.SIGINT)
         _, err = stage.communicate(timeout=120)
@@ -268,8 +268,8 @@ def test_6_ctrl_c_while_figures_are_drawn_stops_the_drawing_process_quietly(run_
     assert _no_drawing_process_left(stage.pid)
 
 
-def test_6_drawing_process_of_a_killed_stage_exits_by_itself(run_dir):
-    stage = _figures_with_its_drawing_process(run_dir, stderr=subprocess.DEVNULL)
+def test_6_drawing_process_of_a_killed_stage_exits_by_itself(run_dir, in_a_terminal):
+    stage = _figures_with_its_drawing_process(in_a_terminal, run_dir, stderr=subprocess.DEVNULL)
     stage.kill()
     stage.wait()
     assert _no_drawing_process_left(stage.pid)  # it looks for its parent every PARENT_POLL_S
@@ -297,10 +297,10 @@ def test_6_ctrl_c_while_the_drawing_process_starts_is_not_lost():
         signal.signal(signal.SIGINT, previous)
 
 
-def _figures_with_its_drawing_process(run_dir, stderr) -> subprocess.Popen:
-    """``imitate figures run_dir`` in a process group of its own, once its drawing process runs."""
+def _figures_with_its_drawing_process(in_a_terminal, run_dir, stderr) -> subprocess.Popen:
+    """``imitate figures run_dir`` started by ``in_a_terminal``, once its drawing process runs."""
     command = [sys.executable, "-m", "imitate.cli", "figures", str(run_dir)]
-    stage = subprocess.Popen(command, stderr=stderr, text=True, start_new_session=True)
+    stage = in_a_terminal(command, stderr=stderr, text=True)
     for _ in range(600):  # up to 60 s
         if _drawing_processes(stage.pid):
             return stage
