@@ -24,7 +24,6 @@ def demo_data() -> np.ndarray:
     return time_stacked(list(align(sd.demos).aligned), sd.rate)
 
 
-
 @pytest.fixture
 def in_a_terminal():
     """``start(command, **popen_kwargs) -> Popen``: ``command`` in a process group of its own

@@ -116,8 +116,8 @@ def _one_opencv_thread() -> Iterator[None]:
     """OpenCV's functions in the calling thread meanwhile (a process-wide setting, restored after).
 
     The tracker's calls work on small windows, which OpenCV would otherwise split across every
-    core: on a 16-core machine the tracking took 8 times its wall time in processor time, which
-    the rendering thread beside it needs. The results are the same.
+    core: on a 16-core machine the tracking took 7 to 8 times its wall time in processor time,
+    which the rendering thread beside it needs. The results are the same.
     """
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)
