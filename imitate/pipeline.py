@@ -193,15 +193,7 @@ def replay(run_dir: Path, config: RunConfig) -> dict:
     The replays are independent: they run in threads, one per core at most (MuJoCo's
     ``mj_step`` releases the GIL), each in its own env, so their results are those of a serial
     run."""
-    arrays = load_npz(run_dir / "plan.npz", required=(*Plan.array_names(), "sweep_q", "sweep_x"))
-    plan = Plan.from_arrays(arrays)
-    gaze = load_npz(run_dir / "model.npz", required=("gaze",))["gaze"]
-    q_free = arrays["sweep_q"][0]
-    free = dataclasses.replace(
-        plan, q=q_free, q_start=q_free[0], approach_bend=np.zeros_like(q_free[0]),
-        x=arrays["sweep_x"][0],
-    )
-    jobs = [(plan, config.seed + k) for k in range(POUR_REPLAYS)] + [(free, config.seed)]
+    jobs, gaze = _replay_jobs(run_dir, config)
     with (
         ThreadPoolExecutor(min(len(jobs), os.cpu_count() or 1)) as pool,
         tqdm(total=len(jobs), desc="replay", unit="replay", disable=_bars()) as bar,
@@ -327,6 +319,20 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
 
 
 # --- Helpers -----------------------------------------------------------------------------------
+
+
+def _replay_jobs(run_dir: Path, config: RunConfig) -> tuple[list[tuple[Plan, int]], np.ndarray]:
+    """The replay stage's replays as (plan, seed): the plan from ``POUR_REPLAYS`` seeds, then the
+    sweep's smallest collision weight's plan; and the learned gaze ``(3, 3)``."""
+    arrays = load_npz(run_dir / "plan.npz", required=(*Plan.array_names(), "sweep_q", "sweep_x"))
+    plan = Plan.from_arrays(arrays)
+    gaze = load_npz(run_dir / "model.npz", required=("gaze",))["gaze"]
+    q_free = arrays["sweep_q"][0]
+    free = dataclasses.replace(
+        plan, q=q_free, q_start=q_free[0], approach_bend=np.zeros_like(q_free[0]),
+        x=arrays["sweep_x"][0],
+    )
+    return [(plan, config.seed + k) for k in range(POUR_REPLAYS)] + [(free, config.seed)], gaze
 
 
 def _physics(plan: Plan, config: RunConfig, gaze: np.ndarray, seed: int):

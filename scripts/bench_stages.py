@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import dataclasses
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -32,7 +31,6 @@ from imitate import pipeline
 from imitate.artifacts import load_npz
 from imitate.config import load_config
 from imitate.envs.observation import ObservationConfig, frames, session
-from imitate.motion import Plan
 from imitate.observe import cameras
 from imitate.perception import StereoTracker, load_observations, perception_config, track
 from imitate.perception import tracks as tracks_module
@@ -73,15 +71,7 @@ def observe(run_dir: Path, config, threads) -> None:
 
 
 def replay(run_dir: Path, config, threads) -> None:
-    arrays = load_npz(run_dir / "plan.npz", required=(*Plan.array_names(), "sweep_q", "sweep_x"))
-    plan = Plan.from_arrays(arrays)
-    gaze = load_npz(run_dir / "model.npz", required=("gaze",))["gaze"]
-    q_free = arrays["sweep_q"][0]
-    free = dataclasses.replace(  # as pipeline.replay makes it
-        plan, q=q_free, q_start=q_free[0], approach_bend=np.zeros_like(q_free[0]),
-        x=arrays["sweep_x"][0],
-    )
-    jobs = [(plan, config.seed + k) for k in range(pipeline.POUR_REPLAYS)] + [(free, config.seed)]
+    jobs, gaze = pipeline._replay_jobs(run_dir, config)
     for k, (p, seed) in enumerate(jobs):
         timed(f"replay: replay {k} alone",
               lambda p=p, seed=seed: pipeline._physics(p, config, gaze, seed))
