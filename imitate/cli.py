@@ -67,6 +67,8 @@ matplotlib.use("Agg")
 
 from imitate.config import RunConfig, Setting, load_config, settings  # noqa: E402
 from imitate.errors import ImitateError  # noqa: E402
+from imitate.evaluation.suite import SUITE_NAMES  # noqa: E402
+from imitate.motion import SIMILARITIES  # noqa: E402
 from imitate.rundir import locked  # noqa: E402
 from imitate.stages import NAMES, PAGE, RUN_HELP, STAGES  # noqa: E402
 
@@ -103,6 +105,7 @@ def build_parser() -> argparse.ArgumentParser:
             _add_settings(sub.add_argument_group(f"{stage} settings"), settings([stage]))
     add_export(commands)
     _add_eval(commands)
+    _add_compare(commands)
     return parser
 
 
@@ -154,13 +157,38 @@ def _add_eval(commands) -> None:
     """The ``eval`` sub-command's arguments (see :mod:`imitate.evaluation`)."""
     text = "reproduce a run's learned model in seeded variations (obstacles, grasps, physics)"
     sub = commands.add_parser("eval", help=text, description=text)
+    _add_variations(sub, teachers=1)
+    sub.add_argument("--similarity", choices=SIMILARITIES, metavar="NAME",
+                     help=f"replaces the suite's similarity weighting: one of {SIMILARITIES}")
+    sub.add_argument("--videos", type=int, default=3, metavar="K",
+                     help="videos of the first K failures (default 3)")
+
+
+def _add_compare(commands) -> None:
+    """The ``compare`` sub-command's arguments (see :mod:`imitate.evaluation.compare`)."""
+    text = ("similarity weightings on the same variations, paired: success (McNemar) and how "
+            "far the pour moved (Wilcoxon)")
+    sub = commands.add_parser("compare", help=text, description=text)
+    _add_variations(sub, teachers=3)
+    sub.add_argument("--similarity", default=",".join(SIMILARITIES), metavar="A,B,...",
+                     help=f"weightings to compare, comma-separated (default "
+                     f"{','.join(SIMILARITIES)})")
+
+
+def _add_variations(sub, teachers: int) -> None:
+    """The arguments ``eval`` and ``compare`` share: the run, the suite and its draw, the
+    teachers, where the variations run."""
     sub.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="run directory with model.npz")
-    sub.add_argument("--suite", type=Path, metavar="FILE",
-                     help="suite of variations, .toml or .json (default: the built-in one)")
+    sub.add_argument("--suite", metavar="NAME|FILE",
+                     help=f"suite of variations: a shipped one ({', '.join(SUITE_NAMES)}) or "
+                     "a .toml or .json file (default: the built-in one)")
     sub.add_argument("--n", type=int, metavar="N",
                      help="variations to run (default: the suite's 'variations', 100 built in)")
     sub.add_argument("--seed", type=int, default=0, metavar="S",
                      help="seed the variations are drawn with (default 0)")
+    sub.add_argument("--teachers", type=int, default=teachers, metavar="N",
+                     help=f"teachers whose learned models reproduce every variation: the run's "
+                     f"and the next seeds', each observed and learned once (default {teachers})")
     sub.add_argument("--workers", type=int, metavar="W",
                      help="local worker processes (default: one per core)")
     sub.add_argument("--ray", metavar="ADDRESS",
@@ -168,8 +196,6 @@ def _add_eval(commands) -> None:
                      "the one Ray finds); needs imitate[ray]")
     sub.add_argument("--collision-weight", type=float, metavar="W", dest="weight",
                      help="replaces the suite's collision_weight")
-    sub.add_argument("--videos", type=int, default=3, metavar="K",
-                     help="videos of the first K failures (default 3)")
 
 
 def _add_settings(group, declared: list[tuple[str, Setting, Any]]) -> None:
@@ -227,7 +253,7 @@ def main(argv: list[str] | None = None) -> int:
     _log_to_stderr(args.log_level)
     if args.command == "export":
         return export_command(args)
-    if args.command == "eval":
+    if args.command in ("eval", "compare"):
         return _eval(args)
     if args.run_dir and args.out and args.run_dir != args.out:
         parser.error(f"two run directories given: {args.run_dir} and --out {args.out}; give one")
@@ -342,26 +368,39 @@ def _starts_run(command: str) -> bool:
 
 
 def _eval(args: argparse.Namespace) -> int:
-    """``imitate eval``: the evaluation of ``args.run_dir``; prints its summary."""
+    """``imitate eval`` or ``imitate compare`` of ``args.run_dir``; prints its summary."""
     from imitate import evaluation  # MuJoCo and the planner: once the arguments are fine
+    from imitate.evaluation import compare
 
-    kept = f"the finished variations are kept in {args.run_dir / 'eval'}; run it again to go on"
+    folder = args.run_dir / ("eval" if args.command == "eval" else "compare")
+    kept = f"the finished variations are kept in {folder}; run it again to go on"
     try:
-        suite = evaluation.load_suite(args.suite) if args.suite else evaluation.Suite.default()
+        name, suite = evaluation.named_suite(args.suite)
         if args.weight is not None:
             suite = suite.replace(collision_weight=args.weight)
         with _terminated_as_exception():
-            summary = evaluation.evaluate(
-                args.run_dir, suite, n=args.n, seed=args.seed, workers=args.workers,
-                ray=args.ray, videos=args.videos,
-            )
+            if args.command == "compare":
+                result = compare.compare(
+                    args.run_dir, suite, args.similarity.split(","), name=name, n=args.n,
+                    seed=args.seed, n_teachers=args.teachers, workers=args.workers,
+                    ray=args.ray,
+                )
+                text = compare.markdown(result) + f"\nresults: {folder / name}"
+            else:
+                if args.similarity is not None:
+                    suite = suite.replace(similarity=args.similarity)
+                summary = evaluation.evaluate(
+                    args.run_dir, suite, n=args.n, seed=args.seed, n_teachers=args.teachers,
+                    workers=args.workers, ray=args.ray, videos=args.videos,
+                )
+                text = evaluation.text(summary, folder)
     except ImitateError as err:
-        return _fail("eval", str(err), 1)
+        return _fail(args.command, str(err), 1)
     except KeyboardInterrupt:
-        return _fail("eval", f"interrupted (Ctrl-C); {kept}", 130)
+        return _fail(args.command, f"interrupted (Ctrl-C); {kept}", 130)
     except _Terminated:
-        return _fail("eval", f"terminated (SIGTERM); {kept}", 143)
-    print(evaluation.text(summary, args.run_dir / "eval"))
+        return _fail(args.command, f"terminated (SIGTERM); {kept}", 143)
+    print(text)
     return 0
 
 

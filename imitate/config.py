@@ -20,7 +20,7 @@ from imitate.bic import BIC_METHODS, DEFAULT_BIC
 from imitate.envs import assembly
 from imitate.envs.teacher_motion import TeacherConfig
 from imitate.errors import ImitateError
-from imitate.motion import PlanConfig
+from imitate.motion import SIMILARITIES, PlanConfig
 from imitate.segment import StillnessConfig
 
 __all__ = ["RunConfig", "Setting", "load_config", "parse_obstacle", "settings"]
@@ -191,6 +191,13 @@ class RunConfig:
     collision_weight: float = _setting(
         PlanConfig.collision_weight, "weight of the collision cost", stage="optimize",
         flag="--collision-weight", low=0, high=MAX_WEIGHT,
+    )
+    similarity: str = _setting(
+        PlanConfig.similarity, "how the similarity cost weights the task dimensions over time: "
+        "variance (eq. 21: stiff where the demonstrations agree), uniform (constant), inverted "
+        "(stiff where they varied: a negative control) or precision (the GMR precision with its "
+        "cross-covariances); each alternative has eq. 21's total weight", stage="optimize",
+        flag="--similarity", choices=SIMILARITIES,
     )
     sweep: tuple[float, ...] = _setting(
         (0.0, 0.03, 0.1, 0.3, 1.0), "collision weights of the Fig. 9 sweep, as fractions of "

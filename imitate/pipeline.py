@@ -150,7 +150,8 @@ def optimize(run_dir: Path, config: RunConfig) -> dict:
             task, model, q0=humanoid.rest_pose(),
             # the sweep shows the paper's optimizer, the attractors alone (Fig. 9)
             config=PlanConfig(
-                collision_weight=w, max_iter=config.max_iter, nullspace_push=w == chosen
+                collision_weight=w, max_iter=config.max_iter, nullspace_push=w == chosen,
+                similarity=config.similarity,
             ),
         )
         seconds[w] = time.perf_counter() - start
@@ -168,6 +169,7 @@ def optimize(run_dir: Path, config: RunConfig) -> dict:
     return {
         "optimization": {
             "collision_weight": chosen,
+            "similarity": config.similarity,
             "seconds": seconds[chosen],
             "iterations": main.n_iter,
             "converged": main.converged,

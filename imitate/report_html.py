@@ -139,9 +139,10 @@ def save_eval_page(out: Path, summary: dict) -> Path:
     """Write ``out/report.html`` (``out``: an evaluation's folder) from its summary, linking
     what is there: the failure videos of its digest, its files, the run's page."""
     out = Path(out)
+    digests = [t["digest"] for t in summary.get("teachers", ())] or [summary["suite_digest"]]
     failures = sorted(
         p.relative_to(out).as_posix()
-        for p in (out / "failures" / summary["suite_digest"]).glob("*.mp4")
+        for digest in digests for p in (out / "failures" / digest).glob("*.mp4")
     )
     files = ("summary.json", "results.jsonl", "outcomes.png", f"../{PAGE}")
     links = [name for name in files if (out / name).is_file()]

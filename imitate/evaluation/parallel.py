@@ -1,6 +1,8 @@
 """Variations in parallel: local worker processes or Ray tasks, results yielded as they finish.
 
-Each variation's record depends on its settings alone (``run_variation`` seeds everything from
+A job is a variation, the teacher whose learned model reproduces it and the digest its record
+is filed under. Each record depends on
+its teacher's model and the variation's settings alone (``run_variation`` seeds everything from
 them), so the two back-ends and any number of workers give the same records, timings aside.
 Local workers are spawned, not forked (MuJoCo's rendering contexts and fork do not mix), set
 ``MUJOCO_GL`` and run single-threaded BLAS unless told otherwise.
@@ -16,38 +18,37 @@ from collections.abc import Iterator, Sequence
 import numpy as np
 
 from imitate.errors import ImitateError
-from imitate.evaluation.trial import run_variation
+from imitate.evaluation.trial import Trial
 from imitate.evaluation.variation import Variation
-from imitate.learning import LearnedModel
 
-__all__ = ["run_local", "run_ray"]
+__all__ = ["Job", "run_local", "run_ray"]
 
 # Thread counts of the numerical libraries in each worker: one, the workers fill the cores.
 _SINGLE_THREAD = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-_worker: dict = {}  # a local worker's learned model and gaze, set once by _start
+_worker: dict = {}  # a local worker's trials by teacher, set once by _start
+
+Job = tuple[str, int, Variation]  # (digest, teacher seed, variation)
+Models = dict[int, dict[str, np.ndarray]]  # model.npz's arrays by teacher seed
 
 
-def run_local(
-    arrays: dict[str, np.ndarray], variations: Sequence[Variation], workers: int
-) -> Iterator[dict]:
-    """Records of ``variations`` from ``workers`` spawned processes, in the order they finish;
-    ``arrays`` are ``model.npz``'s. If the caller stops (Ctrl-C, an error, closing the
-    iterator), the workers are terminated at once: Ctrl-C reaches this process only."""
+def run_local(models: Models, jobs: Sequence[Job], workers: int) -> Iterator[dict]:
+    """Records of ``jobs`` from ``workers`` spawned processes, in the order they finish, each
+    with its ``digest`` and ``teacher``; ``models``: each teacher's ``model.npz`` arrays. If the
+    caller stops (Ctrl-C, an error, closing the iterator), the workers are terminated at once:
+    Ctrl-C reaches this process only."""
     for name in _SINGLE_THREAD:  # inherited by the spawned workers
         os.environ.setdefault(name, "1")
     context = multiprocessing.get_context("spawn")
-    pool = context.Pool(workers, initializer=_start, initargs=(arrays,))
+    pool = context.Pool(workers, initializer=_start, initargs=(models,))
     try:
-        yield from pool.imap_unordered(_run, [v.to_json() for v in variations])
+        yield from pool.imap_unordered(_run, [(d, t, v.to_json()) for d, t, v in jobs])
         pool.close()
     finally:
         pool.terminate()
         pool.join()
 
 
-def run_ray(
-    arrays: dict[str, np.ndarray], variations: Sequence[Variation], address: str
-) -> Iterator[dict]:
+def run_ray(models: Models, jobs: Sequence[Job], address: str) -> Iterator[dict]:
     """As :func:`run_local`, one Ray task (one CPU) per variation, on the Ray instance this
     process is connected to, or else on the cluster at ``address`` (``"auto"``: the one Ray
     finds). The workers need ``imitate`` installed.
@@ -67,8 +68,8 @@ def run_ray(
         except (ConnectionError, RuntimeError, ValueError) as err:
             raise ImitateError(f"no Ray cluster at --ray {address}: {err}") from None
     task = ray.remote(num_cpus=1)(_run_with)
-    shared = ray.put(arrays)
-    pending = [task.remote(shared, v.to_json()) for v in variations]
+    shared = {teacher: ray.put(arrays) for teacher, arrays in models.items()}
+    pending = [task.remote(shared[t], d, t, v.to_json()) for d, t, v in jobs]
     try:
         while pending:
             done, pending = ray.wait(pending, num_returns=1)
@@ -78,19 +79,21 @@ def run_ray(
             ray.cancel(ref)
 
 
-def _start(arrays: dict[str, np.ndarray]) -> None:
+def _start(models: Models) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
     os.environ.setdefault("MUJOCO_GL", "egl")
-    _worker.update(learned=LearnedModel.from_arrays(arrays), gaze=arrays["gaze"])
+    _worker.update({teacher: Trial(arrays) for teacher, arrays in models.items()})
 
 
-def _run(variation: dict) -> dict:
-    return run_variation(_worker["learned"], _worker["gaze"], Variation.from_json(variation))
+def _run(job: tuple[str, int, dict]) -> dict:
+    digest, teacher, variation = job
+    record = _worker[teacher].run(Variation.from_json(variation))
+    return {"digest": digest, "teacher": teacher, **record}
 
 
-def _run_with(arrays: dict[str, np.ndarray], variation: dict) -> dict:
+def _run_with(arrays: dict[str, np.ndarray], digest: str, teacher: int, variation: dict) -> dict:
     """A Ray task: one variation with the learned model of ``arrays`` (a Ray worker may serve
     several evaluations, so nothing is kept)."""
     os.environ.setdefault("MUJOCO_GL", "egl")
-    learned = LearnedModel.from_arrays(arrays)
-    return run_variation(learned, arrays["gaze"], Variation.from_json(variation))
+    record = Trial(arrays).run(Variation.from_json(variation))
+    return {"digest": digest, "teacher": teacher, **record}

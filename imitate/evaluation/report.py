@@ -19,7 +19,10 @@ from imitate.learning import LearnedModel
 from imitate.models.scene import TABLE_X
 from imitate.motion import PlanConfig
 
-__all__ = ["failure_video", "plot_outcomes", "summarize", "text", "wilson"]
+__all__ = [
+    "failure_video", "plot_outcomes", "summarize", "summarize_teachers", "teacher_table", "text",
+    "wilson",
+]
 
 COLOURS = {
     "success": "tab:green", "plan_collision": "tab:red", "physics_contact": "tab:orange",
@@ -91,6 +94,46 @@ def summarize(records: Sequence[dict]) -> dict:
     }
 
 
+def summarize_teachers(records: Sequence[dict], digests: dict[int, str]) -> list[dict]:
+    """Per teacher (seed: digest of its records): its success with the Wilson interval, the pour
+    over its variations (the mean of each variation's smallest and mean pour, and the smallest)
+    and its failures (id, outcome, where the obstacle was)."""
+    rows = []
+    for teacher, digest in digests.items():
+        own = [r for r in records if r["digest"] == digest]
+        successes = sum(r["outcome"] == "success" for r in own)
+        rows.append({
+            "seed": teacher, "digest": digest, "variations": len(own), "success": successes,
+            "success_rate": successes / max(len(own), 1),
+            "success_wilson95": list(wilson(successes, len(own))),
+            "pour_min": float(min(r["pour_min"] for r in own)) if own else None,
+            "pour_min_mean": float(np.mean([r["pour_min"] for r in own])) if own else None,
+            "pour_mean": float(np.mean([r["pour_mean"] for r in own])) if own else None,
+            "failures": [
+                {"id": r["id"], "outcome": r["outcome"], "obstacle": place(r)}
+                for r in own if r["outcome"] != "success"
+            ],
+        })
+    return rows
+
+
+def teacher_table(rows: Sequence[dict]) -> str:
+    """The teachers of :func:`summarize_teachers` as a markdown table."""
+    lines = [
+        "| teacher seed | success | Wilson 95 % | smallest pour | mean of the smallest pours "
+        "| failures (id: outcome) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for t in rows:
+        low, high = t["success_wilson95"]
+        failures = ", ".join(f"{f['id']}: {f['outcome']}" for f in t["failures"]) or "none"
+        lines.append(
+            f"| {t['seed']} | {t['success']}/{t['variations']} | {low:.3f}..{high:.3f} "
+            f"| {t['pour_min']:.3f} | {t['pour_min_mean']:.3f} | {failures} |"
+        )
+    return "\n".join(lines)
+
+
 def text(summary: dict, out: Path) -> str:
     """The summary in a few lines (what ``imitate eval`` prints); ``out``: the eval folder."""
     n, run = summary["variations"], summary["run"]
@@ -103,12 +146,16 @@ def text(summary: dict, out: Path) -> str:
     )
     gap, seconds = summary["clearance_gap_mm"], summary["seconds_per_variation"]
     kept, push = summary["kept_margin"], summary["nullspace_push"]
+    teachers = summary.get("teachers", [])
+    per_teacher = [teacher_table(teachers)] if len(teachers) > 1 else []
     return "\n".join([
-        f"eval: {n} variations ({run['ran']} run now on {where} in {run['wall_seconds']:.1f} s, "
+        f"eval: {n} variations of {len(teachers) or 1} teacher{'s' * (len(teachers) > 1)} "
+        f"({run['ran']} run now on {where} in {run['wall_seconds']:.1f} s, "
         f"1-min load average {run['load_average_start'][0]:.1f} at the start, "
         f"{run['load_average_end'][0]:.1f} at the end), suite digest {summary['suite_digest']}",
         f"success: {successes}/{n} = {summary['success_rate']:.3f} (95 % Wilson interval "
         f"{low:.3f}..{high:.3f})",
+        *per_teacher,
         "outcomes: " + ", ".join(f"{o} {c}" for o, c in summary["outcomes"].items()),
         f"successes by obstacle: {by_place}",
         f"pour over the replays: mean {summary['pour_mean']:.3f}, min {summary['pour_min']:.3f}",

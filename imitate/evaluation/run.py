@@ -1,33 +1,43 @@
-"""``imitate eval``: a run's learned model reproduced in the variations of a suite.
+"""``imitate eval``: learned models reproduced in the variations of a suite.
 
-Writes under ``RUN_DIR/eval/``: ``results.jsonl`` (one record per variation, appended and
-synced as each finishes, with the suite digest and the exact settings), ``summary.json``,
-``outcomes.png`` and ``report.html`` (of the last evaluation) and
-``failures/<digest>/<id>-<outcome>.mp4`` for the first failures. An interrupted
-evaluation continues where it stopped: variations whose id already has a record under the same
-digest (suite, seed, learned model) are not run again.
+The models are the run's and, with ``teachers``, those of more teacher seeds
+(:mod:`~imitate.evaluation.teachers`); each teacher reproduces every variation, drawn once per
+teacher (its obstacles in the path are placed on that teacher's path).
+
+Writes under ``RUN_DIR/eval/``: ``results.jsonl`` (one record per teacher and variation, appended
+and synced as each finishes, with its digest, the teacher's seed and the exact settings),
+``summary.json``, ``outcomes.png`` and ``report.html`` (of the last evaluation),
+``failures/<digest>/<id>-<outcome>.mp4`` for the first failures and ``teachers/`` (the learned
+models of the other teachers). An interrupted evaluation continues where it stopped: a variation
+whose id already has a record under the same digest (suite, seed, the teacher's learned model,
+the code) is not run again.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import time
+from collections.abc import Collection, Sequence
 from contextlib import closing
+from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 from tqdm import tqdm
 
 from imitate import plots, provenance, report_html
-from imitate.artifacts import load_npz, save_json
+from imitate.artifacts import save_json
 from imitate.errors import ImitateError
-from imitate.evaluation.parallel import run_local, run_ray
-from imitate.evaluation.report import failure_video, plot_outcomes, summarize
+from imitate.evaluation.parallel import Job, run_local, run_ray
+from imitate.evaluation.report import failure_video, plot_outcomes, summarize, summarize_teachers
 from imitate.evaluation.suite import Suite
-from imitate.evaluation.variation import draw, path_points
+from imitate.evaluation.teachers import Teacher, teachers
+from imitate.evaluation.variation import Variation, draw, path_points
 from imitate.learning import LearnedModel
 
-__all__ = ["evaluate", "last_records", "read_records"]
+__all__ = ["Draw", "draw_jobs", "evaluate", "last_records", "read_records", "run_jobs"]
 
 RESULTS = "results.jsonl"
 
@@ -38,78 +48,141 @@ def evaluate(
     *,
     n: int | None = None,
     seed: int = 0,
+    n_teachers: int = 1,
     workers: int | None = None,
     ray: str | None = None,
     videos: int = 3,
     progress: bool | None = None,
 ) -> dict:
-    """Evaluate ``run_dir``'s ``model.npz`` on ``n`` variations of ``suite`` (default: its
-    ``variations``) drawn with ``seed``, on ``workers`` local processes (default: every core) or
-    on Ray (``ray``: an address or ``"auto"``); videos of the first ``videos`` failures.
-    ``progress``: tqdm's ``disable`` inverted (``None``: on a terminal). Returns the summary.
+    """Evaluate the learned models of ``n_teachers`` teachers of ``run_dir`` (the run's own
+    first) on ``n`` variations of ``suite`` (default: its ``variations``) drawn with ``seed``, on
+    ``workers`` local processes (default: every core) or on Ray (``ray``: an address or
+    ``"auto"``); videos of the first ``videos`` failures. ``progress``: tqdm's ``disable``
+    inverted (``None``: on a terminal). Returns the summary.
 
     Raises:
-        ImitateError: a missing or corrupt model, ``n`` or ``workers`` below 1, Ray unusable.
+        ImitateError: a missing or corrupt model, ``n``, ``workers`` or ``n_teachers`` out of
+            range, Ray unusable.
     """
-    run_dir, n = Path(run_dir), suite["variations"] if n is None else n
-    workers = (os.cpu_count() or 1) if workers is None else workers
-    for flag, value in (("--n", n), ("--workers", workers)):
-        if value < 1:
-            raise ImitateError(f"{flag} {value} not accepted: at least 1")
-    model_path = run_dir / "model.npz"
-    stored = load_npz(model_path, required=(*LearnedModel.array_names(), "gaze"))
-    arrays = {k: stored[k] for k in (*LearnedModel.array_names(), "gaze")}
-    learned = LearnedModel.from_arrays(arrays)
-    digest = suite.digest(seed, model_path.read_bytes(), provenance.code_digest())
+    run_dir = Path(run_dir)
     out = run_dir / "eval"
+    n, workers = _checked(suite, n, workers)
     out.mkdir(parents=True, exist_ok=True)
-    path = path_points(learned, arrays["gaze"], suite["max_iter"])
-    variations = [draw(suite, seed, i, path) for i in range(n)]
-    records = {r["id"]: r for r in read_records(out / RESULTS, digest) if r["id"] < n}
-    pending = [v for v in variations if v.id not in records]
-    start, load = time.perf_counter(), os.getloadavg()
-    finished = (
-        run_ray(arrays, pending, ray) if ray else run_local(arrays, pending, min(workers, n))
-    ) if pending else (record for record in ())
-    _end_line(out / RESULTS)
-    # closing: an interruption stops the workers before it propagates
-    with closing(finished), open(out / RESULTS, "a") as results, tqdm(
-        total=n, initial=n - len(pending), desc="eval", unit="variation",
-        disable=None if progress is None else not progress,
-    ) as bar:
-        for result in finished:
-            record = {"digest": digest, **result}
-            results.write(json.dumps(record) + "\n")
-            results.flush()
-            os.fsync(results.fileno())
-            records[record["id"]] = record
-            bar.set_postfix(outcome=record["outcome"])
-            bar.update()
-    wall = time.perf_counter() - start
-    ordered = [records[i] for i in sorted(records)]
+    models = teachers(run_dir, out, n_teachers)
+    drawn = draw_jobs(models, suite, seed, n)
+    records, ran, run = run_jobs(out / RESULTS, drawn, models, workers, ray, progress)
+    digests = [d.digest for d in drawn]
+    ordered = [records[(d.digest, v.id)] for d in drawn for v in d.variations]
     summary = {
-        "suite_digest": digest, "seed": seed, "suite": suite.to_json(),
-        "path_points": len(path), **summarize(ordered),
-        "run": {
-            "ran": len(pending), "wall_seconds": wall, "backend": "ray" if ray else "local",
-            "workers": None if ray else min(workers, n),
-            "load_average_start": list(load), "load_average_end": list(os.getloadavg()),
-        },
+        "suite_digest": combined_digest(digests), "seed": seed, "suite": suite.to_json(),
+        "path_points": len(drawn[0].path), **summarize(ordered),
+        "teachers": summarize_teachers(ordered, {d.teacher: d.digest for d in drawn}),
+        "run": run,
     }
     save_json(out / "summary.json", summary)
-    plots.save(plot_outcomes(ordered, path), out / "outcomes.png")
+    plots.save(plot_outcomes(ordered, drawn[0].path), out / "outcomes.png")
+    learned = {t.seed: LearnedModel.from_arrays(t.arrays) for t in models}
+    gaze = {t.seed: t.arrays["gaze"] for t in models}
     failures = [r for r in ordered if r["outcome"] != "success"][:videos]
     for record in tqdm(failures, desc="failure videos", unit="video", disable=not progress):
-        video = out / "failures" / digest / f"{record['id']:04d}-{record['outcome']}.mp4"
+        video = out / "failures" / record["digest"] / f"{record['id']:04d}-{record['outcome']}.mp4"
         if not video.exists():
-            failure_video(video, learned, arrays["gaze"], record)
+            t = record["teacher"]
+            failure_video(video, learned[t], gaze[t], record)
     report_html.save_eval_page(out, summary)
     return summary
 
 
-def read_records(path: Path, digest: str) -> list[dict]:
-    """The records of ``path`` (``results.jsonl``) with ``digest``, the last one per id; a
-    line cut short by an interruption is skipped."""
+@dataclass(frozen=True, eq=False)
+class Draw:
+    """One teacher's variations of a suite.
+
+    Attributes:
+        teacher: The teacher's seed.
+        digest: Identifies its records (:meth:`Suite.digest` of the suite, the seed of the
+            draw, the teacher's model and the code).
+        path: ``(P, 3)`` points of its weight-0 path (:func:`path_points`).
+        variations: The variations, by id.
+    """
+
+    teacher: int
+    digest: str
+    path: np.ndarray
+    variations: tuple[Variation, ...]
+
+
+def draw_jobs(models: Sequence[Teacher], suite: Suite, seed: int, n: int) -> list[Draw]:
+    """Variations ``0..n-1`` of ``suite`` drawn with ``seed`` for each teacher in ``models``."""
+    code = provenance.code_digest()
+    drawn = []
+    for t in models:
+        learned = LearnedModel.from_arrays(t.arrays)
+        path = path_points(learned, t.arrays["gaze"], suite["max_iter"])
+        drawn.append(Draw(
+            t.seed, suite.digest(seed, t.model_bytes, code), path,
+            tuple(draw(suite, seed, i, path) for i in range(n)),
+        ))
+    return drawn
+
+
+def run_jobs(
+    results: Path,
+    drawn: Sequence[Draw],
+    models: Sequence[Teacher],
+    workers: int,
+    ray: str | None,
+    progress: bool | None,
+) -> tuple[dict[tuple[str, int], dict], dict]:
+    """Runs the variations of ``drawn`` that have no record in ``results`` yet, appending each
+    record as it finishes. Returns every record of ``drawn`` by ``(digest, id)`` and the
+    numbers of this call (``ran``, wall time, back-end, load average)."""
+    wanted = {d.digest for d in drawn}
+    records = {
+        (r["digest"], r["id"]): r for r in read_records(results, wanted)
+    }
+    pending = [
+        (d, v) for d in drawn for v in d.variations if (d.digest, v.id) not in records
+    ]
+    jobs: list[Job] = [(d.digest, d.teacher, v) for d, v in pending]
+    arrays = {t.seed: t.arrays for t in models if t.seed in {d.teacher for d in drawn}}
+    total = sum(len(d.variations) for d in drawn)
+    start, load = time.perf_counter(), os.getloadavg()
+    finished = (
+        run_ray(arrays, jobs, ray) if ray else run_local(arrays, jobs, min(workers, len(jobs)))
+    ) if jobs else iter(())
+    _end_line(results)
+    # closing: an interruption stops the workers before it propagates
+    with closing(finished), open(results, "a") as f, tqdm(
+        total=total, initial=total - len(jobs), desc="eval", unit="variation",
+        disable=None if progress is None else not progress,
+    ) as bar:
+        for record in finished:
+            f.write(json.dumps(record) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+            records[(record["digest"], record["id"])] = record
+            bar.set_postfix(outcome=record["outcome"])
+            bar.update()
+    run = {
+        "ran": len(jobs), "wall_seconds": time.perf_counter() - start,
+        "backend": "ray" if ray else "local",
+        "workers": None if ray else min(workers, max(len(jobs), 1)),
+        "load_average_start": list(load), "load_average_end": list(os.getloadavg()),
+    }
+    return records, run
+
+
+def combined_digest(digests: Sequence[str]) -> str:
+    """One digest for the records of several teachers' digests (a single one: itself)."""
+    if len(digests) == 1:
+        return digests[0]
+    return hashlib.sha256(",".join(digests).encode()).hexdigest()[:16]
+
+
+def read_records(path: Path, digests: str | Collection[str]) -> list[dict]:
+    """The records of ``path`` (``results.jsonl``) under ``digests`` (one or several), the last
+    one per digest and id; a line cut short by an interruption is skipped."""
+    wanted = {digests} if isinstance(digests, str) else set(digests)
     records = {}
     if not path.exists():
         return []
@@ -118,14 +191,14 @@ def read_records(path: Path, digest: str) -> list[dict]:
             record = json.loads(line)
         except json.JSONDecodeError:
             continue
-        if record.get("digest") == digest:
-            records[record["id"]] = record
+        if isinstance(record, dict) and record.get("digest") in wanted:
+            records[(record["digest"], record["id"])] = record
     return list(records.values())
 
 
 def last_records(run_dir: Path) -> list[dict]:
-    """The records of the last evaluation of ``run_dir`` (the digest in its
-    ``eval/summary.json``), sorted by id.
+    """The records of the last evaluation of ``run_dir`` (the digests in its
+    ``eval/summary.json``), sorted by teacher and id.
 
     Raises:
         ImitateError: ``run_dir`` has no evaluation.
@@ -133,8 +206,24 @@ def last_records(run_dir: Path) -> list[dict]:
     out = Path(run_dir) / "eval"
     if not (out / "summary.json").is_file():
         raise ImitateError(f"{out / 'summary.json'} is missing: run `imitate eval {run_dir}` first")
-    digest = json.loads((out / "summary.json").read_text())["suite_digest"]
-    return sorted(read_records(out / RESULTS, digest), key=lambda r: r["id"])
+    summary = json.loads((out / "summary.json").read_text())
+    digests = [t["digest"] for t in summary.get("teachers", ())] or [summary["suite_digest"]]
+    order = {d: i for i, d in enumerate(digests)}
+    return sorted(read_records(out / RESULTS, digests), key=lambda r: (order[r["digest"]], r["id"]))
+
+
+def _checked(suite: Suite, n: int | None, workers: int | None) -> tuple[int, int]:
+    """``n`` and ``workers`` with their defaults (the suite's ``variations``, every core).
+
+    Raises:
+        ImitateError: either below 1.
+    """
+    n = suite["variations"] if n is None else n
+    workers = (os.cpu_count() or 1) if workers is None else workers
+    for flag, value in (("--n", n), ("--workers", workers)):
+        if value < 1:
+            raise ImitateError(f"{flag} {value} not accepted: at least 1")
+    return n, workers
 
 
 def _end_line(path: Path) -> None:

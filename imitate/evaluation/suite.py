@@ -19,9 +19,13 @@ from imitate.envs.assembly import GRASP_RANGE, MAX_PARTICLES, OBSTACLE_SHAPES
 from imitate.errors import ImitateError
 from imitate.models import objects
 from imitate.models.scene import TABLE_X, TABLE_Y
-from imitate.motion import PlanConfig
+from imitate.motion import SIMILARITIES, PlanConfig
 
-__all__ = ["KEYS", "Key", "Suite", "load_suite"]
+__all__ = ["KEYS", "SUITE_NAMES", "Key", "Suite", "load_suite", "named_suite"]
+
+_SHIPPED = Path(__file__).parent / "suites"  # the named suites shipped with the package
+# The suites ``--suite NAME`` takes: the built-in default and the files shipped.
+SUITE_NAMES = ("default", *sorted(p.stem for p in _SHIPPED.glob("*.toml")))
 
 
 @dataclass(frozen=True)
@@ -33,7 +37,7 @@ class Key:
         help: What it is, with its unit.
         low, high: Accepted values (each end of a range), inclusive.
         integer: Whole numbers only.
-        choices: For a list of names: the accepted names.
+        choices: The accepted names: of a list of names, or of one name (a ``str`` default).
     """
 
     default: Any
@@ -47,8 +51,14 @@ class Key:
     def is_range(self) -> bool:
         return isinstance(self.default, tuple) and self.choices is None
 
+    @property
+    def is_name(self) -> bool:
+        return isinstance(self.default, str)
+
     def accepted(self) -> str:
         """What the key accepts, in words."""
+        if self.is_name:
+            return f"one of {list(self.choices or ())}"
         if self.choices is not None:
             return f"a non-empty list of {list(self.choices)}"
         kind = "whole numbers" if self.integer else "numbers"
@@ -65,6 +75,10 @@ class Key:
             ImitateError: naming ``source``, ``name``, ``value`` and what is accepted.
         """
         refused = f"{source}: entry {name}={value!r} not accepted: {self.accepted()}"
+        if self.is_name:
+            if not isinstance(value, str) or value not in (self.choices or ()):
+                raise ImitateError(refused)
+            return value
         if self.choices is not None:
             if (
                 not isinstance(value, list)
@@ -98,6 +112,14 @@ _BOTTLE, _GLASS = GRASP_RANGE[objects.BOTTLE], GRASP_RANGE[objects.GLASS]
 KEYS: dict[str, Key] = {
     "variations": Key(100, "variations drawn when --n is not given", 1, 100_000, integer=True),
     "collision_weight": Key(PlanConfig.collision_weight, "weight of the collision cost"),
+    "similarity": Key(
+        PlanConfig.similarity, "how the similarity cost weights the task over time (the run "
+        "setting of the same name)", choices=SIMILARITIES,
+    ),
+    "path_length_weight": Key(
+        (PlanConfig.path_length_weight,) * 2, "weight of the joint path-length cost (raised, "
+        "it competes with the task everywhere)", 0, 1e3,
+    ),
     "max_iter": Key(PlanConfig.max_iter, "optimizer iteration limit", 1, 10_000, integer=True),
     "replays": Key(
         3, "physics replays per variation, each from its own seed of the initial-state noise "
@@ -187,6 +209,26 @@ class Suite:
         values = {k: v for k, v in self.to_json().items() if k != "variations"}
         text = json.dumps({"suite": values, "seed": seed, "code": code}, sort_keys=True)
         return hashlib.sha256(text.encode() + hashlib.sha256(model).digest()).hexdigest()[:16]
+
+
+def named_suite(text: str | None) -> tuple[str, Suite]:
+    """The suite ``--suite`` names and its name: ``None`` or ``default`` for the built-in one,
+    a name of :data:`SUITE_NAMES`, or a ``.toml`` or ``.json`` file (named by its stem).
+
+    Raises:
+        ImitateError: as :func:`load_suite`, or a name that is not shipped.
+    """
+    if text is None or text == "default":
+        return "default", Suite.default()
+    if text in SUITE_NAMES:
+        return text, load_suite(_SHIPPED / f"{text}.toml")
+    path = Path(text)
+    if path.suffix not in (".toml", ".json"):
+        raise ImitateError(
+            f"--suite {text} not accepted: one of {', '.join(SUITE_NAMES)}, or a .toml or "
+            ".json file"
+        )
+    return path.stem, load_suite(path)
 
 
 def load_suite(path: Path) -> Suite:

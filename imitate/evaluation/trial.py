@@ -1,5 +1,7 @@
 """One variation, start to end: optimize the reproduction, replay it in perturbed physics from
-each of its seeds, classify the outcome.
+each of its seeds, classify the outcome, and measure how far the constraints moved the task from
+the unconstrained reproduction (the same model and weighting in the default scene, collision
+weight 0 and the default path-length weight).
 
 Outcomes, the first that applies: ``diverged`` (a replay's physics blew up), ``plan_collision``
 (the plan itself comes closer than 0 to something), ``physics_contact`` (the plan keeps clear,
@@ -19,15 +21,16 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
+from imitate.envs.assembly import SceneConfig
 from imitate.envs.pouring import SUCCESS_FRACTION, PouringEnv
 from imitate.evaluation.variation import Variation
 from imitate.learning import LearnedModel
 from imitate.models import humanoid, objects
-from imitate.motion import Plan, plan_from_model
-from imitate.motion.metrics import pour_phase_error
+from imitate.motion import Plan, PlanConfig, plan_from_model
+from imitate.motion.metrics import pour_phase_error, task_change
 from imitate.replay import planning_task, replay
 
-__all__ = ["OUTCOMES", "classify", "physics", "plan_variation", "replay_once", "run_variation"]
+__all__ = ["OUTCOMES", "Trial", "classify", "physics", "plan_variation", "replay_once"]
 
 OUTCOMES = ("success", "plan_collision", "physics_contact", "spill", "low_pour", "diverged")
 
@@ -99,38 +102,66 @@ def classify(plan_min_distance: float, replays: list[dict], particles: int) -> s
     return "spill" if worst["spilled"] / particles >= missing / 2 else "low_pour"
 
 
-def run_variation(learned: LearnedModel, gaze: np.ndarray, variation: Variation) -> dict:
-    """Plan, replays and outcome of ``variation``: the JSON-ready record of ``results.jsonl``
-    (but the suite digest); it depends on ``variation`` alone, timings aside."""
-    start = time.perf_counter()
-    plan = plan_variation(learned, gaze, variation)
-    plan_seconds = time.perf_counter() - start
-    env = physics(variation)
-    try:
-        replays = [replay_once(plan, env, variation, s, gaze) for s in variation.replay_seeds]
-    finally:
-        env.close()
-    pours = [r["pour_fraction"] for r in replays]
-    physics_min = min(r["min_distance_m"] for r in replays)
-    error_m, error_deg = pour_phase_error(plan)
-    return {
-        "id": variation.id,
-        "settings": variation.to_json(),
-        "outcome": classify(plan.min_distance, replays, variation.particles),
-        "pour_mean": float(np.mean(pours)),
-        "pour_min": float(np.min(pours)),
-        "plan": {
-            "min_distance_m": plan.min_distance,
-            "closest": list(plan.closest or ()),
-            "iterations": plan.n_iter,
-            "converged": plan.converged,
-            "nullspace_push": bool(np.any(plan.push)),
-            "pour_phase_err_m": error_m,
-            "pour_phase_err_deg": error_deg,
-            "seconds": plan_seconds,
-        },
-        "replays": replays,
-        "physics_min_distance_m": physics_min,
-        "clearance_gap_m": plan.min_distance - physics_min,
-        "seconds": time.perf_counter() - start,
-    }
+class Trial:
+    """Runs variations with one teacher's learned model; keeps its unconstrained reproductions.
+
+    Args:
+        arrays: The teacher's ``model.npz`` arrays (the learned model and ``gaze``).
+    """
+
+    def __init__(self, arrays: dict[str, np.ndarray]):
+        self.learned, self.gaze = LearnedModel.from_arrays(arrays), arrays["gaze"]
+        self._free: dict[tuple[str, int], Plan] = {}
+
+    def free(self, similarity: str, max_iter: int) -> Plan:
+        """The unconstrained reproduction with ``similarity``: default scene, no collision
+        cost, the default path-length weight."""
+        key = (similarity, max_iter)
+        if key not in self._free:
+            config = PlanConfig(collision_weight=0.0, similarity=similarity, max_iter=max_iter)
+            task = planning_task(SceneConfig(), self.gaze)
+            self._free[key] = plan_from_model(
+                task, self.learned, q0=humanoid.rest_pose(), config=config
+            )
+        return self._free[key]
+
+    def run(self, variation: Variation) -> dict:
+        """Plan, replays, outcome and task change of ``variation``: the JSON-ready record of
+        ``results.jsonl`` (but the suite digest and the teacher); it depends on the model and
+        ``variation`` alone, timings aside."""
+        start = time.perf_counter()
+        plan = plan_variation(self.learned, self.gaze, variation)
+        plan_seconds = time.perf_counter() - start
+        env = physics(variation)
+        try:
+            replays = [
+                replay_once(plan, env, variation, s, self.gaze) for s in variation.replay_seeds
+            ]
+        finally:
+            env.close()
+        pours = [r["pour_fraction"] for r in replays]
+        physics_min = min(r["min_distance_m"] for r in replays)
+        error_m, error_deg = pour_phase_error(plan)
+        change = task_change(plan, self.free(variation.similarity, variation.max_iter))
+        return {
+            "id": variation.id,
+            "settings": variation.to_json(),
+            "outcome": classify(plan.min_distance, replays, variation.particles),
+            "pour_mean": float(np.mean(pours)),
+            "pour_min": float(np.min(pours)),
+            "plan": {
+                "min_distance_m": plan.min_distance,
+                "closest": list(plan.closest or ()),
+                "iterations": plan.n_iter,
+                "converged": plan.converged,
+                "nullspace_push": bool(np.any(plan.push)),
+                "pour_phase_err_m": error_m,
+                "pour_phase_err_deg": error_deg,
+                "seconds": plan_seconds,
+            },
+            "change": change,
+            "replays": replays,
+            "physics_min_distance_m": physics_min,
+            "clearance_gap_m": plan.min_distance - physics_min,
+            "seconds": time.perf_counter() - start,
+        }

@@ -47,6 +47,8 @@ class Variation:
         friction_scale, damping_scale, mass_scale: Physics perturbations (see the suite keys).
         replay_seeds: Seeds of the physics replays (initial-state noise), one per replay.
         collision_weight: Weight of the planner's collision cost.
+        path_length_weight: Weight of its joint path-length cost.
+        similarity: Its similarity weighting (:data:`~imitate.motion.SIMILARITIES`).
         max_iter: Optimizer iteration limit.
     """
 
@@ -61,6 +63,8 @@ class Variation:
     mass_scale: float
     replay_seeds: tuple[int, ...]
     collision_weight: float
+    path_length_weight: float
+    similarity: str
     max_iter: int
 
     def scene(self) -> SceneConfig:
@@ -73,7 +77,10 @@ class Variation:
         )
 
     def plan_config(self) -> PlanConfig:
-        return PlanConfig(collision_weight=self.collision_weight, max_iter=self.max_iter)
+        return PlanConfig(
+            collision_weight=self.collision_weight, path_length_weight=self.path_length_weight,
+            similarity=self.similarity, max_iter=self.max_iter,
+        )
 
     def to_json(self) -> dict:
         return asdict(self)
@@ -146,6 +153,8 @@ def draw(suite: Suite, seed: int, index: int, path: np.ndarray) -> Variation:
         mass_scale=uniform("mass_scale"),
         replay_seeds=tuple(int(s) for s in rng.integers(0, 2**31, suite["replays"])),
         collision_weight=suite["collision_weight"],
+        path_length_weight=uniform("path_length_weight"),  # drawn last: the others as before
+        similarity=suite["similarity"],
         max_iter=suite["max_iter"],
     )
 

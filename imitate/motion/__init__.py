@@ -12,7 +12,7 @@ that implements it):
 ``phi(q)``      task map (:class:`imitate.taskspace.TaskMap`); ``J`` its Jacobian ``(m, n)``
 ``J#``          weighted damped pseudo-inverse of ``J``
 ``q_t``         joint angles from resolved motion rate control (:mod:`.control`)
-``mu_t``        GMR mean; ``sigma_t`` GMR variance; ``W_t`` eq. 21 weights (:mod:`.costs`)
+``mu_t``        GMR mean; ``sigma_t`` GMR variance; ``W_t`` similarity weights (:mod:`.costs`)
 ``Phi``         total cost ``sum_i w_i c_i``; its gradient by the adjoint recursion
 ==============  =================================================================================
 
@@ -23,12 +23,14 @@ that implements it):
 from imitate.motion.attractors import AttractorDynamics
 from imitate.motion.control import ControlConfig, JointLimitCost, Rollout, reach, rollout
 from imitate.motion.costs import (
+    SIMILARITIES,
     Collision,
     JointAcceleration,
     JointLimits,
     PathLength,
     Similarity,
     similarity_weights,
+    weighting,
 )
 from imitate.motion.optimizer import (
     OPTIMIZERS,
@@ -42,6 +44,7 @@ from imitate.motion.plan import Plan
 
 __all__ = [
     "OPTIMIZERS",
+    "SIMILARITIES",
     "AttractorDynamics",
     "Collision",
     "ControlConfig",
@@ -60,4 +63,5 @@ __all__ = [
     "rollout",
     "setup",
     "similarity_weights",
+    "weighting",
 ]

@@ -126,8 +126,9 @@ class AttractorDynamics:
         Args:
             target: ``(T + 1, m)``, e.g. the GMR mean.
             x0: Start ``(m,)``.
-            weights: ``(T + 1, m)`` weights of the squared residuals, e.g. eq. 21's ``W_t``
-                (then the fit minimises the similarity cost alone); ``None`` for equal.
+            weights: ``W_t`` of the residuals: ``(T + 1, m)`` diagonals, e.g. eq. 21's (then the
+                fit minimises the similarity cost alone), or ``(T + 1, m, m)`` matrices;
+                ``None`` for equal.
             reg: Tikhonov weight, relative to each dimension's mean weight, pulling each
                 attractor towards the target's mean over the steps it acts in (keeps an
                 attractor that barely acts well defined).
@@ -141,6 +142,8 @@ class AttractorDynamics:
         residual = target - self.free[:, :1] * x0
         if weights is None:
             weights = np.ones_like(target)
+        if weights.ndim == 3:  # whole matrices: one system over all dimensions
+            return self._fit_coupled(residual, prior, weights, reg)
         a = np.empty((K, m))
         for d in range(m):
             w = weights[:, d]
@@ -148,3 +151,17 @@ class AttractorDynamics:
             lhs = self.psi.T @ (w[:, None] * self.psi) + scale * np.eye(K)
             a[:, d] = np.linalg.solve(lhs, self.psi.T @ (w * residual[:, d]) + scale * prior[:, d])
         return a
+
+    def _fit_coupled(
+        self, residual: np.ndarray, prior: np.ndarray, weights: np.ndarray, reg: float
+    ) -> np.ndarray:
+        """:meth:`fit` for ``(T + 1, m, m)`` weights, which couple the dimensions: the normal
+        equations of ``sum_t (psi_t a - r_t)^T W_t (psi_t a - r_t)`` over ``vec(a)``."""
+        K, m = prior.shape
+        lhs = np.einsum("tk,tl,tij->kilj", self.psi, self.psi, weights).reshape(K * m, K * m)
+        rhs = np.einsum("tk,tij,tj->ki", self.psi, weights, residual)
+        diagonal = np.diagonal(weights, axis1=1, axis2=2)
+        scale = reg * np.maximum(diagonal.mean(axis=0), 1e-12)  # (m,)
+        lhs += np.diag(np.tile(scale, K))
+        rhs += scale * prior
+        return np.linalg.solve(lhs, rhs.ravel()).reshape(K, m)

@@ -6,7 +6,8 @@ over time (multiplied by ``dt``) so they do not depend on the step. The chain th
 rollout is :func:`imitate.motion.control.backward`.
 
 - :class:`Similarity`: eqs. 20-22, ``c = sum_t (x_t - mu_t)^T W_t (x_t - mu_t) dt`` with
-  ``W_t`` from the GMR variances by eq. 21's ramp.
+  ``W_t`` from the GMR variances by eq. 21's ramp, or by one of the alternatives it is compared
+  with (:data:`SIMILARITIES`, :func:`weighting`).
 - :class:`Collision`: CHOMP's potential of ``d - margin`` for every pair closer than
   ``margin + epsilon``: ``(d' - eps)^2 / (2 eps)`` for ``0 <= d' < eps``, ``eps/2 - d'`` below 0,
   at every step and along each step (:func:`imitate.motion.control.segment_fractions`; the
@@ -26,13 +27,19 @@ from imitate.errors import ImitateError
 from imitate.motion.control import JointLimitCost, Rollout
 
 __all__ = [
+    "SIMILARITIES",
     "Collision",
     "JointAcceleration",
     "JointLimits",
     "PathLength",
     "Similarity",
     "similarity_weights",
+    "weighting",
 ]
+
+# How W_t is made from the learned model (:func:`weighting`): eq. 21, the default, and the
+# alternatives the paper's claim is tested against.
+SIMILARITIES = ("variance", "uniform", "inverted", "precision")
 
 
 def similarity_weights(variance: np.ndarray, w_max: np.ndarray, sigma_max: np.ndarray):
@@ -52,12 +59,60 @@ def similarity_weights(variance: np.ndarray, w_max: np.ndarray, sigma_max: np.nd
     return w_max * np.clip(1.0 - variance / sigma_max, 0.0, None)
 
 
+def weighting(
+    similarity: str,
+    variance: np.ndarray,
+    covariance: np.ndarray,
+    w_max: np.ndarray,
+    sigma_max: np.ndarray,
+) -> np.ndarray:
+    """``W_t`` of a similarity weighting; each alternative has eq. 21's total weight per
+    dimension (``sum_t W_t[d, d]``), so that only where the weight sits differs.
+
+    - ``variance``: eq. 21 (:func:`similarity_weights`), stiff where the demonstrations agree.
+    - ``uniform``: constant in time.
+    - ``inverted``: a negative control, rising with the variance: ``min(sigma / sigma_max, 1)``.
+    - ``precision``: the GMR precision ``Sigma_t^-1`` with its cross-covariances ("minimal
+      intervention"), as ``D Sigma_t^-1 D`` with ``D`` diagonal (a change of units per
+      dimension).
+
+    Args:
+        similarity: One of :data:`SIMILARITIES`.
+        variance: GMR variances ``(T, m)``.
+        covariance: GMR covariances ``(T, m, m)`` (read by ``precision`` only).
+        w_max, sigma_max: Eq. 21's ``(m,)``.
+
+    Returns:
+        ``(T, m)`` diagonals of ``W_t``, or ``(T, m, m)`` matrices for ``precision``.
+
+    Raises:
+        ImitateError: an unknown ``similarity``.
+    """
+    if similarity not in SIMILARITIES:
+        raise ImitateError(f"similarity {similarity!r} unknown; accepted: {SIMILARITIES}")
+    ramp = similarity_weights(variance, w_max, sigma_max)
+    total = ramp.sum(axis=0)  # (m,) eq. 21's weight per dimension over the steps
+    if similarity == "variance":
+        return ramp
+    if similarity == "precision":
+        precision = np.linalg.inv(covariance)
+        diagonal = np.diagonal(precision, axis1=1, axis2=2).sum(axis=0)
+        scale = np.sqrt(total / diagonal)
+        return scale[:, None] * precision * scale[None, :]
+    shape = (
+        np.ones_like(variance) if similarity == "uniform"
+        else np.clip(variance / np.asarray(sigma_max, float), 0.0, 1.0)
+    )
+    return shape * total / np.maximum(shape.sum(axis=0), 1e-300)
+
+
 class Similarity:
     """Eqs. 20-22 on the target trajectory.
 
     Args:
         mean: GMR mean ``(T + 1, m)``.
-        weights: Diagonals of ``W_t`` ``(T + 1, m)`` (:func:`similarity_weights`).
+        weights: ``W_t``: its diagonals ``(T + 1, m)`` (:func:`similarity_weights`) or whole
+            matrices ``(T + 1, m, m)`` (:func:`weighting`'s ``precision``).
         dt: Step [s].
     """
 
@@ -66,7 +121,10 @@ class Similarity:
 
     def __call__(self, result: Rollout, x: np.ndarray):
         err = x - self.mean
-        werr = self.weights * err
+        if self.weights.ndim == 3:
+            werr = np.einsum("tij,tj->ti", self.weights, err)
+        else:
+            werr = self.weights * err
         gq = np.zeros_like(result.q)
         return self.dt * float(np.sum(werr * err)), gq, 2.0 * self.dt * werr
 

@@ -6,7 +6,7 @@ import numpy as np
 
 from imitate.motion.plan import Plan
 
-__all__ = ["deviation", "pour_phase", "pour_phase_error"]
+__all__ = ["deviation", "pour_phase", "pour_phase_error", "task_change"]
 
 
 def pour_phase(mean: np.ndarray) -> np.ndarray:
@@ -24,6 +24,22 @@ def pour_phase_error(plan: Plan) -> tuple[float, float]:
         float(np.linalg.norm(error[:, :3], axis=1).max()),
         float(np.degrees(np.abs(error[:, [3, 5]]).max())),
     )
+
+
+def task_change(plan: Plan, free: Plan) -> dict[str, float]:
+    """How far ``plan`` moved the task from ``free`` (the unconstrained reproduction of the same
+    model and step): the largest change of the relative position [m] and of the bottle or glass
+    angle [deg] in the pouring phase, and of the relative position in the steps whose GMR
+    position variance is at or below its median (where the demonstrations agree)."""
+    change = plan.x - free.x
+    distance = np.linalg.norm(change[:, :3], axis=1)
+    pour = pour_phase(plan.mean)
+    var = plan.variance[:, :3].sum(axis=1)
+    return {
+        "pour_m": float(distance[pour].max()),
+        "pour_deg": float(np.degrees(np.abs(change[pour][:, [3, 5]]).max())),
+        "low_variance_m": float(distance[var <= np.median(var)].max()),
+    }
 
 
 def deviation(plan: Plan, first: Plan) -> dict[str, float]:

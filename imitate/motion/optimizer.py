@@ -37,12 +37,13 @@ from imitate.motion.control import (
     segment_fractions,
 )
 from imitate.motion.costs import (
+    SIMILARITIES,
     Collision,
     JointAcceleration,
     JointLimits,
     PathLength,
     Similarity,
-    similarity_weights,
+    weighting,
 )
 from imitate.motion.plan import Plan
 from imitate.taskspace import TaskMap
@@ -90,6 +91,9 @@ class PlanConfig:
             ``1 / tolerance^2`` with 1 cm, 1 cm, 1 cm, 2 deg, 0.05, 2 deg, 0.05.
         sigma_max: Eq. 21 variance where the weight reaches 0 per dimension ``(m,)``; ``None``
             for each dimension's largest GMR variance.
+        similarity: How ``W_t`` is made (:data:`~imitate.motion.costs.SIMILARITIES`):
+            ``"variance"`` (eq. 21) or an alternative with its total weight
+            (:func:`~imitate.motion.costs.weighting`).
         similarity_weight, collision_weight, joint_limit_weight, path_length_weight,
             joint_acceleration_weight: ``w_i``.
         max_joint_acceleration: Joint acceleration [rad/s^2] above which the acceleration
@@ -113,6 +117,7 @@ class PlanConfig:
     omega_per_interval: float = 2.0
     w_max: tuple[float, ...] | None = None
     sigma_max: tuple[float, ...] | None = None
+    similarity: str = "variance"
     similarity_weight: float = 1.0
     collision_weight: float = 10000.0
     joint_limit_weight: float = 1.0
@@ -132,6 +137,10 @@ class PlanConfig:
     def __post_init__(self):
         if self.optimizer not in OPTIMIZERS:
             raise ImitateError(f"optimizer {self.optimizer!r} unknown; accepted: {OPTIMIZERS}")
+        if self.similarity not in SIMILARITIES:
+            raise ImitateError(
+                f"similarity {self.similarity!r} unknown; accepted: {SIMILARITIES}"
+            )
         weights = (
             self.similarity_weight,
             self.collision_weight,
@@ -170,7 +179,8 @@ class Problem:
         task: Task map (with the kinematics).
         dynamics: Attractor dynamics.
         q_start: ``(n,)`` start posture.
-        mean, weights: ``(T + 1, m)`` GMR mean and eq. 21 weights at the planning steps.
+        mean: ``(T + 1, m)`` GMR mean at the planning steps.
+        weights: ``W_t`` at the planning steps, ``(T + 1, m)`` diagonals or ``(T + 1, m, m)``.
         config: The weights and parameters.
     """
 
@@ -254,7 +264,8 @@ class Setup:
     Attributes:
         times: ``(T + 1,)`` planning steps [s], ``dt`` apart from the first GMR time.
         mean, variance: ``(T + 1, m)`` GMR mean and variances resampled to ``times``.
-        weights: ``(T + 1, m)`` eq. 21 similarity weights.
+        weights: ``W_t`` of ``config.similarity``: ``(T + 1, m)`` diagonals, or ``(T + 1, m, m)``
+            matrices (``precision``).
         problem: The total cost over the attractors, from the start posture ``problem.q_start``
             (reached from the given posture by RMR onto ``mean[0]``).
         a0: ``(K, m)`` attractors fitted to ``mean`` in weighted least squares.
@@ -311,7 +322,12 @@ def setup(
     var = np.column_stack([np.interp(grid, times, variance[:, i]) for i in range(task.m)])
     w_max = np.asarray(c.w_max if c.w_max is not None else 1.0 / np.square(_TOLERANCE))
     sigma_max = np.asarray(c.sigma_max if c.sigma_max is not None else var.max(axis=0))
-    weights = similarity_weights(var, w_max, np.maximum(sigma_max, 1e-12))
+    cov = None
+    if c.similarity == "precision":  # element by element: a mean of covariances is one
+        flat = np.asarray(model.covariance, dtype=float).reshape(len(times), -1)
+        cov = np.column_stack([np.interp(grid, times, f) for f in flat.T])
+        cov = cov.reshape(len(grid), task.m, task.m)
+    weights = weighting(c.similarity, var, cov, w_max, np.maximum(sigma_max, 1e-12))
 
     duration = grid[-1] - grid[0]
     if c.attractor_spacing is None:  # the paper: one attractor per GMM component
@@ -411,7 +427,8 @@ def plan_from_model(
     return Plan(
         times=start.times, attractors=v[:, :m], push=push, target=target, x=final.x, q=final.q,
         q_start=problem.q_start, approach_bend=bend, mean=mu, variance=start.variance,
-        weights=start.weights,
+        weights=np.diagonal(start.weights, axis1=1, axis2=2).copy()
+        if start.weights.ndim == 3 else start.weights,
         costs=costs, min_distance=min_d, closest=closest, converged=converged,
         clipped=final.clipped, message="; ".join(notes), n_iter=max(len(history) - 1, 0),
         n_evaluations=problem.n_evaluations,

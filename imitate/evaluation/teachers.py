@@ -1,0 +1,109 @@
+"""Teachers as a dimension of an evaluation: the learned models of several teacher seeds.
+
+A run's learned model is one teacher's (its ``seed``). Teacher ``s`` is the same run with seed
+``s``: the teacher demonstrates anew, the robot watches and learns with the run's settings.
+Each is a run directory of its own, ``<out>/teachers/seed-<s>/``, made by the ``observe`` and
+``learn`` stages under its lock, so that an evaluation that stops keeps the teachers it has
+learned, and one that starts again reuses every model whose provenance still holds (see
+:mod:`imitate.provenance`); the run's own seed is the run's ``model.npz``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from imitate import provenance, stages
+from imitate.artifacts import load_npz
+from imitate.config import RunConfig, load_config
+from imitate.errors import ImitateError
+from imitate.learning import LearnedModel
+from imitate.rundir import locked
+
+__all__ = ["MAX_TEACHERS", "Teacher", "teacher_seeds", "teachers"]
+
+log = logging.getLogger(__name__)
+
+MAX_TEACHERS = 100
+MODEL = "model.npz"
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Teacher:
+    """One teacher's learned model.
+
+    Attributes:
+        seed: The teacher's seed (the run's ``seed`` setting it was learned with).
+        path: Its ``model.npz``.
+        arrays: The learned model's arrays and ``gaze``.
+        model_bytes: The file's bytes (what an evaluation's digest is taken of).
+    """
+
+    seed: int
+    path: Path
+    arrays: dict[str, np.ndarray]
+    model_bytes: bytes
+
+
+def teacher_seeds(run_seed: int, n: int) -> tuple[int, ...]:
+    """The seeds of ``n`` teachers: the run's own first, then the next ones.
+
+    Raises:
+        ImitateError: ``n`` outside 1..:data:`MAX_TEACHERS`.
+    """
+    if not 1 <= n <= MAX_TEACHERS:
+        raise ImitateError(f"--teachers {n} not accepted: a whole number in 1..{MAX_TEACHERS}")
+    return tuple(run_seed + i for i in range(n))
+
+
+def teachers(run_dir: Path, out: Path, n: int) -> list[Teacher]:
+    """The learned models of ``n`` teachers for the run in ``run_dir`` (see the module):
+    learned under ``out/teachers/`` where missing or stale, else read.
+
+    Raises:
+        ImitateError: the run has no usable ``config.json`` or ``model.npz``, or a teacher's
+            stage fails (its directory is left as it was).
+    """
+    run_dir = Path(run_dir)
+    config = load_config(run_dir)
+    found = []
+    for seed in teacher_seeds(config.seed, n):
+        if seed == config.seed:
+            found.append(_read(seed, run_dir / MODEL))
+            continue
+        folder = Path(out) / "teachers" / f"seed-{seed}"
+        _learn(folder, dataclasses.replace(config, seed=seed))
+        found.append(_read(seed, folder / MODEL))
+    return found
+
+
+def _learn(folder: Path, config: RunConfig) -> None:
+    """Observe and learn into ``folder`` unless its model follows from ``config`` already."""
+    from imitate.pipeline import run_stage  # the stages' code: only where a teacher is learned
+
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    command = f"imitate eval (teacher seed {config.seed})"
+    with locked(folder, command, create=True):
+        if (folder / MODEL).is_file() and _fresh(folder, config):
+            return
+        for name in ("observe", "learn"):
+            log.info("teacher seed %d: %s", config.seed, name)
+            run_stage(name, folder, config)
+
+
+def _fresh(folder: Path, config: RunConfig) -> bool:
+    """Whether ``folder``'s model was learned with ``config`` from its own observations."""
+    try:  # optimize: the stage that reads the model, checked back to the observations
+        manifest = provenance.load(folder)
+        return not provenance.stale(folder, stages.find("optimize"), config, manifest)
+    except ImitateError:
+        return False
+
+
+def _read(seed: int, path: Path) -> Teacher:
+    stored = load_npz(path, required=(*LearnedModel.array_names(), "gaze"))
+    arrays = {k: stored[k] for k in (*LearnedModel.array_names(), "gaze")}
+    return Teacher(seed, path, arrays, path.read_bytes())

@@ -1,0 +1,138 @@
+"""Eq. 21 and the weightings it is compared with: shapes, totals, the coupled fit and gradient."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from imitate.errors import ImitateError
+from imitate.learning import LearningConfig
+from imitate.models import humanoid
+from imitate.motion import (
+    SIMILARITIES,
+    AttractorDynamics,
+    PlanConfig,
+    plan_from_model,
+    setup,
+    similarity_weights,
+    weighting,
+)
+from imitate.motion.optimizer import _TOLERANCE
+from imitate.oracle import oracle_model
+from imitate.replay import planning_task
+
+W_MAX = np.array([4.0, 1.0])
+SIGMA_MAX = np.array([2.0, 0.5])
+
+
+@pytest.fixture(scope="module")
+def gmr():
+    """A variance ``(T, 2)`` that crosses each ``SIGMA_MAX`` and a covariance with it on the
+    diagonal and a correlation of 0.6 between the two dimensions."""
+    t = np.linspace(0.0, 1.0, 41)
+    variance = np.column_stack([2.5 * t, 0.05 + 0.6 * np.sin(np.pi * t) ** 2])
+    off = 0.6 * np.sqrt(variance[:, 0] * variance[:, 1]) + 1e-3
+    covariance = np.stack([
+        np.array([[v0 + 1e-3, c], [c, v1 + 1e-3]])
+        for (v0, v1), c in zip(variance, off, strict=True)
+    ])
+    return variance, covariance
+
+
+def test_eq21_is_w_max_at_zero_zero_from_sigma_max_and_linear_between():
+    variance = np.array([[0.0, 0.0], [0.5, 0.125], [1.0, 0.25], [2.0, 0.5], [3.0, 0.6]])
+    w = similarity_weights(variance, W_MAX, SIGMA_MAX)
+    np.testing.assert_allclose(w[0], W_MAX)
+    np.testing.assert_allclose(w[1], 0.75 * W_MAX)
+    np.testing.assert_allclose(w[2], 0.5 * W_MAX)
+    np.testing.assert_array_equal(w[3:], 0.0)
+    with pytest.raises(ImitateError, match="sigma_max > 0"):
+        similarity_weights(variance, W_MAX, np.array([0.0, 1.0]))
+
+
+@pytest.mark.parametrize("similarity", SIMILARITIES)
+def test_each_weighting_has_eq21s_total_per_dimension(gmr, similarity):
+    variance, covariance = gmr
+    w = weighting(similarity, variance, covariance, W_MAX, SIGMA_MAX)
+    diagonal = np.diagonal(w, axis1=1, axis2=2) if w.ndim == 3 else w
+    total = similarity_weights(variance, W_MAX, SIGMA_MAX).sum(axis=0)
+    np.testing.assert_allclose(diagonal.sum(axis=0), total, rtol=1e-12)
+    assert np.all(diagonal >= 0)
+
+
+def test_uniform_is_constant_and_inverted_rises_with_the_variance(gmr):
+    variance, covariance = gmr
+    uniform = weighting("uniform", variance, covariance, W_MAX, SIGMA_MAX)
+    np.testing.assert_allclose(uniform, np.broadcast_to(uniform[0], uniform.shape))
+    ramp = weighting("variance", variance, covariance, W_MAX, SIGMA_MAX)
+    inverted = weighting("inverted", variance, covariance, W_MAX, SIGMA_MAX)
+    for d in range(2):
+        order = np.argsort(variance[:, d])
+        assert np.all(np.diff(inverted[order, d]) >= 0)  # stiff where the demos varied
+        assert np.all(np.diff(ramp[order, d]) <= 0)  # eq. 21: the other way round
+    assert inverted[0, 0] == 0.0 and ramp[0, 0] == W_MAX[0]
+
+
+def test_precision_is_the_scaled_gmr_precision_with_its_cross_terms(gmr):
+    variance, covariance = gmr
+    w = weighting("precision", variance, covariance, W_MAX, SIGMA_MAX)
+    assert w.shape == covariance.shape
+    precision = np.linalg.inv(covariance)
+    scale = np.sqrt(w[:, 0, 0] / precision[:, 0, 0])  # the same D at every step
+    np.testing.assert_allclose(scale, scale[0])
+    d = np.diag([scale[0], np.sqrt(w[0, 1, 1] / precision[0, 1, 1])])
+    np.testing.assert_allclose(w, d @ precision @ d, rtol=1e-10)
+    assert np.all(w[:, 0, 1] < 0)  # a positive correlation: a negative cross weight
+    assert np.all(np.linalg.eigvalsh(w) > 0)
+
+
+def test_an_unknown_weighting_is_refused():
+    with pytest.raises(ImitateError, match="similarity 'flat' unknown; accepted"):
+        PlanConfig(similarity="flat")
+    with pytest.raises(ImitateError, match="similarity 'flat' unknown"):
+        weighting("flat", np.ones((2, 1)), np.ones((2, 1, 1)), W_MAX[:1], SIGMA_MAX[:1])
+
+
+def test_coupled_fit_with_diagonal_matrices_equals_the_per_dimension_fit():
+    dyn = AttractorDynamics(60, 0.05, np.linspace(0.2, 2.8, 8), 6.0)
+    rng = np.random.default_rng(0)
+    target = np.cumsum(rng.normal(size=(61, 3)), axis=0) * 0.01
+    weights = rng.uniform(0.1, 2.0, size=(61, 3))
+    x0 = target[0] + 0.01
+    diagonal = dyn.fit(target, x0, weights)
+    coupled = dyn.fit(target, x0, np.einsum("ti,ij->tij", weights, np.eye(3)))
+    np.testing.assert_allclose(coupled, diagonal, rtol=1e-9, atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def precision_problem():
+    task = planning_task()
+    learned = oracle_model(task.gaze, learning=LearningConfig(k_max=8))
+    config = PlanConfig(dt=0.1, collision_weight=0.0, similarity="precision")
+    start = setup(task, learned, q0=humanoid.rest_pose(), config=config)
+    return task, learned, start
+
+
+def test_precision_similarity_gradient_matches_finite_differences(precision_problem):
+    _, _, start = precision_problem
+    p = start.problem
+    a = start.a0 + np.random.default_rng(1).normal(size=start.a0.shape) * np.array(_TOLERANCE)
+    grad = p.evaluate(a, ("similarity",))[2]
+    fd = np.zeros_like(a)
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            e = np.zeros_like(a)
+            e[i, j] = _TOLERANCE[j] * 1e-4
+            up = p.evaluate(a + e, ("similarity",), gradient=False)[0]
+            down = p.evaluate(a - e, ("similarity",), gradient=False)[0]
+            fd[i, j] = (up - down) / (2 * e[i, j])
+    assert np.linalg.norm(grad - fd) <= 1e-5 * np.linalg.norm(fd)
+
+
+def test_every_weighting_plans_and_its_plan_keeps_the_diagonals(precision_problem):
+    task, learned, start = precision_problem
+    assert start.weights.ndim == 3 and np.any(start.weights[:, 0, 1] != 0)
+    for similarity in SIMILARITIES:
+        config = PlanConfig(dt=0.1, collision_weight=0.0, max_iter=3, similarity=similarity)
+        plan = plan_from_model(task, learned, q0=humanoid.rest_pose(), config=config)
+        assert plan.weights.shape == plan.mean.shape and np.all(np.isfinite(plan.x))
