@@ -199,6 +199,12 @@ class RunConfig:
         "cross-covariances); each alternative has eq. 21's total weight", stage="optimize",
         flag="--similarity", choices=SIMILARITIES,
     )
+    sigma_max_scale: float = _setting(
+        PlanConfig.sigma_max_scale, "eq. 21's sigma_max as a multiple of each dimension's "
+        "largest GMR variance: 1 (the paper's) leaves the plan free at the peak-variance step, "
+        "above 1 every step keeps a weight", stage="optimize", flag="--sigma-max-scale",
+        low=0.1, high=100,
+    )
     sweep: tuple[float, ...] = _setting(
         (0.0, 0.03, 0.1, 0.3, 1.0), "collision weights of the Fig. 9 sweep, as fractions of "
         "collision_weight", stage="optimize", low=0, high=1,

@@ -151,7 +151,7 @@ def optimize(run_dir: Path, config: RunConfig) -> dict:
             # the sweep shows the paper's optimizer, the attractors alone (Fig. 9)
             config=PlanConfig(
                 collision_weight=w, max_iter=config.max_iter, nullspace_push=w == chosen,
-                similarity=config.similarity,
+                similarity=config.similarity, sigma_max_scale=config.sigma_max_scale,
             ),
         )
         seconds[w] = time.perf_counter() - start
@@ -170,6 +170,7 @@ def optimize(run_dir: Path, config: RunConfig) -> dict:
         "optimization": {
             "collision_weight": chosen,
             "similarity": config.similarity,
+            "sigma_max_scale": config.sigma_max_scale,
             "seconds": seconds[chosen],
             "iterations": main.n_iter,
             "converged": main.converged,
@@ -238,7 +239,7 @@ def figures(run_dir: Path, config: RunConfig) -> dict:
     ))
     model, raw = LearnedModel.from_arrays(arrays), LearnedModel.from_arrays(arrays, "raw_")
     plan = load_npz(run_dir / "plan.npz", required=(
-        "times", "mean", "variance", "sweep_weights", "sweep_x", "sweep_clearance",
+        "times", "mean", "variance", "weights", "sweep_weights", "sweep_x", "sweep_clearance",
     ))
     states = load_npz(run_dir / "replay.npz", required=(
         *STATE_NAMES, *(f"sweep0_{name}" for name in STATE_NAMES), "state_dt", "plan_start",
@@ -255,7 +256,7 @@ def figures(run_dir: Path, config: RunConfig) -> dict:
         "gmr": (plots.plot_gmr, model, list(arrays["aligned"])),
         "fig9_collision_sweep": (
             plots.plot_collision_sweep, plan["times"], plan["mean"], plan["variance"], sweep,
-            clearance,
+            clearance, plan["weights"],
         ),
         "costs": (
             plots.plot_costs, {w: plan[f"sweep{i}_cost_total"] for i, w in enumerate(weights)}

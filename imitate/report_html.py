@@ -24,7 +24,10 @@ CAPTIONS = {  # figures/<name>.png: what it shows
     "fig8_snapshots": "Paper Fig. 8: the physics replays without the collision cost (top) and "
                       "with it (bottom); parts touching or penetrating are framed in red.",
     "fig9_collision_sweep": "Paper Fig. 9: the reproductions of the collision-weight sweep "
-                            "against the GMR mean ± 2σ, their deviation and clearance.",
+                            "against the GMR mean ± 2σ, their deviation and clearance. Orange: "
+                            "steps where eq. 21 leaves a dimension no weight (its largest "
+                            "variance); the plan is free there, and low weights clear the "
+                            "chest by moving there first.",
     "costs": "Total cost per optimizer iteration, for each weight of the sweep.",
 }
 VIDEO_CAPTION = "The teacher demonstrates, then the robot reproduces the pour in physics."

@@ -66,6 +66,8 @@ def _without_timings(records: list[dict]) -> list[dict]:
         ("bottle_grasp = [0.1, 0.06]\n", ".toml", "entry bottle_grasp="),
         ("replays = 1.5\n", ".toml", "entry replays=1.5 not accepted: a whole number"),
         ("obstacle_share = true\n", ".toml", "entry obstacle_share=True"),
+        ('similarity = "flat"\n', ".toml", "entry similarity='flat' not accepted: one of"),
+        ("similarity = 1\n", ".toml", "entry similarity=1 not accepted"),
         ('{"shapes": ["box", "sphere"]}', ".json", r"entry shapes=\['box', 'sphere'\]"),
         ('{"shapes": []}', ".json", "entry shapes="),
         ("", ".toml", "is empty"),

@@ -70,7 +70,7 @@ def evaluate(
     out.mkdir(parents=True, exist_ok=True)
     models = teachers(run_dir, out, n_teachers)
     drawn = draw_jobs(models, suite, seed, n)
-    records, ran, run = run_jobs(out / RESULTS, drawn, models, workers, ray, progress)
+    records, run = run_jobs(out / RESULTS, drawn, models, workers, ray, progress)
     digests = [d.digest for d in drawn]
     ordered = [records[(d.digest, v.id)] for d in drawn for v in d.variations]
     summary = {
@@ -149,7 +149,7 @@ def run_jobs(
     start, load = time.perf_counter(), os.getloadavg()
     finished = (
         run_ray(arrays, jobs, ray) if ray else run_local(arrays, jobs, min(workers, len(jobs)))
-    ) if jobs else iter(())
+    ) if jobs else (record for record in ())  # closable, as the workers' iterators
     _end_line(results)
     # closing: an interruption stops the workers before it propagates
     with closing(finished), open(results, "a") as f, tqdm(

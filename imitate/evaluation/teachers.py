@@ -68,12 +68,11 @@ def teachers(run_dir: Path, out: Path, n: int) -> list[Teacher]:
             stage fails (its directory is left as it was).
     """
     run_dir = Path(run_dir)
-    config = load_config(run_dir)
-    found = []
-    for seed in teacher_seeds(config.seed, n):
-        if seed == config.seed:
-            found.append(_read(seed, run_dir / MODEL))
-            continue
+    # the run's own model needs no settings (a folder of a model.npz alone is evaluated too)
+    config = load_config(run_dir) if n > 1 or (run_dir / "config.json").exists() else None
+    own = config.seed if config else 0
+    found = [_read(own, run_dir / MODEL)]
+    for seed in teacher_seeds(own, n)[1:]:
         folder = Path(out) / "teachers" / f"seed-{seed}"
         _learn(folder, dataclasses.replace(config, seed=seed))
         found.append(_read(seed, folder / MODEL))

@@ -90,7 +90,10 @@ class PlanConfig:
         w_max: Eq. 21 weights at zero variance per task dimension ``(m,)``; ``None`` for
             ``1 / tolerance^2`` with 1 cm, 1 cm, 1 cm, 2 deg, 0.05, 2 deg, 0.05.
         sigma_max: Eq. 21 variance where the weight reaches 0 per dimension ``(m,)``; ``None``
-            for each dimension's largest GMR variance.
+            for ``sigma_max_scale`` times each dimension's largest GMR variance.
+        sigma_max_scale: 1 is the paper's choice, where a dimension's weight is 0 at its
+            peak-variance step, so that the plan may move freely there (Fig. 9's excursion at
+            the start, where ``dy`` varies most); above 1 every step keeps a weight.
         similarity: How ``W_t`` is made (:data:`~imitate.motion.costs.SIMILARITIES`):
             ``"variance"`` (eq. 21) or an alternative with its total weight
             (:func:`~imitate.motion.costs.weighting`).
@@ -117,6 +120,7 @@ class PlanConfig:
     omega_per_interval: float = 2.0
     w_max: tuple[float, ...] | None = None
     sigma_max: tuple[float, ...] | None = None
+    sigma_max_scale: float = 1.0
     similarity: str = "variance"
     similarity_weight: float = 1.0
     collision_weight: float = 10000.0
@@ -158,6 +162,8 @@ class PlanConfig:
                 f"attractor_spacing={self.attractor_spacing!r} not accepted: a time > 0 [s], "
                 "or None for one attractor per GMM component"
             )
+        if not self.sigma_max_scale > 0:
+            raise ImitateError(f"sigma_max_scale {self.sigma_max_scale} not accepted: > 0")
         if not self.max_joint_acceleration > 0:
             raise ImitateError(
                 f"max_joint_acceleration {self.max_joint_acceleration} not accepted: > 0 rad/s^2"
@@ -321,7 +327,9 @@ def setup(
     mu = np.column_stack([np.interp(grid, times, mean[:, i]) for i in range(task.m)])
     var = np.column_stack([np.interp(grid, times, variance[:, i]) for i in range(task.m)])
     w_max = np.asarray(c.w_max if c.w_max is not None else 1.0 / np.square(_TOLERANCE))
-    sigma_max = np.asarray(c.sigma_max if c.sigma_max is not None else var.max(axis=0))
+    sigma_max = np.asarray(
+        c.sigma_max if c.sigma_max is not None else c.sigma_max_scale * var.max(axis=0)
+    )
     cov = None
     if c.similarity == "precision":  # element by element: a mean of covariances is one
         flat = np.asarray(model.covariance, dtype=float).reshape(len(times), -1)

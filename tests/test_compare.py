@@ -1,0 +1,116 @@
+"""Teachers as a dimension of an evaluation (learned once, reused on resume) and the paired
+comparison of similarity weightings (the same variations for every weighting)."""
+
+import json
+from pathlib import Path
+
+import pytest
+
+from imitate import pipeline
+from imitate.artifacts import save_npz
+from imitate.cli import main
+from imitate.config import RunConfig, load_config
+from imitate.errors import ImitateError
+from imitate.evaluation import Suite, evaluate, named_suite
+from imitate.evaluation.compare import compare, paired, settings_digest
+from imitate.evaluation.run import RESULTS, last_records
+from imitate.evaluation.teachers import teachers
+from imitate.learning import LearningConfig
+from imitate.oracle import oracle_model
+from imitate.replay import planning_task
+
+TINY = {"max_iter": 3, "replays": 1, "particles": [4, 6], "obstacle_share": 0.5}
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory) -> Path:
+    """A run of teacher seed 0 observed and learned at the quick settings, two demonstrations."""
+    run_dir = tmp_path_factory.mktemp("run")
+    config = RunConfig.quick(n_demos=2)
+    for stage in ("observe", "learn"):
+        pipeline.run_stage(stage, run_dir, config)
+    return run_dir
+
+
+@pytest.fixture(scope="module")
+def model_dir(tmp_path_factory) -> Path:
+    """A folder holding an oracle model alone (no run settings)."""
+    folder = tmp_path_factory.mktemp("model")
+    gaze = planning_task().gaze
+    learned = oracle_model(gaze, learning=LearningConfig(k_max=6), rate=20.0)
+    save_npz(folder / "model.npz", {**learned.to_arrays(), "gaze": gaze})
+    return folder
+
+
+def test_teachers_are_learned_once_and_reused_on_resume(quick_run, monkeypatch):
+    out = quick_run / "eval"
+    first = teachers(quick_run, out, 2)
+    folder = out / "teachers" / "seed-1"
+    assert [t.seed for t in first] == [0, 1]
+    assert first[0].path == quick_run / "model.npz" and first[1].path == folder / "model.npz"
+    assert load_config(folder) == RunConfig.quick(n_demos=2, seed=1)
+    assert first[0].model_bytes != first[1].model_bytes  # another teacher, another model
+
+    def learn_again(*args, **kwargs):
+        raise AssertionError("a teacher was observed and learned again")
+
+    with monkeypatch.context() as patched:
+        patched.setattr(pipeline, "run_stage", learn_again)
+        again = teachers(quick_run, out, 2)
+    assert [t.model_bytes for t in again] == [t.model_bytes for t in first]
+    (folder / "model.npz").write_bytes(b"not the model learn wrote")
+    relearned = teachers(quick_run, out, 2)  # its provenance fails: learned again, the same
+    assert relearned[1].model_bytes == first[1].model_bytes
+
+
+def test_eval_reports_each_teacher_and_resumes_without_learning(quick_run, monkeypatch):
+    suite = Suite.from_dict(TINY)
+    summary = evaluate(quick_run, suite, n=2, n_teachers=2, workers=2, videos=0)
+    assert [t["seed"] for t in summary["teachers"]] == [0, 1]
+    assert summary["variations"] == 4 and all(t["variations"] == 2 for t in summary["teachers"])
+    assert sum(t["success"] for t in summary["teachers"]) == summary["outcomes"]["success"]
+    records = last_records(quick_run)
+    assert [(r["teacher"], r["id"]) for r in records] == [(0, 0), (0, 1), (1, 0), (1, 1)]
+    assert len({r["digest"] for r in records}) == 2  # one per teacher's model
+    monkeypatch.setattr(pipeline, "run_stage", lambda *a, **k: pytest.fail("learned again"))
+    again = evaluate(quick_run, suite, n=2, n_teachers=2, workers=1, videos=0)
+    assert again["run"]["ran"] == 0 and again["suite_digest"] == summary["suite_digest"]
+
+
+def test_compare_plans_the_same_variations_for_every_weighting(model_dir):
+    result = compare(model_dir, Suite.from_dict(TINY), ["variance", "inverted"], name="tiny",
+                     n=2, n_teachers=1, workers=2)
+    out = model_dir / "compare" / "tiny"
+    records = [json.loads(line) for line in (out / RESULTS).read_text().splitlines()]
+    by = {s: sorted((r for r in records if r["settings"]["similarity"] == s),
+                    key=lambda r: r["id"]) for s in ("variance", "inverted")}
+    assert [settings_digest(r) for r in by["variance"]] == [settings_digest(r) for r in
+                                                            by["inverted"]]
+    assert len({r["digest"] for r in records}) == 2  # each weighting its own records
+    assert set(result["weightings"]) == {"variance", "inverted"}
+    (pair,) = result["pairs"]
+    assert pair["both"] + pair["only_a"] + pair["only_b"] + pair["neither"] == 2
+    assert 0 <= pair["mcnemar_p"] <= 1 and 0 <= pair["wilcoxon_p"] <= 1
+    assert json.loads((out / "compare.json").read_text())["pairs"] == result["pairs"]
+    assert "| variance vs inverted |" in (out / "compare.md").read_text()
+    assert (out / "compare.png").stat().st_size > 0
+    again = compare(model_dir, Suite.from_dict(TINY), ["variance", "inverted"], name="tiny",
+                    n=2, n_teachers=1, workers=1)
+    assert again["run"]["ran"] == 0  # resumed: nothing to run
+    shuffled = {**by, "inverted": by["inverted"][::-1]}
+    with pytest.raises(ImitateError, match="not of the same variations"):
+        paired(shuffled)
+
+
+def test_shipped_suites_load_and_a_bad_name_is_refused_in_one_line(capsys, model_dir):
+    name, suite = named_suite("effort")
+    assert name == "effort" and suite["path_length_weight"][0] > 1 and suite["obstacle_share"] == 0
+    assert named_suite(None) == ("default", Suite.default())
+    with pytest.raises(ImitateError, match="--suite nope not accepted: one of default, effort"):
+        named_suite("nope")
+    assert main(["compare", str(model_dir), "--similarity", "variance,flat"]) == 1
+    # the last line: what the library logged before main() set up logging comes first
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.startswith("imitate compare: error: --similarity variance,flat not accepted")
+    assert main(["eval", str(model_dir), "--teachers", "0"]) == 1
+    assert "--teachers 0 not accepted" in capsys.readouterr().err
