@@ -201,7 +201,7 @@ class PouringEnv(gym.Env):
         assembly.hold(self.model, self.data, "robot")
         assembly.fill_bottle(self.model, self.data, self.np_random)
         mujoco.mj_forward(self.model, self.data)
-        self._pour_fraction = self._particle_fractions()[0]
+        self._pour_fraction = self.particle_fractions()[0]
         self._needs_reset = False
         return self._get_obs(), self._get_info(self._min_distance())
 
@@ -222,7 +222,7 @@ class PouringEnv(gym.Env):
             )
         self.data.ctrl[:] = np.clip(action, self.action_space.low, self.action_space.high)
         diverged = self._simulate()
-        fraction = self._particle_fractions()[0]
+        fraction = self.particle_fractions()[0]
         min_distance = self._min_distance()
         reward_pour = self._pour_weight * (fraction - self._pour_fraction)
         reward_collision = -self._collision_weight if min_distance < 0.0 else 0.0
@@ -291,11 +291,15 @@ class PouringEnv(gym.Env):
         """Fraction of particles inside the glass, 0..1."""
         return self._pour_fraction
 
-    def _particle_fractions(self) -> tuple[float, float]:
+    def particle_positions(self) -> np.ndarray:
+        """``(n, 3)`` world positions of the liquid's particles [m]."""
+        return self.data.xpos[self._particle_bodies]
+
+    def particle_fractions(self) -> tuple[float, float]:
         """Fractions of particles inside the glass and inside the bottle."""
         if len(self._particle_bodies) == 0:
             return 0.0, 0.0
-        points = self.data.xpos[self._particle_bodies]
+        points = self.particle_positions()
         return (
             float(np.mean(_inside(self.data, objects.GLASS, objects.GLASS_SHAPE, points))),
             float(np.mean(_inside(self.data, objects.BOTTLE, objects.BOTTLE_SHAPE, points))),
@@ -327,7 +331,7 @@ class PouringEnv(gym.Env):
         )
 
     def _get_info(self, min_distance: float) -> dict[str, Any]:
-        in_glass, in_bottle = self._particle_fractions()
+        in_glass, in_bottle = self.particle_fractions()
         n = len(self._particle_bodies)
         return {
             "pour_fraction": in_glass,

@@ -46,6 +46,7 @@ from imitate.motion.metrics import deviation, pour_phase_error
 from imitate.observe import observe as watch
 from imitate.oracle import true_demos
 from imitate.perception import Observations, Tracks, load_observations, save_observations
+from imitate.pour_geometry import PourGeometry
 from imitate.replay import planning_task
 from imitate.replay import replay as replay_plan
 from imitate.segment import StillnessConfig, load_demos, save_demos, segment, task_demo
@@ -205,7 +206,7 @@ def replay(run_dir: Path, config: RunConfig) -> dict:
         for _ in as_completed(futures):
             bar.update()
         outcomes = [future.result() for future in futures]
-    result, states, state_dt = outcomes[0]
+    result, states, state_dt, geometry = outcomes[0]
     pours = [outcome[0].pour_fraction for outcome in outcomes[:POUR_REPLAYS]]
     free_states = outcomes[-1][1]
     save_npz(run_dir / "replay.npz", {
@@ -222,7 +223,9 @@ def replay(run_dir: Path, config: RunConfig) -> dict:
             "task_err_m_max": float(np.linalg.norm(result.task_error[:, :3], axis=1).max()),
             "pour_fraction_mean": float(np.mean(pours)),
             "pour_fraction_min": float(np.min(pours)),
+            "pour_fractions": pours,
             "success": bool(min(pours) >= SUCCESS_FRACTION and result.min_distance >= 0.0),
+            "pour_geometry": geometry,
         }
     }
 
@@ -340,16 +343,22 @@ def _replay_jobs(run_dir: Path, config: RunConfig) -> tuple[list[tuple[Plan, int
 
 def _physics(plan: Plan, config: RunConfig, gaze: np.ndarray, seed: int):
     """``plan`` replayed in a fresh ``PouringEnv`` from ``seed``: the result, the recorded
-    states (:meth:`StateRecorder.arrays`) and their spacing [s]."""
+    states (:meth:`StateRecorder.arrays`), their spacing [s] and where the stream met the glass
+    (:meth:`PourGeometry.summary`)."""
     env = PouringEnv(particles=config.particles, obstacles=config.scene().obstacles)
     recorder = StateRecorder(every=max(1, round(1.0 / (config.video_fps * env.dt))))
+    geometry = PourGeometry()
+
+    def step(env: PouringEnv) -> None:
+        recorder(env)
+        geometry(env)
+
     options = {"bottle_grasp": config.bottle_grasp, "glass_grasp": config.glass_grasp}
     result = replay_plan(
-        plan, env, seed=seed, approach=APPROACH_S,
-        options=options, on_step=recorder, gaze=gaze,
+        plan, env, seed=seed, approach=APPROACH_S, options=options, on_step=step, gaze=gaze,
     )
     env.close()
-    return result, recorder.arrays(), recorder.every * env.dt
+    return result, recorder.arrays(), recorder.every * env.dt, geometry.summary()
 
 
 def _clearance(task, q: np.ndarray) -> np.ndarray:

@@ -94,10 +94,13 @@ def summarize(records: Sequence[dict]) -> dict:
     }
 
 
-def summarize_teachers(records: Sequence[dict], digests: dict[int, str]) -> list[dict]:
+def summarize_teachers(
+    records: Sequence[dict], digests: dict[int, str], default_runs: dict[int, dict | None]
+) -> list[dict]:
     """Per teacher (seed: digest of its records): its success with the Wilson interval, the pour
-    over its variations (the mean of each variation's smallest and mean pour, and the smallest)
-    and its failures (id, outcome, where the obstacle was)."""
+    over its variations (the mean of each variation's smallest and mean pour, and the smallest),
+    its failures (id, outcome, where the obstacle was) and its default run (``default_runs``:
+    the ``replay`` section of its report, or ``None``)."""
     rows = []
     for teacher, digest in digests.items():
         own = [r for r in records if r["digest"] == digest]
@@ -113,6 +116,7 @@ def summarize_teachers(records: Sequence[dict], digests: dict[int, str]) -> list
                 {"id": r["id"], "outcome": r["outcome"], "obstacle": place(r)}
                 for r in own if r["outcome"] != "success"
             ],
+            "default_run": default_runs.get(teacher),
         })
     return rows
 
@@ -120,15 +124,20 @@ def summarize_teachers(records: Sequence[dict], digests: dict[int, str]) -> list
 def teacher_table(rows: Sequence[dict]) -> str:
     """The teachers of :func:`summarize_teachers` as a markdown table."""
     lines = [
-        "| teacher seed | success | Wilson 95 % | smallest pour | mean of the smallest pours "
-        "| failures (id: outcome) |",
-        "|---|---|---|---|---|---|",
+        "| teacher seed | default run: pours | success | Wilson 95 % | smallest pour "
+        "| mean of the smallest pours | failures (id: outcome) |",
+        "|---|---|---|---|---|---|---|",
     ]
     for t in rows:
         low, high = t["success_wilson95"]
         failures = ", ".join(f"{f['id']}: {f['outcome']}" for f in t["failures"]) or "none"
+        run = t["default_run"]
+        default = "-" if run is None else (
+            f"{' '.join(f'{p:.3f}' for p in run.get('pour_fractions', []))}"
+            f" ({'success' if run['success'] else 'failure'})"
+        )
         lines.append(
-            f"| {t['seed']} | {t['success']}/{t['variations']} | {low:.3f}..{high:.3f} "
+            f"| {t['seed']} | {default} | {t['success']}/{t['variations']} | {low:.3f}..{high:.3f} "
             f"| {t['pour_min']:.3f} | {t['pour_min_mean']:.3f} | {failures} |"
         )
     return "\n".join(lines)

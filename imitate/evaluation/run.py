@@ -76,7 +76,9 @@ def evaluate(
     summary = {
         "suite_digest": combined_digest(digests), "seed": seed, "suite": suite.to_json(),
         "path_points": len(drawn[0].path), **summarize(ordered),
-        "teachers": summarize_teachers(ordered, {d.teacher: d.digest for d in drawn}),
+        "teachers": summarize_teachers(
+            ordered, {d.teacher: d.digest for d in drawn}, {t.seed: t.default_run for t in models}
+        ),
         "run": run,
     }
     save_json(out / "summary.json", summary)

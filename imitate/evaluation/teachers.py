@@ -2,10 +2,11 @@
 
 A run's learned model is one teacher's (its ``seed``). Teacher ``s`` is the same run with seed
 ``s``: the teacher demonstrates anew, the robot watches and learns with the run's settings.
-Each is a run directory of its own, ``<out>/teachers/seed-<s>/``, made by the ``observe`` and
-``learn`` stages under its lock, so that an evaluation that stops keeps the teachers it has
-learned, and one that starts again reuses every model whose provenance still holds (see
-:mod:`imitate.provenance`); the run's own seed is the run's ``model.npz``.
+Each is a run directory of its own, ``<out>/teachers/seed-<s>/``, made by the ``observe``,
+``learn``, ``optimize`` and ``replay`` stages under its lock (the teacher's default run, but its
+figures), so that an evaluation that stops keeps the teachers it has learned, and one that starts
+again reuses every stage whose outputs' provenance still holds (see :mod:`imitate.provenance`);
+the run's own seed is the run's ``model.npz`` and ``report.json``.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from imitate import provenance, stages
-from imitate.artifacts import load_npz
+from imitate.artifacts import load_json, load_npz
 from imitate.config import RunConfig, load_config
 from imitate.errors import ImitateError
 from imitate.learning import LearnedModel
@@ -40,12 +41,15 @@ class Teacher:
         path: Its ``model.npz``.
         arrays: The learned model's arrays and ``gaze``.
         model_bytes: The file's bytes (what an evaluation's digest is taken of).
+        default_run: The ``replay`` section of its run's ``report.json`` (its default scene
+            reproduced in physics), ``None`` if the run has none.
     """
 
     seed: int
     path: Path
     arrays: dict[str, np.ndarray]
     model_bytes: bytes
+    default_run: dict | None
 
 
 def teacher_seeds(run_seed: int, n: int) -> tuple[int, ...]:
@@ -74,30 +78,41 @@ def teachers(run_dir: Path, out: Path, n: int) -> list[Teacher]:
     found = [_read(own, run_dir / MODEL)]
     for seed in teacher_seeds(own, n)[1:]:
         folder = Path(out) / "teachers" / f"seed-{seed}"
-        _learn(folder, dataclasses.replace(config, seed=seed))
+        _prepare(folder, dataclasses.replace(config, seed=seed))
         found.append(_read(seed, folder / MODEL))
     return found
 
 
-def _learn(folder: Path, config: RunConfig) -> None:
-    """Observe and learn into ``folder`` unless its model follows from ``config`` already."""
+# The stages of a teacher's run, each with the next one, whose input check covers its outputs.
+_STAGES = (("observe", "learn"), ("learn", "optimize"), ("optimize", "replay"),
+           ("replay", "figures"))
+
+
+def _prepare(folder: Path, config: RunConfig) -> None:
+    """Run the teacher's stages in ``folder`` from the first whose outputs are missing or do not
+    follow from ``config`` and the outputs before them."""
     from imitate.pipeline import run_stage  # the stages' code: only where a teacher is learned
 
     folder.parent.mkdir(parents=True, exist_ok=True)
     command = f"imitate eval (teacher seed {config.seed})"
     with locked(folder, command, create=True):
-        if (folder / MODEL).is_file() and _fresh(folder, config):
-            return
-        for name in ("observe", "learn"):
-            log.info("teacher seed %d: %s", config.seed, name)
-            run_stage(name, folder, config)
+        for i, (name, reader) in enumerate(_STAGES):
+            if not _fresh(folder, name, reader, config):
+                for later, _ in _STAGES[i:]:
+                    log.info("teacher seed %d: %s", config.seed, later)
+                    run_stage(later, folder, config)
+                return
 
 
-def _fresh(folder: Path, config: RunConfig) -> bool:
-    """Whether ``folder``'s model was learned with ``config`` from its own observations."""
-    try:  # optimize: the stage that reads the model, checked back to the observations
+def _fresh(folder: Path, name: str, reader: str, config: RunConfig) -> bool:
+    """Whether stage ``name``'s outputs in ``folder`` are there and follow from ``config`` (as
+    stage ``reader``, which reads them, checks its inputs)."""
+    written = [f for f in stages.find(name).writes if f != "config.json"]
+    if not all((folder / f).is_file() for f in written):
+        return False
+    try:
         manifest = provenance.load(folder)
-        return not provenance.stale(folder, stages.find("optimize"), config, manifest)
+        return not provenance.stale(folder, stages.find(reader), config, manifest)
     except ImitateError:
         return False
 
@@ -105,4 +120,6 @@ def _fresh(folder: Path, config: RunConfig) -> bool:
 def _read(seed: int, path: Path) -> Teacher:
     stored = load_npz(path, required=(*LearnedModel.array_names(), "gaze"))
     arrays = {k: stored[k] for k in (*LearnedModel.array_names(), "gaze")}
-    return Teacher(seed, path, arrays, path.read_bytes())
+    report = path.parent / stages.REPORT
+    default_run = load_json(report).get("replay") if report.is_file() else None
+    return Teacher(seed, path, arrays, path.read_bytes(), default_run)

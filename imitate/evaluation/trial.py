@@ -28,6 +28,7 @@ from imitate.learning import LearnedModel
 from imitate.models import humanoid, objects
 from imitate.motion import Plan, PlanConfig, plan_from_model
 from imitate.motion.metrics import pour_phase_error, task_change
+from imitate.pour_geometry import PourGeometry
 from imitate.replay import planning_task, replay
 
 __all__ = ["OUTCOMES", "Trial", "classify", "physics", "plan_variation", "replay_once"]
@@ -72,10 +73,18 @@ def replay_once(
     on_step: Callable[[PouringEnv], None] | None = None,
 ) -> dict:
     """One replay of ``plan`` in ``env`` (from :func:`physics`) from ``seed``: ``{"seed",
-    "pour_fraction", "spilled", "min_distance_m", "diverged"}``; diverged when MuJoCo met a bad
-    acceleration (and reset the state) or the state is not finite."""
+    "pour_fraction", "spilled", "min_distance_m", "diverged", "geometry"}``; diverged when
+    MuJoCo met a bad acceleration (and reset the state) or the state is not finite; geometry:
+    where the stream met the glass (:meth:`PourGeometry.summary`)."""
     options = {"bottle_grasp": variation.bottle_grasp, "glass_grasp": variation.glass_grasp}
-    result = replay(plan, env, seed=seed, options=options, on_step=on_step, gaze=gaze)
+    geometry = PourGeometry()
+
+    def step(env: PouringEnv) -> None:
+        geometry(env)
+        if on_step is not None:
+            on_step(env)
+
+    result = replay(plan, env, seed=seed, options=options, on_step=step, gaze=gaze)
     bad = env.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
     return {
         "seed": seed,
@@ -83,6 +92,7 @@ def replay_once(
         "spilled": result.spilled,
         "min_distance_m": result.min_distance,
         "diverged": bool(bad > 0 or not np.all(np.isfinite(env.data.qpos))),
+        "geometry": geometry.summary(),
     }
 
 
