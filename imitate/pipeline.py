@@ -61,6 +61,7 @@ SNAPSHOT_SIZE = (480, 360)  # Fig. 8's panels [px]
 TOUCHING_M = 1e-3  # closer than this, parts touch in physics (whose contacts keep them apart)
 TEACHER_CAPTION = "teacher demonstrates ({speedup:g}x); inset: robot's eye, tracking"
 ROBOT_CAPTION = "robot reproduces (collision weight {weight:g})"
+FREE_CAPTION = "robot reproduces without the collision cost (weight 0): into its chest"
 
 # Replays of the pour, each from its own seed of the initial-state noise; a run succeeds when the
 # smallest of their pour fractions reaches SUCCESS_FRACTION (one replay's fraction is chaotic).
@@ -410,7 +411,8 @@ VIDEO_THREADS = 2
 
 
 def _video_frames(config: RunConfig, states: dict[str, np.ndarray], observations: Observations):
-    """The teacher (the robot's eye view and its tracked objects inset), then the robot."""
+    """The teacher (the robot's eye view and its tracked objects inset), then the robot without
+    the collision cost (the sweep's weight-0 plan), then with it."""
     size = (config.video_width, config.video_height)
     motion = script_demonstrations(config.teacher())
     times = np.arange(0.0, motion.duration, config.teacher_speedup / config.video_fps)
@@ -423,16 +425,22 @@ def _video_frames(config: RunConfig, states: dict[str, np.ndarray], observations
         ),
         TEACHER_CAPTION.format(speedup=config.teacher_speedup),
     )
-    robot = captioned(
-        replay_frames(
-            config.scene(), {name: states[name] for name in STATE_NAMES}, *size,
-            threads=VIDEO_THREADS,
-        ),
-        ROBOT_CAPTION.format(weight=config.collision_weight),
-    )
-    total = len(times) + len(states["qpos"])
+    robot = [
+        captioned(
+            replay_frames(
+                config.scene(), {name: states[prefix + name] for name in STATE_NAMES}, *size,
+                threads=VIDEO_THREADS,
+            ),
+            caption,
+        )
+        for prefix, caption in (
+            ("sweep0_", FREE_CAPTION),
+            ("", ROBOT_CAPTION.format(weight=config.collision_weight)),
+        )
+    ]
+    total = len(times) + len(states["sweep0_qpos"]) + len(states["qpos"])
     return tqdm(
-        itertools.chain(teacher, robot), desc="video", unit="frame", total=total,
+        itertools.chain(teacher, *robot), desc="video", unit="frame", total=total,
         disable=_bars(),
     )
 

@@ -25,6 +25,7 @@ from imitate.learning import LearnedModel
 from imitate.taskspace import TASK_DIMS, TASK_UNITS
 
 DPI = 110  # dots per inch of the saved figures; Fig. 8 shows its snapshots at their pixel size
+LOOSE = 0.1  # Fig. 9 marks the steps whose similarity weight is below this share of its largest
 
 __all__ = [
     "DPI",
@@ -180,14 +181,15 @@ def plot_collision_sweep(
     variance: np.ndarray,
     reproductions: dict[float, np.ndarray],
     clearance: dict[float, np.ndarray],
-    weights: np.ndarray | None = None,
+    similarity: np.ndarray | None = None,
     n_dims: int = 2,
 ) -> Figure:
     """Fig. 9: the reproductions over a sweep of collision weights.
 
     Panels: the ``n_dims`` relative-position dimensions in which the reproductions differ most
     (against the GMR mean +- 2 sigma, with the steps where that dimension's similarity weight
-    is 0: eq. 21 at the dimension's largest variance); each reproduction's distance from the
+    is below :data:`LOOSE` of its largest: eq. 21 near the dimension's largest variance, where
+    it reaches 0); each reproduction's distance from the
     smallest weight's (against the steps of high GMR variance); each one's clearance. Steps in
     collision (clearance < 0) are marked on every curve.
 
@@ -196,7 +198,7 @@ def plot_collision_sweep(
         mean, variance: GMR mean and variance at ``times``, ``(T, 7)``.
         reproductions: ``{collision weight: task states (T, 7)}``.
         clearance: ``{collision weight: smallest signed distance (T,) [m]}``.
-        weights: ``(T, 7)`` diagonals of the similarity weights ``W_t``, or ``None``.
+        similarity: ``(T, 7)`` diagonals of the similarity weights ``W_t``, or ``None``.
         n_dims: How many of ``dx, dy, dz`` to show.
     """
     weights = sorted(reproductions)
@@ -213,10 +215,11 @@ def plot_collision_sweep(
         ax.fill_between(times, mean[:, d] - 2 * sd, mean[:, d] + 2 * sd, color="0.86",
                         label="GMR mean ± 2σ")
         ax.plot(times, mean[:, d], "k--", lw=1.2, label="GMR mean")
-        if weights is not None and np.any(weights[:, d] == 0):
-            ax.fill_between(times, 0.0, 1.0, where=weights[:, d] == 0, color="tab:orange",
-                            alpha=0.25, lw=0, step="mid", transform=ax.get_xaxis_transform(),
-                            label="similarity weight 0 (this dimension's largest variance)")
+        if similarity is not None:
+            loose = similarity[:, d] < LOOSE * similarity[:, d].max()
+            ax.fill_between(times, 0.0, 1.0, where=loose, color="tab:orange", alpha=0.25, lw=0,
+                            transform=ax.get_xaxis_transform(),
+                            label=f"similarity weight below {LOOSE:.0%} of its largest")
         _sweep_curves(ax, times, {w: reproductions[w][:, d] for w in weights}, clearance, colours)
         ax.set_ylabel(f"{TASK_DIMS[d]} [{TASK_UNITS[d]}]")
     ax = axes[-2]
