@@ -62,6 +62,7 @@ TOUCHING_M = 1e-3  # closer than this, parts touch in physics (whose contacts ke
 TEACHER_CAPTION = "teacher demonstrates ({speedup:g}x); inset: robot's eye, tracking"
 ROBOT_CAPTION = "robot reproduces (collision weight {weight:g})"
 FREE_CAPTION = "robot reproduces without the collision cost (weight 0): into its chest"
+FREE_AFTER = 1.0  # [s] of the weight-0 replay shown after its plan comes closest
 
 # Replays of the pour, each from its own seed of the initial-state noise; a run succeeds when the
 # smallest of their pour fractions reaches SUCCESS_FRACTION (one replay's fraction is chaotic).
@@ -273,7 +274,7 @@ def figures(run_dir: Path, config: RunConfig) -> dict:
                 plots.png, plots.plot_snapshots, *_snapshots(config, states, plan)
             )
             n_frames = write_video(
-                run_dir / "video.mp4", _video_frames(config, states, observations),
+                run_dir / "video.mp4", _video_frames(config, states, observations, plan),
                 config.video_fps,
             )
             for name in tqdm(stages.FIGURES, desc="figures", unit="figure", disable=_bars()):
@@ -410,9 +411,12 @@ def _collision(distance: float, pair: tuple[str, str]) -> str | None:
 VIDEO_THREADS = 2
 
 
-def _video_frames(config: RunConfig, states: dict[str, np.ndarray], observations: Observations):
+def _video_frames(
+    config: RunConfig, states: dict[str, np.ndarray], observations: Observations, plan: dict
+):
     """The teacher (the robot's eye view and its tracked objects inset), then the robot without
-    the collision cost (the sweep's weight-0 plan), then with it."""
+    the collision cost (the sweep's weight-0 plan, until ``FREE_AFTER`` after it comes closest),
+    then with it."""
     size = (config.video_width, config.video_height)
     motion = script_demonstrations(config.teacher())
     times = np.arange(0.0, motion.duration, config.teacher_speedup / config.video_fps)
@@ -425,20 +429,22 @@ def _video_frames(config: RunConfig, states: dict[str, np.ndarray], observations
         ),
         TEACHER_CAPTION.format(speedup=config.teacher_speedup),
     )
+    closest = plan["times"][np.argmin(plan["sweep_clearance"][0])] - plan["times"][0]
+    free = int((float(states["plan_start"]) + closest + FREE_AFTER) / float(states["state_dt"]))
     robot = [
         captioned(
             replay_frames(
-                config.scene(), {name: states[prefix + name] for name in STATE_NAMES}, *size,
-                threads=VIDEO_THREADS,
+                config.scene(), {name: states[prefix + name][:end] for name in STATE_NAMES},
+                *size, threads=VIDEO_THREADS,
             ),
             caption,
         )
-        for prefix, caption in (
-            ("sweep0_", FREE_CAPTION),
-            ("", ROBOT_CAPTION.format(weight=config.collision_weight)),
+        for prefix, caption, end in (
+            ("sweep0_", FREE_CAPTION, free),
+            ("", ROBOT_CAPTION.format(weight=config.collision_weight), None),
         )
     ]
-    total = len(times) + len(states["sweep0_qpos"]) + len(states["qpos"])
+    total = len(times) + len(states["sweep0_qpos"][:free]) + len(states["qpos"])
     return tqdm(
         itertools.chain(teacher, *robot), desc="video", unit="frame", total=total,
         disable=_bars(),

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from imitate import pipeline
+from imitate import pipeline, provenance
 from imitate.artifacts import save_npz
 from imitate.cli import main
 from imitate.config import RunConfig, load_config
@@ -58,6 +58,13 @@ def test_teachers_are_learned_once_and_reused_on_resume(quick_run, monkeypatch):
         patched.setattr(pipeline, "run_stage", learn_again)
         again = teachers(quick_run, out, 2)
     assert [t.model_bytes for t in again] == [t.model_bytes for t in first]
+    assert again[1].default_run["pour_fractions"]  # the teacher's default scene, replayed
+    ran = []
+    with monkeypatch.context() as patched:  # other code: the teacher is learned again
+        patched.setattr(provenance, "code_digest", lambda: "other code")
+        patched.setattr(pipeline, "run_stage", lambda stage, *args, **kw: ran.append(stage))
+        teachers(quick_run, out, 2)
+    assert ran == ["observe", "learn", "optimize", "replay"]
     (folder / "model.npz").write_bytes(b"not the model learn wrote")
     relearned = teachers(quick_run, out, 2)  # its provenance fails: learned again, the same
     assert relearned[1].model_bytes == first[1].model_bytes

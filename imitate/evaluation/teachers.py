@@ -5,8 +5,9 @@ A run's learned model is one teacher's (its ``seed``). Teacher ``s`` is the same
 Each is a run directory of its own, ``<out>/teachers/seed-<s>/``, made by the ``observe``,
 ``learn``, ``optimize`` and ``replay`` stages under its lock (the teacher's default run, but its
 figures), so that an evaluation that stops keeps the teachers it has learned, and one that starts
-again reuses every stage whose outputs' provenance still holds (see :mod:`imitate.provenance`);
-the run's own seed is the run's ``model.npz`` and ``report.json``.
+again reuses every stage whose outputs' provenance still holds (see :mod:`imitate.provenance`)
+and that the same code made (``code.json``: a change of the teacher's script, say, changes what
+it demonstrates); the run's own seed is the run's ``model.npz`` and ``report.json``.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from imitate import provenance, stages
-from imitate.artifacts import load_json, load_npz
+from imitate.artifacts import load_json, load_npz, save_json
 from imitate.config import RunConfig, load_config
 from imitate.errors import ImitateError
 from imitate.learning import LearnedModel
@@ -30,6 +31,7 @@ log = logging.getLogger(__name__)
 
 MAX_TEACHERS = 100
 MODEL = "model.npz"
+CODE = "code.json"  # the code digest the teacher's stages ran with
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -95,13 +97,23 @@ def _prepare(folder: Path, config: RunConfig) -> None:
 
     folder.parent.mkdir(parents=True, exist_ok=True)
     command = f"imitate eval (teacher seed {config.seed})"
+    code = {"code": provenance.code_digest()}
     with locked(folder, command, create=True):
+        same_code = (folder / CODE).is_file() and _json(folder / CODE) == code
         for i, (name, reader) in enumerate(_STAGES):
-            if not _fresh(folder, name, reader, config):
+            if not (same_code and _fresh(folder, name, reader, config)):
                 for later, _ in _STAGES[i:]:
                     log.info("teacher seed %d: %s", config.seed, later)
                     run_stage(later, folder, config)
+                save_json(folder / CODE, code)
                 return
+
+
+def _json(path: Path):
+    try:
+        return load_json(path)
+    except ImitateError:
+        return None
 
 
 def _fresh(folder: Path, name: str, reader: str, config: RunConfig) -> bool:
