@@ -1,12 +1,15 @@
 """The default scene's collision (the bottle into the chest) under each similarity weighting: what
 the share of the change in high-variance steps can and cannot tell apart.
 
-Usage: ``python scripts/weightings_default_scene.py RUN_DIR [--weights 300 10000]``: the run's
-learned model planned in the default scene at collision weight 0 and at each of ``--weights``,
-with every weighting of :data:`imitate.motion.SIMILARITIES` (nothing written).
+Usage: ``python scripts/weightings_default_scene.py RUN_DIR [--weights 300 10000]
+[--sigma-max-scale 1] [--similarity variance ...]``: the run's learned model planned in the
+default scene at collision weight 0 and at each of ``--weights``, with each weighting (default:
+every one of :data:`imitate.motion.SIMILARITIES`), the attractors alone (as Fig. 9's sweep);
+nothing written.
 
 Columns per weighting and collision weight: ``clear``: the plan's clearance [mm]; ``change``:
 the largest change of the relative position from the same weighting's weight-0 plan [mm];
+``at``: when [s];
 ``share``: the share of its square in steps of above-median GMR variance (the README's old
 evidence for eq. 21); ``pour``: the pour-phase error from the GMR mean [mm, deg].
 """
@@ -15,6 +18,8 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+
+import numpy as np
 
 from imitate.artifacts import load_npz
 from imitate.envs.assembly import SceneConfig
@@ -29,26 +34,31 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run_dir", type=Path)
     parser.add_argument("--weights", type=float, nargs="+", default=[300.0, 10000.0])
+    parser.add_argument("--sigma-max-scale", type=float, default=1.0)
+    parser.add_argument("--similarity", nargs="+", choices=SIMILARITIES, default=SIMILARITIES)
     args = parser.parse_args()
     arrays = load_npz(args.run_dir / "model.npz", required=(*LearnedModel.array_names(), "gaze"))
     model = LearnedModel.from_arrays(arrays)
     task = planning_task(SceneConfig(), arrays["gaze"])
-    print(f"{'weighting':<10} {'weight':>7} {'clear':>7} {'change':>7} {'share':>6} "
+    print(f"{'weighting':<10} {'weight':>7} {'clear':>7} {'change':>7} {'at':>5} {'share':>6} "
           f"{'pour [mm':>9} {'deg]':>5}")
-    for similarity in SIMILARITIES:
+    for similarity in args.similarity:
         plans = {
             w: plan_from_model(task, model, q0=humanoid.rest_pose(), config=PlanConfig(
                 collision_weight=w, similarity=similarity, nullspace_push=False,
+                sigma_max_scale=args.sigma_max_scale,
             ))
             for w in (0.0, *args.weights)
         }
         for w in args.weights:
             p = plans[w]
             d = deviation(p, plans[0.0])
+            change = np.linalg.norm(p.x[:, :3] - plans[0.0].x[:, :3], axis=1)
+            at = p.times[change.argmax()] - p.times[0]
             error_m, error_deg = pour_phase_error(p)
             print(f"{similarity:<10} {w:7g} {p.min_distance * 1000:7.1f} "
-                  f"{d['max_deviation_m'] * 1000:7.1f} {d['change_high_variance_share']:6.3f} "
-                  f"{error_m * 1000:9.1f} {error_deg:5.2f}")
+                  f"{d['max_deviation_m'] * 1000:7.1f} {at:5.2f} "
+                  f"{d['change_high_variance_share']:6.3f} {error_m * 1000:9.1f} {error_deg:5.2f}")
 
 
 if __name__ == "__main__":

@@ -222,16 +222,21 @@ def test_start_moves_clear_of_an_obstacle_beside_the_learned_start(task, learned
     free = setup(task, learned, q0=humanoid.rest_pose(), config=c).problem
     task.kin.update(free.q_start)
     _, y, z = task.kin.data.body("left_hand").xpos
-    top = z - 0.03
-    half_height = (top - TABLE_HEIGHT) / 2
-    box = Obstacle("box", (0.44, y, TABLE_HEIGHT + half_height), (0.04, 0.04, half_height))
-    near = planning_task(SceneConfig(obstacles=(box,)), task.gaze)
-    fixed = near.kin.pairs.fixed(near.kin.model)
+
+    def scene(top: float):  # the box under the left hand, its top at ``top`` [m]
+        half_height = (top - TABLE_HEIGHT) / 2
+        box = Obstacle("box", (0.44, y, TABLE_HEIGHT + half_height), (0.04, 0.04, half_height))
+        return planning_task(SceneConfig(obstacles=(box,)), task.gaze)
 
     def clearance(q):  # to the fixed geoms (the table, the box)
         near.kin.update(q)
         found = near.kin.distances(1.0)
         return found.dist[fixed[found.pairs]].min()
+
+    near = scene(z - 0.03)
+    fixed = near.kin.pairs.fixed(near.kin.model)
+    near = scene(z - 0.03 + clearance(free.q_start) - 0.005)  # the start 5 mm from its top
+    fixed = near.kin.pairs.fixed(near.kin.model)
 
     reached = setup(near, learned, q0=humanoid.rest_pose(),
                     config=dataclasses.replace(c, collision_weight=0.0)).problem
