@@ -158,7 +158,7 @@ def _add_eval(commands) -> None:
     text = "reproduce a run's learned model in seeded variations (obstacles, grasps, physics)"
     sub = commands.add_parser("eval", help=text, description=text)
     _add_variations(sub, teachers=1)
-    sub.add_argument("--similarity", choices=SIMILARITIES, metavar="NAME",
+    sub.add_argument("--similarity", choices=SIMILARITIES, metavar="NAME", dest="weighting",
                      help=f"replaces the suite's similarity weighting: one of {SIMILARITIES}")
     sub.add_argument("--videos", type=int, default=3, metavar="K",
                      help="videos of the first K failures (default 3)")
@@ -171,6 +171,7 @@ def _add_compare(commands) -> None:
     sub = commands.add_parser("compare", help=text, description=text)
     _add_variations(sub, teachers=3)
     sub.add_argument("--similarity", default=",".join(SIMILARITIES), metavar="A,B,...",
+                     dest="weightings",
                      help=f"weightings to compare, comma-separated (default "
                      f"{','.join(SIMILARITIES)})")
 
@@ -381,14 +382,14 @@ def _eval(args: argparse.Namespace) -> int:
         with _terminated_as_exception():
             if args.command == "compare":
                 result = compare.compare(
-                    args.run_dir, suite, args.similarity.split(","), name=name, n=args.n,
+                    args.run_dir, suite, args.weightings.split(","), name=name, n=args.n,
                     seed=args.seed, n_teachers=args.teachers, workers=args.workers,
                     ray=args.ray,
                 )
                 text = compare.markdown(result) + f"\nresults: {folder / name}"
             else:
-                if args.similarity is not None:
-                    suite = suite.replace(similarity=args.similarity)
+                if args.weighting is not None:
+                    suite = suite.replace(similarity=args.weighting)
                 summary = evaluation.evaluate(
                     args.run_dir, suite, n=args.n, seed=args.seed, n_teachers=args.teachers,
                     workers=args.workers, ray=args.ray, videos=args.videos,

@@ -148,7 +148,7 @@ def _commands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentPar
 def test_cli_knows_every_stage_in_order():
     from imitate.stages import NAMES
 
-    assert tuple(_commands(build_parser())) == (*NAMES, "run", "export", "eval")
+    assert tuple(_commands(build_parser())) == (*NAMES, "run", "export", "eval", "compare")
 
 
 def test_config_round_trips_through_json():
