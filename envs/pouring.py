@@ -295,14 +295,18 @@ class PouringEnv(gym.Env):
         """``(n, 3)`` world positions of the liquid's particles [m]."""
         return self.data.xpos[self._particle_bodies]
 
+    def particles_in(self, container: str) -> np.ndarray:
+        """``(n,) bool``: which particles are inside ``container`` (the bottle or the glass)."""
+        shape = objects.SHAPES[container]
+        return _inside(self.data, container, shape, self.particle_positions())
+
     def particle_fractions(self) -> tuple[float, float]:
         """Fractions of particles inside the glass and inside the bottle."""
         if len(self._particle_bodies) == 0:
             return 0.0, 0.0
-        points = self.particle_positions()
         return (
-            float(np.mean(_inside(self.data, objects.GLASS, objects.GLASS_SHAPE, points))),
-            float(np.mean(_inside(self.data, objects.BOTTLE, objects.BOTTLE_SHAPE, points))),
+            float(np.mean(self.particles_in(objects.GLASS))),
+            float(np.mean(self.particles_in(objects.BOTTLE))),
         )
 
     def _min_distance(self) -> float:

@@ -6,8 +6,9 @@ The mouth is the centre of the bottle's opening, the rim the centre of the glass
 objects' axes; both are expressed in the glass's frame, so that heights above the rim and
 offsets from the glass's axis do not depend on how the glass is held. The pour is the span from
 the first to the last step at which the bottle holds fewer particles than the step before. A
-particle that falls through the rim's plane within the rim's inner radius (40 mm) lands in the
-glass; one that falls through it further out misses (or hits the rim).
+particle out of the bottle that falls through the rim's plane within the rim's inner radius
+(40 mm) lands in the glass; one that falls through it further out misses (or hits the rim).
+Particles still in the bottle are not counted: the bottle itself may pass through the plane.
 """
 
 from __future__ import annotations
@@ -39,12 +40,13 @@ class PourGeometry:
         rim = glass.xpos + objects.GLASS_SHAPE.height * glass_axes[:, 2]
         local = (mouth - rim) @ glass_axes
         tilt = np.degrees(np.arccos(np.clip(bottle_axes[2, 2], -1.0, 1.0)))
-        self._rows.append((tilt, *local, env.particle_fractions()[1]))
+        in_bottle = env.particles_in(objects.BOTTLE)
+        self._rows.append((tilt, *local, float(np.mean(in_bottle)) if len(in_bottle) else 0.0))
         self._dt = env.dt
         particles = (env.particle_positions() - rim) @ glass_axes
         if self._above is not None:
             was, now = self._above, particles
-            for i in np.flatnonzero((was[:, 2] > 0) & (now[:, 2] <= 0)):
+            for i in np.flatnonzero((was[:, 2] > 0) & (now[:, 2] <= 0) & ~in_bottle):
                 if i not in self._crossed:
                     share = was[i, 2] / (was[i, 2] - now[i, 2])
                     self._crossed[int(i)] = was[i, :2] + share * (now[i, :2] - was[i, :2])

@@ -218,14 +218,20 @@ def plot_comparison(by_weighting: dict[str, list[dict]], result: dict) -> Figure
         left.plot(positions + offset, [a / b for a, b in shares], "o", color=f"C{j}", ms=5,
                   label=f"teacher seed {teacher}")
     left.set(xticks=positions, xticklabels=names, ylim=(0, 1.05), ylabel="success rate",
-             title=f"success over {result['variations_per_teacher']} variations per teacher "
-             "(bar: 95 % Wilson)")
-    left.legend(fontsize=8, loc="lower left")
-    changes = [np.array([r["change"]["pour_m"] for r in by_weighting[s]]) * 1000 for s in names]
-    right.boxplot(changes, positions=positions, widths=0.5, whis=(5, 95), showfliers=True)
-    right.set(xticks=positions, xticklabels=names, ylabel="largest change in the pour [mm]",
-              title="how far the constraints moved the pour (from each weighting's "
-              "unconstrained plan)", yscale="symlog")
+             title="success (bar: 95 % Wilson interval; dots: teachers)")
+    left.legend(fontsize=8, loc="upper left")
+    changes = [
+        np.maximum(np.array([r["change"]["pour_m"] for r in by_weighting[s]]) * 1000, 0.1)
+        for s in names
+    ]
+    right.boxplot(changes, positions=positions, widths=0.5, whis=(5, 95))
+    right.set(xticks=positions, xticklabels=names, yscale="log",
+              ylabel="largest change in the pour [mm]",
+              title="pour moved from the unconstrained plan (whiskers: 5-95 %)")
+    figure.suptitle(
+        f"suite {result['suite_name']}: {result['variations_per_teacher']} variations x "
+        f"{len(result['teachers'])} teachers, the same for every weighting"
+    )
     return figure
 
 
