@@ -7,6 +7,7 @@ import pytest
 from imitate.envs import assembly, teacher_motion
 from imitate.envs.pouring import PouringEnv, _inside
 from imitate.models import objects
+from imitate.pour_geometry import PourGeometry
 
 
 @pytest.fixture(scope="module")
@@ -104,3 +105,48 @@ def test_glass_holds_poured_particles(env):
     mujoco.mj_forward(env.model, env.data)
     _hold_still(env, 2.0)
     assert env.pour_fraction >= 0.95, f"{env.pour_fraction * n:.0f} of {n} in the glass"
+
+
+class _Body:
+    def __init__(self, pos):
+        self.xpos, self.xmat = np.array(pos, float), np.eye(3).ravel()
+
+
+class _Env:
+    """What :class:`PourGeometry` reads of a ``PouringEnv``: the bottle upright above the glass,
+    three particles, the last one still in the bottle."""
+
+    dt = 0.01
+
+    def __init__(self):
+        bodies = {objects.BOTTLE: _Body((0.01, 0.0, 0.0)), objects.GLASS: _Body((0.0, 0.0, -0.2))}
+        self.data = type("Data", (), {"body": staticmethod(bodies.__getitem__)})()
+        self.positions = np.zeros((3, 3))
+        self.in_bottle = np.zeros(3, bool)
+
+    def particle_positions(self):
+        return self.positions
+
+    def particles_in(self, container):
+        return self.in_bottle
+
+
+def test_pour_geometry_counts_the_particles_that_left_the_bottle_where_they_cross_the_rim():
+    geometry, env = PourGeometry(), _Env()
+    rim = -0.2 + objects.GLASS_SHAPE.height
+    env.positions[:] = [(0.01, 0.0, rim + 0.05), (0.06, 0.0, rim + 0.05), (0.0, 0.0, rim + 0.05)]
+    env.in_bottle[:] = (False, False, True)
+    geometry(env)
+    assert geometry.summary()["stream_inside_share"] is None  # nothing crossed, nothing poured
+    env.positions[:, 2] = rim - 0.05  # all three fall through the plane, one inside the bottle
+    env.in_bottle[:] = (False, False, True)
+    geometry(env)
+    env.in_bottle[:] = False
+    geometry(env)
+    summary = geometry.summary()
+    assert summary["stream_inside_share"] == 0.5  # 10 mm inside the rim, 60 mm outside
+    assert summary["stream_offset_median_m"] == pytest.approx(0.035)
+    assert summary["mouth_offset_median_m"] == pytest.approx(0.01)
+    mouth = objects.BOTTLE_SHAPE.height - objects.GLASS_SHAPE.height + 0.2
+    assert summary["mouth_above_rim_min_m"] == pytest.approx(mouth)
+    assert summary["tilt_max_deg"] == 0.0 and summary["pour_seconds"] == pytest.approx(0.01)
