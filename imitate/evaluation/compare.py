@@ -27,7 +27,7 @@ from imitate import plots, provenance
 from imitate.artifacts import save_json, write_atomic
 from imitate.errors import ImitateError
 from imitate.evaluation.report import wilson
-from imitate.evaluation.run import RESULTS, Draw, _checked, draw_jobs, run_jobs
+from imitate.evaluation.run import RESULTS, Draw, check_counts, draw_jobs, run_jobs
 from imitate.evaluation.suite import Suite
 from imitate.evaluation.teachers import teachers
 from imitate.motion import SIMILARITIES
@@ -65,7 +65,7 @@ def compare(
             f"{', '.join(SIMILARITIES)}, comma-separated, each once"
         )
     run_dir = Path(run_dir)
-    n, workers = _checked(suite, n, workers)
+    n, workers = check_counts(suite, n, workers)
     out = run_dir / "compare" / name
     out.mkdir(parents=True, exist_ok=True)
     models = teachers(run_dir, run_dir / "eval", n_teachers)

@@ -37,7 +37,9 @@ from imitate.evaluation.teachers import Teacher, teachers
 from imitate.evaluation.variation import Variation, draw, path_points
 from imitate.learning import LearnedModel
 
-__all__ = ["Draw", "draw_jobs", "evaluate", "last_records", "read_records", "run_jobs"]
+__all__ = [
+    "Draw", "check_counts", "draw_jobs", "evaluate", "last_records", "read_records", "run_jobs",
+]
 
 RESULTS = "results.jsonl"
 
@@ -66,7 +68,7 @@ def evaluate(
     """
     run_dir = Path(run_dir)
     out = run_dir / "eval"
-    n, workers = _checked(suite, n, workers)
+    n, workers = check_counts(suite, n, workers)
     out.mkdir(parents=True, exist_ok=True)
     models = teachers(run_dir, out, n_teachers)
     drawn = draw_jobs(models, suite, seed, n)
@@ -214,7 +216,7 @@ def last_records(run_dir: Path) -> list[dict]:
     return sorted(read_records(out / RESULTS, digests), key=lambda r: (order[r["digest"]], r["id"]))
 
 
-def _checked(suite: Suite, n: int | None, workers: int | None) -> tuple[int, int]:
+def check_counts(suite: Suite, n: int | None, workers: int | None) -> tuple[int, int]:
     """``n`` and ``workers`` with their defaults (the suite's ``variations``, every core).
 
     Raises:
