@@ -44,7 +44,9 @@ def main() -> None:
             id=0, obstacle=None, in_path=False, bottle_grasp=float(bottle),
             glass_grasp=float(glass), particles=60, friction_scale=1.0, damping_scale=1.0,
             mass_scale=1.0, replay_seeds=tuple(range(args.seeds)),
-            collision_weight=suite["collision_weight"], max_iter=suite["max_iter"],
+            collision_weight=suite["collision_weight"],
+            path_length_weight=suite["path_length_weight"][0], similarity=suite["similarity"],
+            max_iter=suite["max_iter"],
         )
         ignored = dataclasses.replace(
             actual, bottle_grasp=default.bottle_grasp, glass_grasp=default.glass_grasp
