@@ -2,7 +2,7 @@
 
 A job is a variation, the teacher whose learned model reproduces it and the digest its record
 is filed under. Each record depends on
-its teacher's model and the variation's settings alone (``run_variation`` seeds everything from
+its teacher's model and the variation's settings alone (``Trial.run`` seeds everything from
 them), so the two back-ends and any number of workers give the same records, timings aside.
 Local workers are spawned, not forked (MuJoCo's rendering contexts and fork do not mix), set
 ``MUJOCO_GL`` and run single-threaded BLAS unless told otherwise.
