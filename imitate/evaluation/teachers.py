@@ -132,6 +132,7 @@ def _fresh(folder: Path, name: str, reader: str, config: RunConfig) -> bool:
 def _read(seed: int, path: Path) -> Teacher:
     stored = load_npz(path, required=(*LearnedModel.array_names(), "gaze"))
     arrays = {k: stored[k] for k in (*LearnedModel.array_names(), "gaze")}
-    report = path.parent / stages.REPORT
-    default_run = load_json(report).get("replay") if report.is_file() else None
+    report_path = path.parent / stages.REPORT
+    report = load_json(report_path) if report_path.is_file() else {}
+    default_run = report.get("replay") if isinstance(report, dict) else None
     return Teacher(seed, path, arrays, path.read_bytes(), default_run)
