@@ -28,10 +28,10 @@ $(BIN)/.installed-test: pyproject.toml scripts/install_system_deps.sh
 	$(call install,[test])
 	touch $(BIN)/.installed $@
 
-# numba compiles the tracker's and the learner's kernels into its cache now, two processes at
-# once, so that the first run loads them (again whenever a kernel's source changes).
-KERNELS := imitate/dtw.py imitate/kmeans.py imitate/_em.py imitate/bic.py \
-	imitate/perception/_outline.py imitate/perception/_rim.py imitate/_planner.py
+# numba compiles the kernels (the list in imitate/numba_cache.py) into its cache now, two
+# processes at once, so that the first run loads them (again whenever a kernel's source changes).
+KERNELS := $(shell grep -o '"imitate\.[a-z_.]*"' imitate/numba_cache.py | tr -d '"' | \
+	sed 's|\.|/|g; s|$$|.py|')
 $(BIN)/.compiled: $(BIN)/.installed $(KERNELS)
 	$(BIN)/python -m imitate.warmup
 	touch $@

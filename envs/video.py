@@ -17,7 +17,6 @@ import imageio.v2 as imageio
 import mujoco
 import numpy as np
 
-from imitate.artifacts import write_atomic
 from imitate.envs import teacher_motion
 from imitate.envs.assembly import SceneConfig, build_model, clearance_geoms
 from imitate.envs.collision import CollisionPairs, signed_distances
@@ -26,6 +25,7 @@ from imitate.envs.pouring import PouringEnv
 from imitate.envs.rendering import interleaved, make_renderer
 from imitate.models import humanoid, objects
 from imitate.models import scene as scene_names
+from imitate.rundir.artifacts import write_atomic
 
 # What people see of the liquid; only the copy of the model that draws it is changed, so the
 # physics (particle radius objects.PARTICLE_RADIUS, masses, contacts) stays as it is.
@@ -37,7 +37,7 @@ FONT = cv2.FONT_HERSHEY_SIMPLEX
 
 
 class StateRecorder:
-    """``on_step`` hook for :func:`imitate.replay.replay`: keeps the kinematic state every
+    """``on_step`` hook for :func:`imitate.motion.replay.replay`: keeps the kinematic state every
     ``every`` env steps (``qpos`` and the teacher's mocap poses), enough to render it again."""
 
     def __init__(self, every: int = 1):

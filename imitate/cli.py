@@ -6,10 +6,10 @@
     imitate replay runs/latest && imitate figures runs/latest
 
 Each stage reads the previous stage's artifacts in the run directory (see
-:mod:`imitate.stages`); settings given on the command line replace those in its
+:mod:`imitate.rundir.table`); settings given on the command line replace those in its
 ``config.json``, the rest are kept. One command at a time holds a run directory (see
 :mod:`imitate.rundir`); a stage refuses inputs that are stale or from another run unless
-``--force`` (see :mod:`imitate.provenance`). Errors are one line on stderr: exit status 1, 2
+``--force`` (see :mod:`imitate.stages.provenance`). Errors are one line on stderr: exit status 1, 2
 for a bad flag, 130 for Ctrl-C and 143 for SIGTERM; a stage that does not finish changes
 nothing.
 
@@ -65,12 +65,12 @@ import matplotlib  # noqa: E402
 
 matplotlib.use("Agg")
 
-from imitate.config import RunConfig, Setting, load_config, settings  # noqa: E402
 from imitate.errors import ImitateError  # noqa: E402
 from imitate.evaluation.suite import SUITE_NAMES  # noqa: E402
 from imitate.motion import SIMILARITIES  # noqa: E402
-from imitate.rundir import locked  # noqa: E402
-from imitate.stages import NAMES, PAGE, RUN_HELP, STAGES  # noqa: E402
+from imitate.rundir.lock import locked  # noqa: E402
+from imitate.rundir.table import NAMES, PAGE, RUN_HELP, STAGES  # noqa: E402
+from imitate.stages.config import RunConfig, Setting, load_config, settings  # noqa: E402
 
 __all__ = ["main"]
 
@@ -264,7 +264,8 @@ def main(argv: list[str] | None = None) -> int:
     fresh = _starts_run(args.command)
     try:
         with _terminated_as_exception(), locked(run_dir, command, create=fresh):
-            from imitate import drawing, pipeline  # the stages: once the directory is ours
+            from imitate.figures import drawing  # the stages: once the directory is ours
+            from imitate.stages import runner
 
             base = RunConfig() if fresh else load_config(run_dir)
             try:
@@ -282,7 +283,7 @@ def main(argv: list[str] | None = None) -> int:
                     notice = numba_cache.compile_notice(stage)
                     if notice:
                         log.info(notice)
-                    report = pipeline.run_stage(stage, run_dir, config, force=args.force)
+                    report = runner.run_stage(stage, run_dir, config, force=args.force)
     except ImitateError as err:
         return _fail(args.command, str(err), 1)
     except OSError as err:

@@ -1,5 +1,4 @@
-"""numba's on-disk cache of the compiled kernels (``dtw``, ``kmeans``, ``_em``, ``bic``,
-``perception/_rim``, ``perception/_outline``).
+"""numba's on-disk cache of the compiled kernels (:data:`KERNEL_MODULES`).
 
 numba compiles a kernel at its first call and caches it on disk: in ``NUMBA_CACHE_DIR`` if set,
 else in the ``__pycache__`` beside the module, else in the user's cache (``~/.cache/numba``).
@@ -25,13 +24,20 @@ from imitate.errors import ImitateError
 log = logging.getLogger(__name__)
 
 PACKAGE = Path(__file__).parent
-# The kernel modules each stage compiles on its first run, and about how long that takes on
-# the 2-core CI machine [s] (`python scripts/bench_run.py`: observe 17.3 s cold, 14.0 warm;
-# learn 7.3 s cold, 0.2 warm).
+# The one list of numba-compiled kernel modules: by the stage that first compiles them, with
+# about how long that takes on the 2-core CI machine [s] (`python scripts/bench_run.py`). Each
+# calls ensure_writable() before declaring its kernels; the warm-up compiles them all and the
+# Makefile's warm-up stamp depends on their files.
 STAGE_KERNELS = {
     "observe": (("imitate.perception._rim", "imitate.perception._outline"), 4),
-    "learn": (("imitate.dtw", "imitate.kmeans", "imitate._em", "imitate.bic"), 7),
+    "learn": (
+        ("imitate.learning.dtw", "imitate.learning.kmeans", "imitate.learning._em",
+         "imitate.learning.bic"),
+        7,
+    ),
+    "optimize": (("imitate.motion._planner",), 10),
 }
+KERNEL_MODULES = tuple(name for names, _ in STAGE_KERNELS.values() for name in names)
 
 
 def cache_dir(source: Path) -> Path | None:
@@ -53,8 +59,7 @@ def ensure_writable() -> None:
     Raises:
         ImitateError: that directory cannot be used either.
     """
-    modules = [name for names, _ in STAGE_KERNELS.values() for name in names]
-    sources = [Path(PACKAGE, *name.split(".")[1:]).with_suffix(".py") for name in modules]
+    sources = [Path(PACKAGE, *name.split(".")[1:]).with_suffix(".py") for name in KERNEL_MODULES]
     if all(cache_dir(source) for source in sources):
         return
     fallback = Path(tempfile.gettempdir(), f"imitate-numba-{os.getuid()}")

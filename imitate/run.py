@@ -16,14 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate import stages
-from imitate.artifacts import load_json, load_npz
-from imitate.config import RunConfig, load_config
+from imitate.demos.segment import Demonstration, load_demos
 from imitate.errors import ImitateError
 from imitate.learning import LearnedModel
 from imitate.motion import Plan
 from imitate.perception import Observations, load_observations
-from imitate.segment import Demonstration, load_demos
+from imitate.rundir import table
+from imitate.rundir.artifacts import load_json, load_npz
+from imitate.stages.config import RunConfig, load_config
 
 __all__ = ["Demos", "Recording", "Run", "load_run"]
 
@@ -33,7 +33,8 @@ class Demos:
     """Contents of ``demos.npz``: the demonstrations cut from the tracks.
 
     Attributes:
-        segments: One :class:`~imitate.segment.Demonstration` per demonstration, in time order.
+        segments: One :class:`~imitate.demos.segment.Demonstration` per demonstration, in time
+            order.
         objects: Object names, the first axis of each segment's arrays.
         gaze: ``(3, 3)`` gaze frame of the observation (columns right, down, forward).
     """
@@ -126,7 +127,7 @@ class Run:
     @cached_property
     def report(self) -> dict:
         """``report.json``: its keys are documented in the README's "report.json" table."""
-        return load_json(self.path / stages.REPORT)
+        return load_json(self.path / table.REPORT)
 
     def __repr__(self) -> str:
         return f"Run({str(self.path)!r})"

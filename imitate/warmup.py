@@ -68,8 +68,8 @@ def _tracker() -> None:
 
     from imitate.envs.observation import ObservationConfig, frames, session
     from imitate.envs.teacher_motion import TeacherConfig
-    from imitate.observe import cameras
     from imitate.perception import StereoTracker, perception_config
+    from imitate.perception.watch import cameras
 
     sess = session(ObservationConfig(teacher=TeacherConfig(n_demos=2), width=320, height=240))
     start, end = sess.motion.boundaries[0]
@@ -80,7 +80,7 @@ def _tracker() -> None:
 
 
 def _demos():
-    from imitate.synthetic import SyntheticConfig, pouring_demos
+    from imitate.demos.synthetic import SyntheticConfig, pouring_demos
 
     synthetic = pouring_demos(SyntheticConfig(n_demos=3, duration=1.0, rate=40.0))
     return synthetic.demos, synthetic.rate
@@ -96,8 +96,8 @@ def _learning_em() -> None:
 
 def _learning_kmeans() -> None:
     """K-means chains and the fast BIC."""
-    from imitate.bic import bic_sweep
     from imitate.learning import time_stacked
+    from imitate.learning.bic import bic_sweep
 
     demos, rate = _demos()
     bic_sweep(time_stacked(demos, rate), 4, "fast")
@@ -106,11 +106,11 @@ def _learning_kmeans() -> None:
 def _planner() -> None:
     """One iteration of the planner (task map, RMR, near-pair bounds, adjoint) on the robot, from
     a two-component model of a short synthetic demonstration."""
-    from imitate.gmm import GMM
     from imitate.learning import LearnedModel
+    from imitate.learning.gmm import GMM
     from imitate.models import humanoid
     from imitate.motion import PlanConfig, plan_from_model
-    from imitate.replay import planning_task
+    from imitate.motion.replay import planning_task
 
     demos, rate = _demos()
     mean = demos[0]

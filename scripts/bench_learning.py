@@ -1,7 +1,7 @@
 """Speed of the learning stage at the paper's scale, against reference libraries in the same run.
 
 Data: 5 synthetic pouring demonstrations of about 4.5 s at 100 Hz in the 7-D task space
-(:mod:`imitate.synthetic`), i.e. about 2,300 GMM samples of dimension 8 (time + task space).
+(:mod:`imitate.demos.synthetic`), i.e. about 2,300 GMM samples of dimension 8 (time + task space).
 Every step is timed for ``imitate`` and for the reference implementation on the same inputs;
 the table gives the best and median wall time of repeated runs and the ratio reference / ours
 (> 1: ours is faster). BLAS is limited to ``--blas-threads`` threads for every library (small
@@ -40,13 +40,13 @@ from sklearn.cluster import KMeans
 from sklearn.mixture import GaussianMixture
 from threadpoolctl import threadpool_limits
 
-from imitate.bic import _FAST_CHAINS, _FAST_TOL, bic_sweep
-from imitate.dtw import align, dtw
-from imitate.gmm import GMM
-from imitate.gmr import gmr
-from imitate.kmeans import kmeans, kmeans_parameters
+from imitate.demos.synthetic import pouring_demos
 from imitate.learning import LearningConfig, learn, time_stacked
-from imitate.synthetic import pouring_demos
+from imitate.learning.bic import _FAST_CHAINS, _FAST_TOL, bic_sweep
+from imitate.learning.dtw import align, dtw
+from imitate.learning.gmm import GMM
+from imitate.learning.gmr import gmr
+from imitate.learning.kmeans import kmeans, kmeans_parameters
 
 K_MAX = 30
 K_GMR = 9
@@ -55,7 +55,7 @@ import time
 start = time.perf_counter()
 import numpy as np
 from imitate.learning import LearningConfig, learn
-from imitate.synthetic import pouring_demos
+from imitate.demos.synthetic import pouring_demos
 sd = pouring_demos()
 learn([d[:60] for d in sd.demos[:2]], rate=sd.rate, config=LearningConfig(bic_method="fast"))
 print(time.perf_counter() - start)

@@ -40,7 +40,7 @@ def child(model_path: Path, repeats: int, max_iter: int, weight: float) -> dict:
     from imitate.models import humanoid
     from imitate.motion import PlanConfig, plan_from_model, setup
     from imitate.motion.control import backward, rollout
-    from imitate.replay import planning_task
+    from imitate.motion.replay import planning_task
 
     arrays = dict(np.load(model_path))
     task = planning_task(gaze=arrays.pop("gaze"))
@@ -135,8 +135,8 @@ def main() -> None:
         print(json.dumps(child(args.child, args.repeats, args.max_iter, args.collision_weight)))
         return
 
-    from imitate.oracle import oracle_model
-    from imitate.replay import planning_task
+    from imitate.demos.oracle import oracle_model
+    from imitate.motion.replay import planning_task
 
     with tempfile.TemporaryDirectory(prefix="bench_motion-") as name:
         tmp = Path(name)

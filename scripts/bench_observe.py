@@ -23,8 +23,8 @@ import time
 import numpy as np
 
 from imitate.envs.observation import ObservationConfig, frames, session
-from imitate.observe import cameras
 from imitate.perception import StereoTracker, perception_config, track
+from imitate.perception.watch import cameras
 
 
 def run(sess, ahead: bool) -> tuple[dict, object]:

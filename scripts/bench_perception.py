@@ -23,10 +23,10 @@ import cv2
 import mujoco
 import numpy as np
 
+from imitate.demos.segment import StillnessConfig, segment
 from imitate.envs.observation import ObservationConfig, frames, session
 from imitate.envs.rendering import backend
 from imitate.envs.teacher_motion import TeacherConfig
-from imitate.observe import cameras, ground_truth
 from imitate.perception import (
     Observations,
     StereoTracker,
@@ -34,7 +34,7 @@ from imitate.perception import (
     save_observations,
     track,
 )
-from imitate.segment import StillnessConfig, segment
+from imitate.perception.watch import cameras, ground_truth
 
 
 def run_seed(seed: int, width: int, height: int, out: Path | None = None) -> dict:

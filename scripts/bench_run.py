@@ -110,8 +110,10 @@ def child(out: Path, argv: list[str], result: Path) -> int:
     start = time.perf_counter()
     timers = _Timers()
     timers.wrap_numba()  # before imitate: kernels compiled at import count too
-    from imitate import cli, pipeline
+    from imitate import cli
     from imitate.envs import video
+    from imitate.stages import figures, optimize, replay, runner
+    from imitate.stages import observe as observe_stage
 
     def observed(original):
         @functools.wraps(original)
@@ -126,14 +128,14 @@ def child(out: Path, argv: list[str], result: Path) -> int:
 
         return watch
 
-    pipeline.watch = observed(pipeline.watch)
-    timers.wrap(pipeline, "plan_from_model", "planner (plan_from_model)")
-    timers.wrap(pipeline, "replay_plan", "physics replays (summed over their threads)")
-    timers.wrap(pipeline, "write_video", "video (frames + encoding)")
-    timers.wrap(pipeline, "_snapshots", "fig8 snapshot rendering")
+    observe_stage.watch = observed(observe_stage.watch)
+    timers.wrap(optimize, "plan_from_model", "planner (plan_from_model)")
+    timers.wrap(replay, "replay", "physics replays (summed over their threads)")
+    timers.wrap(figures, "write_video", "video (frames + encoding)")
+    timers.wrap(figures, "_snapshots", "fig8 snapshot rendering")
     timers.wrap(video, "write_video", "video (frames + encoding)")
 
-    original_run_stage = pipeline.run_stage
+    original_run_stage = runner.run_stage
 
     def run_stage(stage, *args, **kwargs):
         timers.stage = stage
@@ -145,7 +147,7 @@ def child(out: Path, argv: list[str], result: Path) -> int:
             timers.stage_cpu[stage] = cpu_seconds() - c0
             timers.stage = "end"
 
-    pipeline.run_stage = run_stage
+    runner.run_stage = run_stage
     timers.parts["startup"]["imports"] = time.perf_counter() - start
     status = cli.main(["run", "--out", str(out), *argv])
     result.write_text(

@@ -27,13 +27,14 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate import pipeline
-from imitate.artifacts import load_npz
-from imitate.config import load_config
 from imitate.envs.observation import ObservationConfig, frames, session
-from imitate.observe import cameras
 from imitate.perception import StereoTracker, load_observations, perception_config, track
 from imitate.perception import tracks as tracks_module
+from imitate.perception.watch import cameras
+from imitate.rundir.artifacts import load_npz
+from imitate.stages import figures
+from imitate.stages import replay as replay_stage
+from imitate.stages.config import load_config
 
 
 def timed(label: str, work):
@@ -71,15 +72,15 @@ def observe(run_dir: Path, config, threads) -> None:
 
 
 def replay(run_dir: Path, config, threads) -> None:
-    jobs, gaze = pipeline._replay_jobs(run_dir, config)
+    jobs, gaze = replay_stage._replay_jobs(run_dir, config)
     for k, (p, seed) in enumerate(jobs):
         timed(f"replay: replay {k} alone",
-              lambda p=p, seed=seed: pipeline._physics(p, config, gaze, seed))
+              lambda p=p, seed=seed: replay_stage._physics(p, config, gaze, seed))
     walls = [0.0] * len(jobs)
 
     def one(k):
         start = time.perf_counter()
-        pipeline._physics(jobs[k][0], config, gaze, jobs[k][1])
+        replay_stage._physics(jobs[k][0], config, gaze, jobs[k][1])
         walls[k] = time.perf_counter() - start
 
     workers = min(len(jobs), os.cpu_count() or 1)
@@ -90,16 +91,17 @@ def replay(run_dir: Path, config, threads) -> None:
 
 
 def video(run_dir: Path, config, threads) -> None:
-    states = load_npz(run_dir / "replay.npz", required=pipeline.STATE_NAMES)
+    states = load_npz(run_dir / "replay.npz")  # the replay and the weight-0 one (sweep0_)
+    plan = load_npz(run_dir / "plan.npz", required=("times", "sweep_clearance"))
     observations = load_observations(run_dir / "observations.npz")
-    before = pipeline.VIDEO_THREADS
+    before = figures.VIDEO_THREADS
     try:
         for n in threads:
-            pipeline.VIDEO_THREADS = n
+            figures.VIDEO_THREADS = n
             timed(f"video: its frames in {n} thread(s)",
-                  lambda: sum(1 for _ in pipeline._video_frames(config, states, observations)))
+                  lambda: sum(1 for _ in figures._video_frames(config, states, observations, plan)))
     finally:
-        pipeline.VIDEO_THREADS = before
+        figures.VIDEO_THREADS = before
 
 
 PARTS = {"observe": observe, "replay": replay, "video": video}

@@ -10,7 +10,8 @@ others. Prints the wall time, the encoder's processor time (ffmpeg, a child proc
 PSNR against the frames encoded (every 10th frame) and the file's size.
 
 With ``--render``, first renders the run's video frames as the figures stage does (not encoded)
-in 1 thread and in ``imitate.pipeline.VIDEO_THREADS`` (or in each of ``--threads``), interleaved
+in 1 thread and in ``imitate.stages.figures.VIDEO_THREADS`` (or in each of ``--threads``),
+interleaved
 ``--repeats`` times: the wall time, this process's processor time, and whether the frames are
 those of the first thread count.
 """
@@ -29,11 +30,11 @@ from pathlib import Path
 import imageio.v2 as imageio
 import numpy as np
 
-from imitate import pipeline
-from imitate.artifacts import load_npz
-from imitate.config import RunConfig
 from imitate.envs.video import ENCODER
 from imitate.perception import load_observations
+from imitate.rundir.artifacts import load_npz
+from imitate.stages import figures
+from imitate.stages.config import RunConfig
 
 
 def x264(preset: str, quality: int) -> dict:
@@ -76,18 +77,19 @@ def encode(frames: list[np.ndarray], path: Path, fps: float, settings: dict) -> 
 def render(run_dir: Path, threads: int) -> dict:
     """The run's video frames rendered as the figures stage does, in ``threads`` threads."""
     config = RunConfig.from_json(json.loads((run_dir / "config.json").read_text()))
-    states = load_npz(run_dir / "replay.npz", required=pipeline.STATE_NAMES)
+    states = load_npz(run_dir / "replay.npz")  # the replay and the weight-0 one (sweep0_)
+    plan = load_npz(run_dir / "plan.npz", required=("times", "sweep_clearance"))
     observations = load_observations(run_dir / "observations.npz")
-    pipeline.VIDEO_THREADS, threads_before = threads, pipeline.VIDEO_THREADS
+    figures.VIDEO_THREADS, threads_before = threads, figures.VIDEO_THREADS
     digest = hashlib.sha256()
     cpu, start = time.process_time(), time.perf_counter()
     count = 0
     try:
-        for frame in pipeline._video_frames(config, states, observations):
+        for frame in figures._video_frames(config, states, observations, plan):
             digest.update(frame.tobytes())
             count += 1
     finally:
-        pipeline.VIDEO_THREADS = threads_before
+        figures.VIDEO_THREADS = threads_before
     return {"wall": time.perf_counter() - start, "cpu": time.process_time() - cpu,
             "frames": count, "digest": digest.hexdigest()}
 
@@ -101,7 +103,7 @@ def main() -> None:
     parser.add_argument("--threads", type=int, nargs="+", metavar="N",
                         help="with --render: these thread counts (default: 1 and VIDEO_THREADS)")
     args = parser.parse_args()
-    counts = args.threads or [1, pipeline.VIDEO_THREADS]
+    counts = args.threads or [1, figures.VIDEO_THREADS]
     if min(counts) < 1:
         parser.error(f"--threads {counts} not accepted: counts of at least 1")
     if args.render:

@@ -15,9 +15,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from imitate.artifacts import load_json, load_npz
-from imitate.bic import bic_sweep
 from imitate.errors import ImitateError
+from imitate.learning.bic import bic_sweep
+from imitate.rundir.artifacts import load_json, load_npz
 
 
 def main() -> None:

@@ -21,12 +21,12 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from imitate.artifacts import load_npz
 from imitate.evaluation.suite import Suite
 from imitate.evaluation.trial import physics, plan_variation, replay_once
 from imitate.evaluation.variation import draw, path_points
 from imitate.learning import LearnedModel
 from imitate.models import humanoid, objects
+from imitate.rundir.artifacts import load_npz
 
 
 class Probe:

@@ -20,7 +20,7 @@ import numpy as np
 
 from imitate.envs.pouring import SUCCESS_FRACTION
 from imitate.errors import ImitateError
-from imitate.evaluation.run import last_records
+from imitate.evaluation.evaluate import last_records
 
 
 def _state(r: dict) -> str:

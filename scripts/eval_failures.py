@@ -15,8 +15,8 @@ import sys
 from pathlib import Path
 
 from imitate.errors import ImitateError
+from imitate.evaluation.evaluate import last_records
 from imitate.evaluation.report import place
-from imitate.evaluation.run import last_records
 
 
 def main() -> None:

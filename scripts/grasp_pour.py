@@ -16,7 +16,6 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate.artifacts import load_npz
 from imitate.envs.assembly import GRASP_RANGE, SceneConfig
 from imitate.evaluation.suite import Suite
 from imitate.evaluation.trial import physics, plan_variation, replay_once
@@ -24,6 +23,7 @@ from imitate.evaluation.variation import Variation
 from imitate.learning import LearnedModel
 from imitate.models import objects
 from imitate.motion.metrics import pour_phase_error
+from imitate.rundir.artifacts import load_npz
 
 
 def main() -> None:

@@ -14,15 +14,15 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate import plots
+from imitate.demos.oracle import oracle_model
 from imitate.envs.assembly import GRASP_RANGE, Obstacle, SceneConfig
 from imitate.envs.pouring import PouringEnv
+from imitate.figures import plots
 from imitate.models import humanoid, objects
 from imitate.models.scene import TABLE_HEIGHT
 from imitate.motion import PlanConfig, plan_from_model
 from imitate.motion.metrics import deviation, pour_phase_error
-from imitate.oracle import oracle_model
-from imitate.replay import planning_task, replay
+from imitate.motion.replay import planning_task, replay
 
 
 def run_plan(task, learned, weight: float, max_iter: int):

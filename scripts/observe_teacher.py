@@ -12,12 +12,12 @@ from pathlib import Path
 
 import numpy as np
 
+from imitate.demos.segment import StillnessConfig, save_demos, segment
 from imitate.envs.observation import ObservationConfig
 from imitate.envs.teacher_motion import TeacherConfig
-from imitate.observe import observe
+from imitate.figures.plots import plot_observation, save
 from imitate.perception import save_observations
-from imitate.plots import plot_observation, save
-from imitate.segment import StillnessConfig, save_demos, segment
+from imitate.perception.watch import watch
 
 
 def main(argv=None) -> None:
@@ -36,7 +36,7 @@ def main(argv=None) -> None:
         height=args.height,
     )
     timing = {}
-    observations = observe(config, timing=timing, progress=True)
+    observations = watch(config, timing=timing, progress=True)
     demos = segment(observations.tracks, StillnessConfig())
     save_observations(args.out / "observations.npz", observations)
     save_demos(args.out / "demos.npz", demos, observations.tracks)

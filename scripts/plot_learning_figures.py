@@ -13,12 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate.bic import bic_sweep
-from imitate.gmr import gmr
+from imitate.demos.synthetic import SyntheticConfig, pouring_demos
+from imitate.figures.plots import plot_bic_curves, plot_gmm_with_and_without_dtw, plot_gmr, save
 from imitate.learning import LearningConfig, learn
-from imitate.plots import plot_bic_curves, plot_gmm_with_and_without_dtw, plot_gmr, save
-from imitate.synthetic import SyntheticConfig, pouring_demos
-from imitate.taskspace import TASK_DIMS
+from imitate.learning.bic import bic_sweep
+from imitate.learning.gmr import gmr
+from imitate.motion.taskspace import TASK_DIMS
 
 
 def main() -> None:

@@ -3,7 +3,7 @@ an evaluation (``imitate eval``'s last one of RUN_DIR).
 
 Usage: ``python scripts/pour_margin.py RUN_DIR``. Nothing is re-run: every replay's record holds
 its pour fraction, its spilled particles and where the stream met the glass
-(:mod:`imitate.pour_geometry`).
+(:mod:`imitate.envs.pour_geometry`).
 
 Prints, per teacher, its default run (the three pours and the geometry of the first) and over
 its replays the share that pour below 0.9; then, over all replays, the pour against the share of
@@ -24,7 +24,7 @@ from scipy import stats
 
 from imitate.envs.pouring import SUCCESS_FRACTION
 from imitate.errors import ImitateError
-from imitate.evaluation.run import last_records
+from imitate.evaluation.evaluate import last_records
 
 GEOMETRY = (
     "stream_inside_share", "stream_offset_median_m", "stream_centre_offset_m",

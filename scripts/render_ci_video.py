@@ -17,10 +17,10 @@ import imageio.v3 as iio
 import numpy as np
 from tqdm import tqdm
 
-from imitate.artifacts import write_atomic
 from imitate.envs.pouring import PouringEnv
 from imitate.envs.video import caption, caption_error
 from imitate.models import humanoid, objects
+from imitate.rundir.artifacts import write_atomic
 
 WAVING_JOINTS = {"right_wrist_roll": 0.6, "right_wrist_pitch": 0.5, "right_elbow": 0.25}  # [rad]
 CAPTION = "CI video"

@@ -21,13 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate.artifacts import load_npz
 from imitate.envs.assembly import SceneConfig
 from imitate.learning import LearnedModel
 from imitate.models import humanoid
 from imitate.motion import SIMILARITIES, PlanConfig, plan_from_model
 from imitate.motion.metrics import deviation, pour_phase_error
-from imitate.replay import planning_task
+from imitate.motion.replay import planning_task
+from imitate.rundir.artifacts import load_npz
 
 
 def main() -> None:

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from imitate.cli import main
-from imitate.dtw import align
+from imitate.demos.synthetic import pouring_demos
 from imitate.learning import time_stacked
-from imitate.synthetic import pouring_demos
+from imitate.learning.dtw import align
 
 
 @pytest.fixture(scope="module")

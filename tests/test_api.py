@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 import imitate
-from imitate.config import RunConfig, load_config
 from imitate.learning import LearnedModel
 from imitate.motion import Plan
 from imitate.perception import Observations
 from imitate.run import Demos, Recording
+from imitate.stages.config import RunConfig, load_config
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 MARKER = "<!-- tests/test_api.py runs the next code block -->"

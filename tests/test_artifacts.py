@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from imitate.artifacts import load_json, load_npz, save_json, save_npz, staged, write_atomic
 from imitate.errors import ImitateError
+from imitate.rundir.artifacts import load_json, load_npz, save_json, save_npz, staged, write_atomic
 
 
 def test_npz_round_trip(tmp_path):

@@ -9,10 +9,10 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from imitate.artifacts import load_npz
 from imitate.cli import build_parser, main
-from imitate.config import RunConfig, settings
 from imitate.errors import ImitateError
+from imitate.rundir.artifacts import load_npz
+from imitate.stages.config import RunConfig, settings
 
 NPZ = ("observations.npz", "demos.npz", "model.npz", "plan.npz", "replay.npz")
 FIGURES = (
@@ -146,7 +146,7 @@ def _commands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentPar
 
 
 def test_cli_knows_every_stage_in_order():
-    from imitate.stages import NAMES
+    from imitate.rundir.table import NAMES
 
     assert tuple(_commands(build_parser())) == (*NAMES, "run", "export", "eval", "compare")
 

@@ -6,18 +6,18 @@ from pathlib import Path
 
 import pytest
 
-from imitate import pipeline, provenance
-from imitate.artifacts import save_npz
 from imitate.cli import main
-from imitate.config import RunConfig, load_config
+from imitate.demos.oracle import oracle_model
 from imitate.errors import ImitateError
 from imitate.evaluation import Suite, evaluate, named_suite
 from imitate.evaluation.compare import compare, paired, settings_digest
-from imitate.evaluation.run import RESULTS, last_records
+from imitate.evaluation.evaluate import RESULTS, last_records
 from imitate.evaluation.teachers import teachers
 from imitate.learning import LearningConfig
-from imitate.oracle import oracle_model
-from imitate.replay import planning_task
+from imitate.motion.replay import planning_task
+from imitate.rundir.artifacts import save_npz
+from imitate.stages import provenance, runner
+from imitate.stages.config import RunConfig, load_config
 
 TINY = {"max_iter": 3, "replays": 1, "particles": [4, 6], "obstacle_share": 0.5}
 
@@ -28,7 +28,7 @@ def quick_run(tmp_path_factory) -> Path:
     run_dir = tmp_path_factory.mktemp("run")
     config = RunConfig.quick(n_demos=2)
     for stage in ("observe", "learn"):
-        pipeline.run_stage(stage, run_dir, config)
+        runner.run_stage(stage, run_dir, config)
     return run_dir
 
 
@@ -55,14 +55,14 @@ def test_teachers_are_learned_once_and_reused_on_resume(quick_run, monkeypatch):
         raise AssertionError("a teacher was observed and learned again")
 
     with monkeypatch.context() as patched:
-        patched.setattr(pipeline, "run_stage", learn_again)
+        patched.setattr(runner, "run_stage", learn_again)
         again = teachers(quick_run, out, 2)
     assert [t.model_bytes for t in again] == [t.model_bytes for t in first]
     assert again[1].default_run["pour_fractions"]  # the teacher's default scene, replayed
     ran = []
     with monkeypatch.context() as patched:  # other code: the teacher is learned again
         patched.setattr(provenance, "code_digest", lambda: "other code")
-        patched.setattr(pipeline, "run_stage", lambda stage, *args, **kw: ran.append(stage))
+        patched.setattr(runner, "run_stage", lambda stage, *args, **kw: ran.append(stage))
         teachers(quick_run, out, 2)
     assert ran == ["observe", "learn", "optimize", "replay"]
     (folder / "model.npz").write_bytes(b"not the model learn wrote")
@@ -79,7 +79,7 @@ def test_eval_reports_each_teacher_and_resumes_without_learning(quick_run, monke
     records = last_records(quick_run)
     assert [(r["teacher"], r["id"]) for r in records] == [(0, 0), (0, 1), (1, 0), (1, 1)]
     assert len({r["digest"] for r in records}) == 2  # one per teacher's model
-    monkeypatch.setattr(pipeline, "run_stage", lambda *a, **k: pytest.fail("learned again"))
+    monkeypatch.setattr(runner, "run_stage", lambda *a, **k: pytest.fail("learned again"))
     again = evaluate(quick_run, suite, n=2, n_teachers=2, workers=1, videos=0)
     assert again["run"]["ran"] == 0 and again["suite_digest"] == summary["suite_digest"]
 

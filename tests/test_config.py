@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from imitate.cli import main
-from imitate.config import MAX_WEIGHT, VIDEO_BLOCK, RunConfig, parse_obstacle
 from imitate.envs.video import write_video
 from imitate.errors import ImitateError
+from imitate.stages.config import MAX_WEIGHT, VIDEO_BLOCK, RunConfig, parse_obstacle
 
 
 @pytest.mark.parametrize(

@@ -83,7 +83,7 @@ import cv2  # OpenCV adds its folder to LD_LIBRARY_PATH when first imported
 import matplotlib
 environ, backend = dict(os.environ), matplotlib.rcParams._get("backend")
 import gymnasium as gym
-import imitate, imitate.pipeline
+import imitate, imitate.stages.runner
 env = gym.make("imitate:imitate/Pouring-v0", render_mode="rgb_array", width=96, height=72,
                particles=0)
 env.reset(seed=0)

@@ -9,8 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from imitate.dtw import align, default_weights, dtw, local_costs, warp_to_reference
 from imitate.errors import ImitateError
+from imitate.learning.dtw import align, default_weights, dtw, local_costs, warp_to_reference
 
 
 def _reference(a: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray]:

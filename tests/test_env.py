@@ -11,7 +11,7 @@ from imitate.envs.pouring import PouringEnv
 from imitate.errors import ImitateError
 from imitate.models import humanoid
 from imitate.motion import Plan
-from imitate.replay import replay
+from imitate.motion.replay import replay
 
 SMALL = {"width": 96, "height": 72, "particles": 20}
 

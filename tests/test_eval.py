@@ -13,20 +13,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imitate import provenance
-from imitate.artifacts import save_npz
 from imitate.cli import main
+from imitate.demos.oracle import oracle_model
 from imitate.errors import ImitateError
 from imitate.evaluation import Suite, evaluate, load_suite
+from imitate.evaluation.evaluate import RESULTS, last_records, read_records
 from imitate.evaluation.report import summarize, text, wilson
-from imitate.evaluation.run import RESULTS, last_records, read_records
 from imitate.evaluation.suite import KEYS
 from imitate.evaluation.trial import classify
 from imitate.evaluation.variation import Variation, draw
 from imitate.learning import LearningConfig
 from imitate.models.scene import TABLE_HEIGHT
-from imitate.oracle import oracle_model
-from imitate.replay import planning_task
+from imitate.motion.replay import planning_task
+from imitate.rundir.artifacts import save_npz
+from imitate.stages import provenance
 
 README = Path(__file__).parents[1] / "README.md"
 # Three variations that run in seconds: few particles, a short optimization, two replays.

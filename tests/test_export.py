@@ -22,7 +22,7 @@ from imitate.envs.rendering import make_renderer
 from imitate.export import export, to_hdf5, to_lerobot, to_minari
 from imitate.export.episodes import OBJECTS, robot_episode, teacher_episodes
 from imitate.models import humanoid
-from imitate.replay import replay
+from imitate.motion.replay import replay
 from imitate.run import load_run
 
 

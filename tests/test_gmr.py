@@ -8,11 +8,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from imitate.demos.synthetic import pouring_demos
 from imitate.errors import ImitateError
-from imitate.gmm import GMM
-from imitate.gmr import gmr
 from imitate.learning import LearningConfig, learn
-from imitate.synthetic import pouring_demos
+from imitate.learning.gmm import GMM
+from imitate.learning.gmr import gmr
 
 
 def _random_gmm(rng: np.random.Generator, k: int, n_dims: int) -> GMM:

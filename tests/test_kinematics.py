@@ -11,8 +11,8 @@ import pytest
 
 from imitate.envs import assembly
 from imitate.errors import ImitateError
-from imitate.kinematics import Kinematics
 from imitate.models import humanoid, objects
+from imitate.motion.kinematics import Kinematics
 
 H = 1e-6  # central-difference step [rad]
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from sklearn.cluster import KMeans
 
-from imitate.kmeans import _assign_all, _lloyd, kmeans
+from imitate.learning.kmeans import _assign_all, _lloyd, kmeans
 
 
 def test_kmeans_matches_sklearn_on_blobs():

@@ -8,6 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from imitate.demos.oracle import oracle_model
 from imitate.envs.assembly import Obstacle, SceneConfig
 from imitate.errors import ImitateError
 from imitate.learning import LearningConfig
@@ -30,9 +31,8 @@ from imitate.motion.approach import (
     bend_approach,
 )
 from imitate.motion.optimizer import _PUSH_SCALE, _TOLERANCE
-from imitate.oracle import oracle_model
-from imitate.replay import planning_task
-from imitate.taskspace import gaze_frame, object_orientation, task_space
+from imitate.motion.replay import planning_task
+from imitate.motion.taskspace import gaze_frame, object_orientation, task_space
 
 DT = 0.1  # coarse steps keep the finite-difference sweeps fast
 

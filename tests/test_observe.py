@@ -13,7 +13,6 @@ from imitate.envs import observation
 from imitate.envs.assembly import SceneConfig, build_model
 from imitate.envs.teacher_motion import TeacherConfig
 from imitate.errors import ImitateError
-from imitate.observe import cameras, ground_truth, observe
 from imitate.perception import (
     ColourRange,
     ObjectModel,
@@ -23,6 +22,7 @@ from imitate.perception import (
     perception_config,
     track,
 )
+from imitate.perception.watch import cameras, ground_truth, watch
 
 
 @pytest.fixture(scope="module")
@@ -118,7 +118,7 @@ def test_observe_tracks_the_whole_session_with_its_truth_and_timing():
         teacher=TeacherConfig(n_demos=2, seed=1), width=160, height=120, fps=5
     )
     timing = {}
-    observed = observe(config, timing=timing)
+    observed = watch(config, timing=timing)
     tracks, truth = observed.tracks, observed.truth
     n = len(tracks.times)
     assert timing["pairs"] == n and timing["render"] > 0 and timing["track"] > 0

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from imitate.envs import assembly, teacher_motion
+from imitate.envs.pour_geometry import PourGeometry
 from imitate.envs.pouring import PouringEnv, _inside
 from imitate.models import objects
-from imitate.pour_geometry import PourGeometry
 
 
 @pytest.fixture(scope="module")

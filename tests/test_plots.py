@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from imitate import drawing, plots
+from imitate.figures import drawing, plots
 
 
 def test_a_figure_drawn_by_the_drawing_process_is_the_one_saved_here(tmp_path):

@@ -5,10 +5,10 @@ import json
 from html.parser import HTMLParser
 from pathlib import Path
 
-from imitate import stages
-from imitate.config import RunConfig
 from imitate.evaluation.report import summarize
-from imitate.report_html import CAPTIONS, save_eval_page, save_run_page
+from imitate.rundir import table
+from imitate.rundir.page import CAPTIONS, save_eval_page, save_run_page
+from imitate.stages.config import RunConfig
 
 
 class References(HTMLParser):
@@ -37,10 +37,10 @@ def references(page: Path) -> References:
 
 
 def test_run_page_links_every_artifact_and_shows_the_key_numbers(quick_run):
-    found = references(quick_run / stages.PAGE)
-    report = json.loads((quick_run / stages.REPORT).read_text())
+    found = references(quick_run / table.PAGE)
+    report = json.loads((quick_run / table.REPORT).read_text())
     assert set(report["artifacts"].values()) <= set(found.paths)
-    assert {f"figures/{name}.png" for name in stages.FIGURES} <= set(found.paths)
+    assert {f"figures/{name}.png" for name in table.FIGURES} <= set(found.paths)
     assert "video.mp4" in found.paths
     text = " ".join(found.text)
     opt, replay = report["optimization"], report["replay"]
@@ -56,7 +56,7 @@ def test_run_page_links_every_artifact_and_shows_the_key_numbers(quick_run):
 
 def test_partial_run_has_a_page_of_what_exists(tmp_path):
     report = {
-        "schema": stages.REPORT_SCHEMA, "seed": 4,
+        "schema": table.REPORT_SCHEMA, "seed": 4,
         "demos": {"detected": 5, "expected": 5, "boundary_err_s_max": 0.07},
         "perception": {"pos_err_mm_median": 4.2, "pos_err_mm_p95": 11.9},
         "timings": {"observe": 15.4},
@@ -98,4 +98,4 @@ def test_eval_page_links_its_files_and_failure_videos(tmp_path):
 
 
 def test_every_figure_has_a_caption():
-    assert set(CAPTIONS) == set(stages.FIGURES)
+    assert set(CAPTIONS) == set(table.FIGURES)

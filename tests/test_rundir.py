@@ -17,10 +17,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imitate import drawing, provenance, stages
 from imitate.cli import main
-from imitate.config import load_config
-from imitate.rundir import LOCK, locked
+from imitate.errors import ImitateError
+from imitate.figures import drawing
+from imitate.rundir import table
+from imitate.rundir.lock import LOCK, locked
+from imitate.stages import provenance
+from imitate.stages.config import load_config
 
 
 def snapshot(directory):
@@ -43,12 +46,12 @@ def one_error_line(err: str, command: str) -> str:
 
 def test_the_quick_run_is_recorded_consistently(quick_run):
     manifest = provenance.load(quick_run)
-    assert list(manifest) == list(stages.NAMES)
+    assert list(manifest) == list(table.NAMES)
     assert manifest["learn"]["inputs"]["demos.npz"] == manifest["observe"]["outputs"]["demos.npz"]
     for name, digest in manifest["figures"]["outputs"].items():
         assert provenance.digest(quick_run / name) == digest, name
     config = load_config(quick_run)
-    assert provenance.stale(quick_run, stages.find("figures"), config, manifest) == []
+    assert provenance.stale(quick_run, table.find("figures"), config, manifest) == []
     assert not (quick_run / LOCK).exists()
 
 
@@ -77,7 +80,7 @@ def test_1_lock_of_a_killed_process_is_no_obstacle(run_dir):
 
 
 def test_1_writers_of_one_file_do_not_share_a_temporary_name(tmp_path):
-    from imitate.artifacts import load_json, save_json, write_atomic
+    from imitate.rundir.artifacts import load_json, save_json, write_atomic
 
     path = tmp_path / "report.json"
 
@@ -146,12 +149,12 @@ def test_4_corrupt_report_is_found_before_the_stage_runs(run_dir, capsys):
 
 
 def test_4_stage_failing_after_it_wrote_leaves_nothing(run_dir, monkeypatch, capsys):
-    from imitate import pipeline
+    from imitate.stages import figures
 
     def fails(*args, **kwargs):
-        raise pipeline.ImitateError("the encoder broke")
+        raise ImitateError("the encoder broke")
 
-    monkeypatch.setattr(pipeline, "write_video", fails)  # after the seven figures
+    monkeypatch.setattr(figures, "write_video", fails)  # after the seven figures
     before = snapshot(run_dir)
     assert main(["figures", str(run_dir)]) == 1
     assert "the encoder broke" in one_error_line(capsys.readouterr().err, "figures")

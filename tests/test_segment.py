@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
+from imitate.demos.segment import StillnessConfig, load_demos, save_demos, segment
 from imitate.envs.observation import tracked_point
 from imitate.envs.teacher_motion import TeacherConfig, script_demonstrations
 from imitate.errors import ImitateError
 from imitate.perception import Tracks, axis_angle
-from imitate.segment import StillnessConfig, load_demos, save_demos, segment
 
 # Gaze frame of a camera looking along +x, level: columns right, down, forward.
 GAZE = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])

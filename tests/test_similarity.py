@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from imitate.demos.oracle import oracle_model
 from imitate.errors import ImitateError
 from imitate.learning import LearningConfig
 from imitate.models import humanoid
@@ -18,8 +19,7 @@ from imitate.motion import (
     weighting,
 )
 from imitate.motion.optimizer import _TOLERANCE
-from imitate.oracle import oracle_model
-from imitate.replay import planning_task
+from imitate.motion.replay import planning_task
 
 W_MAX = np.array([4.0, 1.0])
 SIGMA_MAX = np.array([2.0, 0.5])

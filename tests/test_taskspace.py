@@ -10,8 +10,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from imitate.errors import ImitateError
-from imitate.kinematics import Kinematics
-from imitate.taskspace import TaskMap, gaze_frame, object_orientation, task_space
+from imitate.motion.kinematics import Kinematics
+from imitate.motion.taskspace import TaskMap, gaze_frame, object_orientation, task_space
 
 N_LINKS = 3  # hinges per object chain
 H = 1e-6  # central-difference step [rad]

@@ -9,8 +9,6 @@ import mujoco
 import numpy as np
 import pytest
 
-from imitate.artifacts import load_npz
-from imitate.config import load_config
 from imitate.envs.assembly import build_model
 from imitate.envs.observation import camera_parameters
 from imitate.envs.rendering import interleaved
@@ -27,7 +25,10 @@ from imitate.envs.video import (
 from imitate.errors import ImitateError
 from imitate.models import objects
 from imitate.models import scene as scene_names
-from imitate.pipeline import ROBOT_CAPTION, STATE_NAMES, TEACHER_CAPTION
+from imitate.rundir.artifacts import load_npz
+from imitate.stages.config import load_config
+from imitate.stages.figures import ROBOT_CAPTION, TEACHER_CAPTION
+from imitate.stages.replay import STATE_NAMES
 
 LONG = "teacher demonstrates (3x); inset: robot's eye, tracking"
 

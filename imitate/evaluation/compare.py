@@ -23,14 +23,15 @@ import numpy as np
 from matplotlib.figure import Figure
 from scipy import stats
 
-from imitate import plots, provenance
-from imitate.artifacts import save_json, write_atomic
 from imitate.errors import ImitateError
+from imitate.evaluation.evaluate import RESULTS, Draw, check_counts, draw_jobs, run_jobs
 from imitate.evaluation.report import wilson
-from imitate.evaluation.run import RESULTS, Draw, check_counts, draw_jobs, run_jobs
 from imitate.evaluation.suite import Suite
 from imitate.evaluation.teachers import teachers
+from imitate.figures import plots
 from imitate.motion import SIMILARITIES
+from imitate.rundir.artifacts import save_json, write_atomic
+from imitate.stages import provenance
 
 __all__ = ["compare", "markdown", "paired", "settings_digest"]
 
@@ -55,7 +56,7 @@ def compare(
 
     Raises:
         ImitateError: an unknown or repeated weighting, fewer than two, or what
-            :func:`~imitate.evaluation.run.evaluate` refuses.
+            :func:`~imitate.evaluation.evaluate.evaluate` refuses.
     """
     similarities = tuple(similarities)
     unknown = [s for s in similarities if s not in SIMILARITIES]

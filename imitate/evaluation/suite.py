@@ -204,7 +204,7 @@ class Suite:
     def digest(self, seed: int, model: bytes, code: str) -> str:
         """Identifies the results of the variations this suite draws: sha256 (16 hex digits) of
         its values (but ``variations``: a longer evaluation extends a shorter one), ``seed``, the
-        learned model's bytes and ``code`` (:func:`imitate.provenance.code_digest`: records
+        learned model's bytes and ``code`` (:func:`imitate.stages.provenance.code_digest`: records
         made by other code are not reused)."""
         values = {k: v for k, v in self.to_json().items() if k != "variations"}
         text = json.dumps({"suite": values, "seed": seed, "code": code}, sort_keys=True)

@@ -5,7 +5,8 @@ A run's learned model is one teacher's (its ``seed``). Teacher ``s`` is the same
 Each is a run directory of its own, ``<out>/teachers/seed-<s>/``, made by the ``observe``,
 ``learn``, ``optimize`` and ``replay`` stages under its lock (the teacher's default run, but its
 figures), so that an evaluation that stops keeps the teachers it has learned, and one that starts
-again reuses every stage whose outputs' provenance still holds (see :mod:`imitate.provenance`)
+again reuses every stage whose outputs' provenance still holds (see
+:mod:`imitate.stages.provenance`)
 and that the same code made (``code.json``: a change of the teacher's script, say, changes what
 it demonstrates); the run's own seed is the run's ``model.npz`` and ``report.json``.
 """
@@ -18,12 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate import provenance, stages
-from imitate.artifacts import load_json, load_npz, save_json
-from imitate.config import RunConfig, load_config
 from imitate.errors import ImitateError
 from imitate.learning import LearnedModel
-from imitate.rundir import locked
+from imitate.rundir import table
+from imitate.rundir.artifacts import load_json, load_npz, save_json
+from imitate.rundir.lock import locked
+from imitate.stages import provenance
+from imitate.stages.config import RunConfig, load_config
 
 __all__ = ["MAX_TEACHERS", "Teacher", "teacher_seeds", "teachers"]
 
@@ -93,7 +95,7 @@ _STAGES = (("observe", "learn"), ("learn", "optimize"), ("optimize", "replay"),
 def _prepare(folder: Path, config: RunConfig) -> None:
     """Run the teacher's stages in ``folder`` from the first whose outputs are missing or do not
     follow from ``config`` and the outputs before them."""
-    from imitate.pipeline import run_stage  # the stages' code: only where a teacher is learned
+    from imitate.stages.runner import run_stage  # the stages' code: only where a teacher is learned
 
     folder.parent.mkdir(parents=True, exist_ok=True)
     command = f"imitate eval (teacher seed {config.seed})"
@@ -119,12 +121,12 @@ def _json(path: Path):
 def _fresh(folder: Path, name: str, reader: str, config: RunConfig) -> bool:
     """Whether stage ``name``'s outputs in ``folder`` are there and follow from ``config`` (as
     stage ``reader``, which reads them, checks its inputs)."""
-    written = [f for f in stages.find(name).writes if f != "config.json"]
+    written = [f for f in table.find(name).writes if f != "config.json"]
     if not all((folder / f).is_file() for f in written):
         return False
     try:
         manifest = provenance.load(folder)
-        return not provenance.stale(folder, stages.find(reader), config, manifest)
+        return not provenance.stale(folder, table.find(reader), config, manifest)
     except ImitateError:
         return False
 
@@ -132,7 +134,7 @@ def _fresh(folder: Path, name: str, reader: str, config: RunConfig) -> bool:
 def _read(seed: int, path: Path) -> Teacher:
     stored = load_npz(path, required=(*LearnedModel.array_names(), "gaze"))
     arrays = {k: stored[k] for k in (*LearnedModel.array_names(), "gaze")}
-    report_path = path.parent / stages.REPORT
+    report_path = path.parent / table.REPORT
     report = load_json(report_path) if report_path.is_file() else {}
     default_run = report.get("replay") if isinstance(report, dict) else None
     return Teacher(seed, path, arrays, path.read_bytes(), default_run)

@@ -22,14 +22,14 @@ import mujoco
 import numpy as np
 
 from imitate.envs.assembly import SceneConfig
+from imitate.envs.pour_geometry import PourGeometry
 from imitate.envs.pouring import SUCCESS_FRACTION, PouringEnv
 from imitate.evaluation.variation import Variation
 from imitate.learning import LearnedModel
 from imitate.models import humanoid, objects
 from imitate.motion import Plan, PlanConfig, plan_from_model
 from imitate.motion.metrics import pour_phase_error, task_change
-from imitate.pour_geometry import PourGeometry
-from imitate.replay import planning_task, replay
+from imitate.motion.replay import planning_task, replay
 
 __all__ = ["OUTCOMES", "Trial", "classify", "physics", "plan_variation", "replay_once"]
 

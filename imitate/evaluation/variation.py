@@ -22,7 +22,7 @@ from imitate.learning import LearnedModel
 from imitate.models import humanoid, objects
 from imitate.models.scene import TABLE_HEIGHT, TABLE_X, TABLE_Y
 from imitate.motion import PlanConfig, plan_from_model
-from imitate.replay import planning_task
+from imitate.motion.replay import planning_task
 
 __all__ = ["Variation", "draw", "path_points"]
 

@@ -1,7 +1,8 @@
 """A run's episodes: the robot's reproduction replayed in ``PouringEnv``, and the teacher's
 demonstrations.
 
-The robot's episode is a real sequence of env transitions: :func:`imitate.replay.replay` drives a
+The robot's episode is a real sequence of env transitions: :func:`imitate.motion.replay.replay`
+drives a
 ``PouringEnv`` along the run's plan exactly as the replay stage does (same settings, seed and
 grasps) while :class:`Recorder` keeps what every ``reset`` and ``step`` returned.
 
@@ -21,15 +22,15 @@ import gymnasium as gym
 import numpy as np
 
 from imitate import ENV_ID
-from imitate.artifacts import load_npz
+from imitate.demos.segment import task_demo
 from imitate.envs.observation import EYES, ObservationConfig, frames, session
 from imitate.envs.pouring import PouringEnv
 from imitate.envs.teacher_motion import script_demonstrations
 from imitate.models import humanoid, objects
-from imitate.replay import replay
+from imitate.motion.replay import replay
+from imitate.motion.taskspace import TASK_DIMS
 from imitate.run import Run
-from imitate.segment import task_demo
-from imitate.taskspace import TASK_DIMS
+from imitate.rundir.artifacts import load_npz
 
 __all__ = ["Episode", "Recorder", "robot_episode", "teacher_episodes"]
 
@@ -75,7 +76,7 @@ class Episode:
 class Recorder(gym.Wrapper):
     """Keeps what every ``reset`` and ``step`` of the wrapped ``PouringEnv`` returned.
 
-    :func:`imitate.replay.replay` drives it as it would the env: the env's own attributes
+    :func:`imitate.motion.replay.replay` drives it as it would the env: the env's own attributes
     (``dt``, ``data``, ``config``, ``joint_positions``) are read through.
     """
 

@@ -9,7 +9,7 @@ that implements it):
 ``K``           attractors (every 0.15 s, or one per GMM component); ``a`` ``(K, m)`` points
 ``c_t``         null-space push ``(n,)`` [1/rad] (:mod:`.control`), ``(K, n)`` per attractor
 ``x_t``         target (attractor) trajectory ``x = S_x s_0 + Psi a`` (:mod:`.attractors`)
-``phi(q)``      task map (:class:`imitate.taskspace.TaskMap`); ``J`` its Jacobian ``(m, n)``
+``phi(q)``      task map (:class:`imitate.motion.taskspace.TaskMap`); ``J`` its Jacobian ``(m, n)``
 ``J#``          weighted damped pseudo-inverse of ``J``
 ``q_t``         joint angles from resolved motion rate control (:mod:`.control`)
 ``mu_t``        GMR mean; ``sigma_t`` GMR variance; ``W_t`` similarity weights (:mod:`.costs`)

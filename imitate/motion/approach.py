@@ -27,7 +27,7 @@ from scipy.optimize import minimize
 
 from imitate.motion.control import SAMPLE_STEP, ControlConfig, JointLimitCost, rollout
 from imitate.motion.costs import potential
-from imitate.taskspace import TaskMap
+from imitate.motion.taskspace import TaskMap
 
 __all__ = [
     "START_ZONE", "approach_clearance", "approach_cost", "approach_path", "bend_approach",

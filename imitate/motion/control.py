@@ -13,7 +13,7 @@ null-space step descends ``H(q) - c_t . q``, moving the body without changing th
 clipped to the joint ranges, and each clip is counted.
 
 The task map ``phi`` and its Jacobian are eq. 1 on the held objects,
-:class:`imitate.taskspace.TaskMap`.
+:class:`imitate.motion.taskspace.TaskMap`.
 """
 
 from __future__ import annotations
@@ -23,10 +23,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imitate import _planner
 from imitate.errors import ImitateError
-from imitate.kinematics import Distances, Kinematics
-from imitate.taskspace import TaskFrame, TaskMap
+from imitate.motion import _planner
+from imitate.motion.kinematics import Distances, Kinematics
+from imitate.motion.taskspace import TaskFrame, TaskMap
 
 __all__ = [
     "SAMPLE_STEP",

@@ -24,7 +24,6 @@ import numpy as np
 from scipy.optimize import minimize
 
 from imitate.errors import ImitateError
-from imitate.kinematics import Kinematics
 from imitate.motion.approach import approach_clearance, bend_approach, clear_start
 from imitate.motion.attractors import AttractorDynamics
 from imitate.motion.control import (
@@ -45,8 +44,9 @@ from imitate.motion.costs import (
     Similarity,
     weighting,
 )
+from imitate.motion.kinematics import Kinematics
 from imitate.motion.plan import Plan
-from imitate.taskspace import TaskMap
+from imitate.motion.taskspace import TaskMap
 
 if TYPE_CHECKING:
     from imitate.learning import LearnedModel

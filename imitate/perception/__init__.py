@@ -5,7 +5,7 @@
 :mod:`~imitate.perception.tracker` (the stereo tracker; its docstring describes the method),
 :mod:`~imitate.perception.tracks` (tracks over a sequence, gaps, ``observations.npz``).
 Nothing here knows the simulation: images and camera parameters come in as arrays
-(:mod:`imitate.observe` wires it to the simulated session).
+(:mod:`imitate.perception.watch` wires it to the simulated session).
 """
 
 from imitate.perception.camera import PinholeCamera, axis_angle, gaze_frame, triangulate

@@ -80,7 +80,8 @@ def gaze_frame(camera: PinholeCamera) -> np.ndarray:
     """The gaze frame ``(3, 3)`` of ``camera``: columns right, ``forward x right``, forward.
 
     The middle column points down the image (OpenCV's y). The frame is right-handed, as
-    ``imitate.taskspace`` requires, and its columns are the camera's axes in world coordinates.
+    ``imitate.motion.taskspace`` requires, and its columns are the camera's axes in world
+    coordinates.
     """
     return camera.rotation.T.copy()
 

@@ -16,11 +16,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from imitate.artifacts import load_npz, save_npz
 from imitate.errors import ImitateError
 from imitate.perception.camera import axis_angle, gaze_frame
 from imitate.perception.colour import ObjectModel
 from imitate.perception.tracker import PerceptionConfig, StereoTracker
+from imitate.rundir.artifacts import load_npz, save_npz
 
 
 @dataclass(frozen=True)

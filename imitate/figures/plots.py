@@ -19,10 +19,10 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Ellipse
 
-from imitate.artifacts import write_atomic
-from imitate.gmm import GMM
 from imitate.learning import LearnedModel
-from imitate.taskspace import TASK_DIMS, TASK_UNITS
+from imitate.learning.gmm import GMM
+from imitate.motion.taskspace import TASK_DIMS, TASK_UNITS
+from imitate.rundir.artifacts import write_atomic
 
 DPI = 110  # dots per inch of the saved figures; Fig. 8 shows its snapshots at their pixel size
 LOOSE = 0.1  # Fig. 9 marks the steps whose similarity weight is below this share of its largest
@@ -68,7 +68,7 @@ def plot_gmm_with_and_without_dtw(raw: LearnedModel, aligned: LearnedModel, dim:
     Args:
         raw: Model learned without DTW (``LearningConfig(use_dtw=False)``).
         aligned: Model learned with DTW.
-        dim: Task-space dimension to show (index into :data:`imitate.taskspace.TASK_DIMS`).
+        dim: Task-space dimension to show (index into :data:`imitate.motion.taskspace.TASK_DIMS`).
 
     Returns:
         The figure.
@@ -324,5 +324,5 @@ def save_png(data: bytes, path) -> None:
 
 def use_agg() -> None:
     """Draw with Agg, matplotlib's raster backend, display or not (as the drawing worker process
-    does, :mod:`imitate.drawing`)."""
+    does, :mod:`imitate.figures.drawing`)."""
     matplotlib.use("Agg")

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from imitate.errors import ImitateError
-from imitate.gmm import GMM, exp_flushed
+from imitate.learning.gmm import GMM, exp_flushed
 
 __all__ = ["gmr"]
 
@@ -38,8 +38,8 @@ def gmr(
     """Conditional mean and covariance of the outputs given the inputs at every query.
 
     Args:
-        gmm: A fitted :class:`~imitate.gmm.GMM` over ``D`` dimensions (``weights_``, ``means_``,
-            ``covariances_``).
+        gmm: A fitted :class:`~imitate.learning.gmm.GMM` over ``D`` dimensions (``weights_``,
+            ``means_``, ``covariances_``).
         t: Query inputs, shape ``(T,)`` for one input dimension or ``(T, len(in_dims))``, in the
             units of the input dimensions (time [s] for the paper).
         in_dims: Indices of the input dimensions, distinct, in ``[0, D)``, not all of them.

@@ -397,7 +397,8 @@ def kmeans(
 
     Every start grows a chain of clusterings ``1, 2, ..., n_clusters``, each seeded by the
     previous optimum plus one k-means++ centre (see :func:`_kmeans_sweep`), so that ``kmeans(X,
-    K)`` is exactly the ``K``-th clustering of the full BIC sweep :func:`imitate.bic.bic_sweep`. A
+    K)`` is exactly the ``K``-th clustering of the full BIC sweep
+    :func:`imitate.learning.bic.bic_sweep`. A
     single K-means run can stall in a poor local optimum, which makes a BIC curve built from
     K-means alone jagged; the best of ``n_init`` independent chains (lowest inertia) guards
     against that.

@@ -15,12 +15,12 @@ import numpy as np
 from imitate.envs import assembly
 from imitate.envs.pouring import PouringEnv
 from imitate.errors import ImitateError
-from imitate.kinematics import Kinematics
 from imitate.models import humanoid, objects
 from imitate.motion import Plan
 from imitate.motion.approach import approach_path
 from imitate.motion.control import ControlConfig
-from imitate.taskspace import TaskMap, task_space
+from imitate.motion.kinematics import Kinematics
+from imitate.motion.taskspace import TaskMap, task_space
 
 GAZE_CAMERA = humanoid.LEFT_EYE
 

@@ -50,11 +50,11 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from imitate import _planner
 from imitate.errors import ImitateError
+from imitate.motion import _planner
 
 if TYPE_CHECKING:
-    from imitate.kinematics import Kinematics
+    from imitate.motion.kinematics import Kinematics
 
 __all__ = [
     "SINGULAR_TOL",
@@ -215,7 +215,7 @@ class TaskMap:
     rotational Jacobians of ``o_b`` and ``o_g`` instead: two MuJoCo calls, not four). The
     objects' frames give ``o`` (origin) and ``a`` (``z`` axis), as for :func:`task_space`. It
     runs in the planner's inner loop: :meth:`evaluate` and :meth:`curvature` are compiled
-    (:mod:`imitate._planner`) around MuJoCo's Jacobians.
+    (:mod:`imitate.motion._planner`) around MuJoCo's Jacobians.
 
     Args:
         kin: The kinematics (its held objects give the bottle and glass poses).

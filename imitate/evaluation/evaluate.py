@@ -27,15 +27,17 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from imitate import plots, provenance, report_html
-from imitate.artifacts import save_json
 from imitate.errors import ImitateError
 from imitate.evaluation.parallel import Job, run_local, run_ray
 from imitate.evaluation.report import failure_video, plot_outcomes, summarize, summarize_teachers
 from imitate.evaluation.suite import Suite
 from imitate.evaluation.teachers import Teacher, teachers
 from imitate.evaluation.variation import Variation, draw, path_points
+from imitate.figures import plots
 from imitate.learning import LearnedModel
+from imitate.rundir import page
+from imitate.rundir.artifacts import save_json
+from imitate.stages import provenance
 
 __all__ = [
     "Draw", "check_counts", "draw_jobs", "evaluate", "last_records", "read_records", "run_jobs",
@@ -93,7 +95,7 @@ def evaluate(
         if not video.exists():
             t = record["teacher"]
             failure_video(video, learned[t], gaze[t], record)
-    report_html.save_eval_page(out, summary)
+    page.save_eval_page(out, summary)
     return summary
 
 

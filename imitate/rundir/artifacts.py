@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from imitate.errors import ImitateError
-from imitate.stages import REPORT, producer
+from imitate.rundir.table import REPORT, producer
 
 __all__ = [
     "Arrays", "Staging", "load_json", "load_npz", "remove_temporary", "save_json", "save_npz",

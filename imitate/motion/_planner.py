@@ -1,7 +1,7 @@
 """The planner's inner loops over the task map and the RMR step, compiled (numba).
 
-:class:`imitate.taskspace.TaskMap` and :mod:`imitate.motion.control` run these once per step of
-every rollout and of every backward pass; in NumPy, the call overhead of some forty small array
+:class:`imitate.motion.taskspace.TaskMap` and :mod:`imitate.motion.control` run these once per step
+of every rollout and of every backward pass; in NumPy, the call overhead of some forty small array
 operations per step was most of the planner's time. Between the kernels, MuJoCo computes the
 kinematics and the point Jacobians and their rates.
 
@@ -15,6 +15,10 @@ import math
 
 import numba
 import numpy as np
+
+from imitate import numba_cache
+
+numba_cache.ensure_writable()  # before the kernels below are declared
 
 # Points of the task map: the bottle's and the glass's origin ``o``, then ``o + a`` with ``a``
 # each one's long axis (its frame's z axis).

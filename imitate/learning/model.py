@@ -1,10 +1,11 @@
 """The learning stage (paper section IV and V-A): demonstrations -> GMR mean and variance over time.
 
-Task-space demonstrations are aligned by DTW onto the medoid (:mod:`imitate.dtw`), time is
+Task-space demonstrations are aligned by DTW onto the medoid (:mod:`imitate.learning.dtw`), time is
 prepended as the first dimension, the number of components is chosen by BIC
-(:func:`imitate.bic.bic_sweep`), a GMM is trained by EM from the sweep's K-means start of that
-``K`` (:class:`imitate.gmm.GMM`; the clustering is not repeated) and conditioned on time by GMR
-(:func:`imitate.gmr.gmr`).
+(:func:`imitate.learning.bic.bic_sweep`), a GMM is trained by EM from the sweep's K-means start of
+that
+``K`` (:class:`imitate.learning.gmm.GMM`; the clustering is not repeated) and conditioned on time
+by GMR (:func:`imitate.learning.gmr.gmr`).
 """
 
 from __future__ import annotations
@@ -15,11 +16,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from imitate.bic import DEFAULT_BIC, bic_sweep
-from imitate.dtw import Alignment, align
 from imitate.errors import ImitateError
-from imitate.gmm import GMM
-from imitate.gmr import gmr
+from imitate.learning.bic import DEFAULT_BIC, bic_sweep
+from imitate.learning.dtw import Alignment, align
+from imitate.learning.gmm import GMM
+from imitate.learning.gmr import gmr
 
 __all__ = ["LearnedModel", "LearningConfig", "learn", "time_stacked"]
 
@@ -32,7 +33,7 @@ class LearningConfig:
         n_components: Fixed number of GMM components; ``None`` chooses it by BIC.
         k_max: Largest number of components tried by the BIC sweep.
         bic_method: ``"full"`` (EM for every K, the default) or ``"fast"`` (the paper's K-means
-            heuristic), see :data:`imitate.bic.BIC_METHODS`.
+            heuristic), see :data:`imitate.learning.bic.BIC_METHODS`.
         use_dtw: Align the demonstrations by DTW (``False`` reproduces Fig. 4, left: each
             demonstration keeps its own time axis).
         dtw_weights: Per-dimension DTW scale factors, shape ``(n_dims,)``; ``None`` for the
@@ -87,7 +88,7 @@ class LearnedModel:
         Args:
             t: Query times [s], finite.
             covariance: ``"paper"`` (eq. 18, as :func:`learn` computes :attr:`covariance` by
-                default) or ``"total"``, see :func:`imitate.gmr.gmr`.
+                default) or ``"total"``, see :func:`imitate.learning.gmr.gmr`.
 
         Returns:
             ``(mean, covariance)``: ``mu_hat_t`` of shape ``(T, n_dims)`` and ``(T, n_dims,

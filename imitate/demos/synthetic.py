@@ -12,7 +12,7 @@ canonical movement over a phase variable ``s`` in [0, 1]:
 Each demonstration runs the canonical movement through its own smooth, monotone time warp and
 has its own duration, so raw demonstrations disagree in time (Fig. 4, left) until DTW aligns
 them. Object positions and long axes are generated in the world frame and mapped through
-:func:`imitate.taskspace.task_space`.
+:func:`imitate.motion.taskspace.task_space`.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from imitate.errors import ImitateError
-from imitate.taskspace import gaze_frame, task_space
+from imitate.motion.taskspace import gaze_frame, task_space
 
 __all__ = ["SyntheticConfig", "SyntheticDemos", "pouring_demos"]
 
@@ -71,7 +71,7 @@ class SyntheticDemos:
         pour_windows: Start and end of the pouring phase in each demonstration's own time,
             shape ``(n_demos, 2)`` [s].
         gaze: Gaze frame used for the orientations, shape ``(3, 3)``, columns right, down,
-            forward (:mod:`imitate.taskspace`).
+            forward (:mod:`imitate.motion.taskspace`).
         rate: Sampling rate [Hz].
     """
 

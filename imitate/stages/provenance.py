@@ -20,10 +20,10 @@ import hashlib
 import json
 from pathlib import Path
 
-from imitate import stages
-from imitate.artifacts import load_json
-from imitate.config import RunConfig, settings
 from imitate.errors import ImitateError
+from imitate.rundir import table
+from imitate.rundir.artifacts import load_json
+from imitate.stages.config import RunConfig, settings
 
 __all__ = ["MANIFEST", "code_digest", "digest", "load", "recorded", "stale"]
 
@@ -56,7 +56,7 @@ def load(run_dir: Path) -> dict[str, dict]:
 def recorded(
     manifest: dict[str, dict],
     run_dir: Path,
-    stage: stages.Stage,
+    stage: table.Stage,
     config: RunConfig,
     outputs: dict[str, Path],
 ) -> dict[str, dict]:
@@ -70,11 +70,11 @@ def recorded(
         "outputs": {name: digest(path) for name, path in outputs.items()},
     }
     records = {**manifest, stage.name: new}
-    return {name: records[name] for name in stages.NAMES if name in records}
+    return {name: records[name] for name in table.NAMES if name in records}
 
 
 def stale(
-    run_dir: Path, stage: stages.Stage, config: RunConfig, manifest: dict[str, dict]
+    run_dir: Path, stage: table.Stage, config: RunConfig, manifest: dict[str, dict]
 ) -> list[str]:
     """Why the inputs of ``stage`` in ``run_dir`` do not follow from ``config`` and each other:
     one line per upstream stage at fault, earliest first, each naming the stage to re-run.
@@ -123,7 +123,7 @@ def code_digest() -> str:
     return h.hexdigest()
 
 
-def _fault(stage: stages.Stage, files: list[str], rec: dict | None, now: dict, current) -> str:
+def _fault(stage: table.Stage, files: list[str], rec: dict | None, now: dict, current) -> str:
     """What is wrong with ``files`` that ``stage`` wrote, given its record ``rec``, the settings
     ``now`` in force and ``current(name)`` (a file's digest, ``None`` if absent); ``""`` if
     nothing."""
@@ -146,18 +146,18 @@ def _fault(stage: stages.Stage, files: list[str], rec: dict | None, now: dict, c
     return ""
 
 
-def _settings(stage: stages.Stage, config: RunConfig) -> dict:
+def _settings(stage: table.Stage, config: RunConfig) -> dict:
     """The settings ``stage``'s outputs depend on, as JSON values: the whole run's, its own and
     the earlier stages'."""
-    names = stages.NAMES[: stages.NAMES.index(stage.name) + 1]
+    names = table.NAMES[: table.NAMES.index(stage.name) + 1]
     values = json.loads(json.dumps(config.to_json()))
     return {name: values[name] for name, _, _ in settings([None, *names])}
 
 
-def _upstream(stage: stages.Stage) -> list[stages.Stage]:
+def _upstream(stage: table.Stage) -> list[table.Stage]:
     """The stages whose outputs ``stage`` reads, directly or through another, in run order."""
     needed = set(stage.reads)
-    for s in reversed(stages.STAGES):
+    for s in reversed(table.STAGES):
         if needed & set(s.writes):
             needed |= set(s.reads)
-    return [s for s in stages.STAGES if needed & set(s.writes) and s is not stage]
+    return [s for s in table.STAGES if needed & set(s.writes) and s is not stage]

@@ -1,8 +1,8 @@
 """The worker process that draws a run's figures while the figures stage makes the video.
 
 matplotlib holds the GIL: drawn in a thread, the figures would stall the video's frames. One
-worker process draws them instead (:func:`imitate.plots.png`). It is spawned, not forked (the
-stage's process has threads: rendering, BLAS), so a script that calls the stages guards its own
+worker process draws them instead (:func:`imitate.figures.plots.png`). It is spawned, not forked
+(the stage's process has threads: rendering, BLAS), so a script that calls the stages guards its own
 code with ``if __name__ == "__main__":``. Ctrl-C is left to the stage's process, which stops the
 worker (the worker starts with SIGINT blocked, and a Ctrl-C while it starts is acted on once it
 has started, not lost); a worker whose process was killed exits by itself.
@@ -20,7 +20,7 @@ from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 from contextvars import ContextVar
 
-from imitate import plots
+from imitate.figures import plots
 
 __all__ = ["ahead", "worker"]
 

@@ -18,8 +18,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from imitate.artifacts import remove_temporary
 from imitate.errors import ImitateError
+from imitate.rundir.artifacts import remove_temporary
 
 __all__ = ["LOCK", "locked"]
 

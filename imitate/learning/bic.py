@@ -3,7 +3,7 @@
 The paper's eq. 6 divides the log-likelihood by ``N``; combined with eq. 5's penalty ``P ln N``
 that makes the penalty dominate and always selects ``K = 1``. We use the total log-likelihood,
 the standard BIC (``BIC = -2 sum_i log p(x_i) + P ln N``, as scikit-learn's
-``GaussianMixture.bic``), with ``P`` from eq. 7 (:func:`imitate.gmm.n_parameters`).
+``GaussianMixture.bic``), with ``P`` from eq. 7 (:func:`imitate.learning.gmm.n_parameters`).
 """
 
 from __future__ import annotations
@@ -15,11 +15,11 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from imitate import numba_cache
-from imitate._em import _BLOCK, _e_step, _factor, _sorted_transposed
 from imitate._validation import check_n_components, check_samples
 from imitate.errors import ImitateError
-from imitate.gmm import GMM, _bic, _not_positive_definite
-from imitate.kmeans import _cluster_parameters, _kmeans_sweep, kmeans_parameters
+from imitate.learning._em import _BLOCK, _e_step, _factor, _sorted_transposed
+from imitate.learning.gmm import GMM, _bic, _not_positive_definite
+from imitate.learning.kmeans import _cluster_parameters, _kmeans_sweep, kmeans_parameters
 
 numba_cache.ensure_writable()  # before the kernels below are declared
 
@@ -48,8 +48,8 @@ def _cluster_log_likelihoods(
 
     Terms below ``exp(-38)`` of a sample's largest are left out: added to a sum of at least 1
     they are below half a unit in the last place. ``x`` (N, D) are the samples, ``xt`` the same
-    sorted and transposed (see :func:`imitate._em._e_step`). A chain's ``K``-th clustering keeps
-    the index of each earlier cluster, and a cluster whose samples did not change has the same
+    sorted and transposed (see :func:`imitate.learning._em._e_step`). A chain's ``K``-th clustering
+    keeps the index of each earlier cluster, and a cluster whose samples did not change has the same
     component: where its weight, mean and factor are those of ``K - 1`` bit for bit, its
     log-densities computed then are kept, not computed again.
     """
@@ -137,11 +137,11 @@ def bic_sweep(
         X: Samples, shape ``(n_samples, n_dims)``, finite.
         k_max: Largest ``K`` tried, ``1 <= k_max <= n_samples``.
         method: One of :data:`BIC_METHODS`.
-        seed: Seed of the K-means starts (see :func:`imitate.kmeans.kmeans`).
-        reg_covar: Covariance regularisation, see :class:`~imitate.gmm.GMM`.
+        seed: Seed of the K-means starts (see :func:`imitate.learning.kmeans.kmeans`).
+        reg_covar: Covariance regularisation, see :class:`~imitate.learning.gmm.GMM`.
         n_init: Number of independent K-means chains of ``"full"`` (see
-            :func:`imitate.kmeans.kmeans`); ``"fast"`` runs one.
-        tol: EM tolerance for ``"full"``, see :class:`~imitate.gmm.GMM`.
+            :func:`imitate.learning.kmeans.kmeans`); ``"fast"`` runs one.
+        tol: EM tolerance for ``"full"``, see :class:`~imitate.learning.gmm.GMM`.
         max_iter: EM iteration limit for ``"full"``.
 
     Returns:

@@ -1,4 +1,5 @@
-"""Compiled EM kernels of :mod:`imitate.gmm`: Cholesky factors, log densities, E-step, EM loop.
+"""Compiled EM kernels of :mod:`imitate.learning.gmm`: Cholesky factors, log densities, E-step, EM
+loop.
 
 Samples are sorted by their first dimension (time) and processed in blocks; per block, the
 components whose responsibilities a lower bound of the Mahalanobis distance already puts below
@@ -13,7 +14,7 @@ import numba
 import numpy as np
 
 from imitate import numba_cache
-from imitate.kmeans import _EPS_COUNTS, _argsort
+from imitate.learning.kmeans import _EPS_COUNTS, _argsort
 
 numba_cache.ensure_writable()  # before the kernels below are declared
 

@@ -15,13 +15,13 @@ from typing import Any
 
 import numpy as np
 
-from imitate.artifacts import load_json
-from imitate.bic import BIC_METHODS, DEFAULT_BIC
+from imitate.demos.segment import StillnessConfig
 from imitate.envs import assembly
 from imitate.envs.teacher_motion import TeacherConfig
 from imitate.errors import ImitateError
+from imitate.learning.bic import BIC_METHODS, DEFAULT_BIC
 from imitate.motion import SIMILARITIES, PlanConfig
-from imitate.segment import StillnessConfig
+from imitate.rundir.artifacts import load_json
 
 __all__ = ["RunConfig", "Setting", "load_config", "parse_obstacle", "settings"]
 

@@ -1,4 +1,4 @@
-"""The observation stage: the robot watches the teacher's session and tracks the objects.
+"""The robot watches the teacher's session and tracks the objects (the ``observe`` stage's body).
 
 The simulation (:mod:`imitate.envs.observation`) renders the session from the robot's head
 cameras; the stereo tracker (:mod:`imitate.perception`) runs on every pair, with cameras built
@@ -44,7 +44,7 @@ def ground_truth(sess: Session, names: tuple[str, ...]) -> GroundTruth:
     )
 
 
-def observe(
+def watch(
     config: ObservationConfig,
     perception: PerceptionConfig | None = None,
     timing: dict | None = None,

@@ -27,11 +27,11 @@ import numpy as np
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
 from scipy.signal import savgol_filter
 
-from imitate.artifacts import load_npz, save_npz
 from imitate.errors import ImitateError
 from imitate.models.objects import BOTTLE, GLASS, SHAPES
+from imitate.motion.taskspace import task_space
 from imitate.perception import Tracks
-from imitate.taskspace import task_space
+from imitate.rundir.artifacts import load_npz, save_npz
 
 
 @dataclass(frozen=True)

@@ -1,22 +1,18 @@
 """The stages of a run, in order: what each does, its function, what it writes, what it reports.
 
-The command line, the artifacts' re-run hints and :func:`imitate.pipeline.run_stage` all read
-:data:`STAGES`. This module imports nothing heavy (the command line parses its arguments before
-MuJoCo loads, and :mod:`imitate.artifacts` reads it): a stage's function is named as
+The command line, the artifacts' re-run hints and :func:`imitate.stages.runner.run_stage` all
+read :data:`STAGES`. This module imports nothing heavy (the command line parses its arguments before
+MuJoCo loads, and :mod:`imitate.rundir.artifacts` reads it): a stage's function is named as
 ``"module:function"`` and imported when the stage runs.
 """
 
 from __future__ import annotations
 
 import importlib
+from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
-from typing import TYPE_CHECKING
 
 from imitate.errors import ImitateError
-
-if TYPE_CHECKING:
-    from imitate.config import RunConfig
 
 __all__ = [
     "FIGURES", "NAMES", "PAGE", "REPORT", "REPORT_SCHEMA", "RUN_HELP", "STAGES", "Stage", "find",
@@ -24,7 +20,7 @@ __all__ = [
 ]
 
 REPORT = "report.json"  # every stage merges its sections into it
-PAGE = "report.html"  # the report and the settings as a page (imitate.report_html), with the report
+PAGE = "report.html"  # the report and the settings as a page (imitate.rundir.page), with the report
 REPORT_SCHEMA = 1  # report["schema"]: version of the layout the README's `report.json` documents
 FIGURES = (
     "observation", "fig4_gmm_dtw", "fig5_bic", "gmr", "fig8_snapshots", "fig9_collision_sweep",
@@ -54,17 +50,16 @@ class Stage:
     writes: tuple[str, ...]
     sections: tuple[str, ...]
 
-    def run(self, run_dir: Path, config: RunConfig) -> dict:
-        """Runs the stage in ``run_dir``; returns its report sections by name."""
+    def body(self) -> Callable[..., dict]:
+        """The stage's function, imported now."""
         module, name = self.function.split(":")
-        return getattr(importlib.import_module(module), name)(run_dir, config)
-
+        return getattr(importlib.import_module(module), name)
 
 STAGES = (
     Stage(
         "observe",
         "the teacher demonstrates; track the objects in the robot's eyes; cut the demos",
-        "imitate.pipeline:observe",
+        "imitate.stages.observe:run",
         (),
         ("config.json", "observations.npz", "demos.npz"),
         ("demos", "perception"),
@@ -72,7 +67,7 @@ STAGES = (
     Stage(
         "learn",
         "task space, DTW, GMM (components by BIC), GMR mean and variance",
-        "imitate.pipeline:learn",
+        "imitate.stages.learn:run",
         ("observations.npz", "demos.npz"),
         ("model.npz",),
         ("learning",),
@@ -80,7 +75,7 @@ STAGES = (
     Stage(
         "optimize",
         "whole-body attractor optimization of the reproduction, Fig. 9 sweep",
-        "imitate.pipeline:optimize",
+        "imitate.stages.optimize:run",
         ("model.npz",),
         ("plan.npz",),
         ("optimization",),
@@ -88,7 +83,7 @@ STAGES = (
     Stage(
         "replay",
         "the optimized movement in full physics: pour fraction, spill, clearance",
-        "imitate.pipeline:replay",
+        "imitate.stages.replay:run",
         ("plan.npz", "model.npz"),
         ("replay.npz",),
         ("replay",),
@@ -96,7 +91,7 @@ STAGES = (
     Stage(
         "figures",
         "figures/*.png and video.mp4 from the run's artifacts",
-        "imitate.pipeline:figures",
+        "imitate.stages.figures:run",
         ("observations.npz", "demos.npz", "model.npz", "plan.npz", "replay.npz"),
         ("video.mp4", *(f"figures/{name}.png" for name in FIGURES)),
         ("video",),

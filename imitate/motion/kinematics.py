@@ -4,16 +4,16 @@ The planner sees the robot as its hinge joints (``joints``, in a fixed order, ``
 the objects it holds as rigid extensions of its hands: every *active* weld equality constraint
 whose second body is a free body (a held object) is read once, and each
 :meth:`Kinematics.update` sets the object's free joint to the hand's pose composed with the weld's
-relative pose (:func:`imitate._planner._hold`) and runs ``mj_kinematics`` a second time, so no
-physics runs. Jacobians of points on a held object are ``mj_jac`` of its hand body at that point;
+relative pose (:func:`imitate.motion._planner._hold`) and runs ``mj_kinematics`` a second time, so
+no physics runs. Jacobians of points on a held object are ``mj_jac`` of its hand body at that point;
 their derivatives along a joint velocity are ``mj_jacDot``.
 
 Jacobians are translational, ``dp/dq`` of points in the world frame, restricted to the
 ``joints`` columns, shape ``(3, n)`` (orientations enter through points on an object's axis, see
-:class:`imitate.taskspace.TaskMap`).
+:class:`imitate.motion.taskspace.TaskMap`).
 Signed distances come from ``mj_geomDistance`` between the pairs of
 :class:`imitate.envs.collision.CollisionPairs`; a compiled test of capsules and slabs enclosing the
-geoms (:func:`imitate._planner._near_pairs`) skips the pairs that are far apart first.
+geoms (:func:`imitate.motion._planner._near_pairs`) skips the pairs that are far apart first.
 """
 
 from __future__ import annotations
@@ -25,9 +25,9 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from imitate import _planner
 from imitate.envs.collision import CollisionPairs
 from imitate.errors import ImitateError
+from imitate.motion import _planner
 
 __all__ = ["Distances", "Kinematics"]
 
@@ -39,7 +39,7 @@ _SLACK = 1e-4
 
 def _geom_bounds(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
     """Per geom, a capsule and a slab that contain it, for
-    :func:`imitate._planner._near_pairs`: ``columns (ngeom, 2)``, the frame axes of the
+    :func:`imitate.motion._planner._near_pairs`: ``columns (ngeom, 2)``, the frame axes of the
     capsule's segment and of the slab's normal (-1: no slab), and ``sizes (ngeom, 3)``, the
     segment's half-length on either side of the geom's centre, the capsule's radius (``inf``: a
     plane or height field, never skipped) and the slab's half-thickness [m]. A box's capsule

@@ -11,8 +11,8 @@ import json
 from html import escape
 from pathlib import Path
 
-from imitate.artifacts import write_atomic
-from imitate.stages import PAGE
+from imitate.rundir.artifacts import write_atomic
+from imitate.rundir.table import PAGE
 
 __all__ = ["CAPTIONS", "eval_page", "run_page", "save_eval_page", "save_run_page"]
 
@@ -150,7 +150,7 @@ def eval_page(summary: dict, failures: list[str], links: list[str], title: str) 
 
 def save_run_page(run_dir: Path, report: dict, config: dict) -> Path:
     """Write ``run_dir/report.html`` from the run's report and settings, atomically (inside
-    :func:`imitate.artifacts.staged`: with the stage's commit)."""
+    :func:`imitate.rundir.artifacts.staged`: with the stage's commit)."""
     page = run_page(report, config, str(run_dir))
     return write_atomic(Path(run_dir) / PAGE, lambda tmp: tmp.write_text(page))
 

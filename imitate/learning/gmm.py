@@ -8,7 +8,7 @@ same log-likelihood from the same start: densities in log space through the Chol
 each covariance, responsibilities normalised by log-sum-exp (terms below ``exp(-50)`` of the
 largest flushed to zero), and ``reg_covar`` added to the diagonal of every covariance, which also
 keeps a cluster of identical samples usable (covariance ``reg_covar * I``). The density and EM
-loops are compiled (numba, :mod:`imitate._em`).
+loops are compiled (numba, :mod:`imitate.learning._em`).
 """
 
 from __future__ import annotations
@@ -16,10 +16,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from imitate._em import _LOG_FLUSH, _e_step, _em_loop, _factor, _sorted_transposed
 from imitate._validation import check_samples
 from imitate.errors import ImitateError
-from imitate.kmeans import kmeans, kmeans_parameters
+from imitate.learning._em import _LOG_FLUSH, _e_step, _em_loop, _factor, _sorted_transposed
+from imitate.learning.kmeans import kmeans, kmeans_parameters
 
 __all__ = ["GMM", "exp_flushed", "n_parameters"]
 
@@ -29,7 +29,7 @@ def n_parameters(n_components: int, n_dims: int) -> int:
 
 
 def _bic(log_likelihood: float, n_components: int, n_dims: int, n_samples: int) -> float:
-    """BIC from the total log-likelihood [nats] (eq. 5, see :mod:`imitate.bic`)."""
+    """BIC from the total log-likelihood [nats] (eq. 5, see :mod:`imitate.learning.bic`)."""
     return -2.0 * log_likelihood + n_parameters(n_components, n_dims) * np.log(n_samples)
 
 
@@ -55,8 +55,9 @@ class GMM:
             ``>= 0``; keeps components of duplicated or collinear points non-singular.
         tol: EM stops when the mean log-likelihood per sample changes by less than this [nats].
         max_iter: Maximum number of EM iterations, ``>= 1``.
-        n_init: Number of K-means starts for the initialisation (see :func:`imitate.kmeans.kmeans`).
-        seed: Seed of the K-means starts (see :func:`imitate.kmeans.kmeans`).
+        n_init: Number of K-means starts for the initialisation (see
+            :func:`imitate.learning.kmeans.kmeans`).
+        seed: Seed of the K-means starts (see :func:`imitate.learning.kmeans.kmeans`).
 
     Attributes:
         weights_: Priors ``pi_k``, shape ``(K,)``, summing to 1.
@@ -156,7 +157,8 @@ class GMM:
             X: Samples, shape ``(n_samples, n_dims)``.
 
         Returns:
-            ``(weights, means, covariances)``, see :func:`imitate.kmeans.kmeans_parameters`.
+            ``(weights, means, covariances)``, see
+            :func:`imitate.learning.kmeans.kmeans_parameters`.
         """
         X = check_samples(X)
         labels = kmeans(X, self.n_components, n_init=self.n_init, seed=self.seed).labels
@@ -248,7 +250,7 @@ class GMM:
 
     def bic(self, X: ArrayLike) -> float:
         """Bayesian information criterion (eq. 5 with the *total* log-likelihood, see
-        :mod:`imitate.bic`)."""
+        :mod:`imitate.learning.bic`)."""
         log_norm = self.score_samples(X)
         return _bic(float(log_norm.sum()), self.n_components, self.means_.shape[1], log_norm.size)
 

@@ -1,0 +1,168 @@
+"""The ``figures`` stage: ``figures/*.png`` and ``video.mp4`` from the run's artifacts."""
+
+from __future__ import annotations
+
+import itertools
+import re
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from imitate.envs.teacher_motion import script_demonstrations
+from imitate.envs.video import captioned, penetrations, replay_frames, teacher_frames, write_video
+from imitate.figures import drawing, plots
+from imitate.learning import LearnedModel
+from imitate.models import objects
+from imitate.perception import Observations, Tracks, load_observations
+from imitate.rundir import table
+from imitate.rundir.artifacts import load_npz
+from imitate.stages.config import RunConfig
+from imitate.stages.progress import bars_off
+from imitate.stages.replay import STATE_NAMES
+
+SNAPSHOT_SIZE = (480, 360)  # Fig. 8's panels [px]
+TOUCHING_M = 1e-3  # closer than this, parts touch in physics (whose contacts keep them apart)
+TEACHER_CAPTION = "teacher demonstrates ({speedup:g}x); inset: robot's eye, tracking"
+ROBOT_CAPTION = "robot reproduces (collision weight {weight:g})"
+FREE_CAPTION = "robot reproduces without the collision cost (weight 0): into its chest"
+FREE_AFTER = 1.0  # [s] of the weight-0 replay shown after its plan comes closest
+# The video's frames render in two threads at once, each with its own renderer: one kept about
+# 1.6 of the 2-core CPU's cores busy (Mesa). More do not pay on a GPU: on an H100 machine (16
+# cores) the frames took 2.3 s in one thread, 2.1 s in two and 10.8 s in four.
+VIDEO_THREADS = 2
+
+
+def run(run_dir: Path, config: RunConfig) -> dict:
+    """The figures (``figures/*.png``) and the video: the teacher, then the robot pouring.
+
+    A worker process (:mod:`imitate.figures.drawing`) draws the figures while this one renders and
+    encodes the video."""
+    observations = load_observations(run_dir / "observations.npz")
+    boundaries = load_npz(run_dir / "demos.npz", required=("boundaries",))["boundaries"]
+    arrays = load_npz(run_dir / "model.npz", required=(
+        *LearnedModel.array_names(), *LearnedModel.array_names("raw_"), "bic_fast", "bic_full",
+    ))
+    model, raw = LearnedModel.from_arrays(arrays), LearnedModel.from_arrays(arrays, "raw_")
+    plan = load_npz(run_dir / "plan.npz", required=(
+        "times", "mean", "variance", "weights", "sweep_weights", "sweep_x", "sweep_clearance",
+    ))
+    states = load_npz(run_dir / "replay.npz", required=(
+        *STATE_NAMES, *(f"sweep0_{name}" for name in STATE_NAMES), "state_dt", "plan_start",
+    ))
+    weights = plan["sweep_weights"]
+    sweep = dict(zip(weights, plan["sweep_x"], strict=True))
+    clearance = dict(zip(weights, plan["sweep_clearance"], strict=True))
+    drawings = {  # name: (plots' function, its arguments); Fig. 8's snapshots rendered below
+        "observation": (plots.plot_observation, observations, boundaries),
+        "fig4_gmm_dtw": (plots.plot_gmm_with_and_without_dtw, raw, model),
+        "fig5_bic": (plots.plot_bic_curves, {
+            "fast (K-means only)": arrays["bic_fast"], "full (EM)": arrays["bic_full"],
+        }),
+        "gmr": (plots.plot_gmr, model, list(arrays["aligned"])),
+        "fig9_collision_sweep": (
+            plots.plot_collision_sweep, plan["times"], plan["mean"], plan["variance"], sweep,
+            clearance, plan["weights"],
+        ),
+        "costs": (
+            plots.plot_costs, {w: plan[f"sweep{i}_cost_total"] for i, w in enumerate(weights)}
+        ),
+    }
+    with drawing.worker() as worker:
+        pngs = {name: worker.submit(plots.png, *draw) for name, draw in drawings.items()}
+        try:
+            pngs["fig8_snapshots"] = worker.submit(
+                plots.png, plots.plot_snapshots, *_snapshots(config, states, plan)
+            )
+            n_frames = write_video(
+                run_dir / "video.mp4", _video_frames(config, states, observations, plan),
+                config.video_fps,
+            )
+            for name in tqdm(table.FIGURES, desc="figures", unit="figure", disable=bars_off()):
+                plots.save_png(pngs[name].result(), run_dir / "figures" / f"{name}.png")
+        finally:
+            for future in pngs.values():
+                future.cancel()
+    return {"video": {"frames": n_frames, "seconds": n_frames / config.video_fps}}
+
+
+def _snapshots(config: RunConfig, states: dict[str, np.ndarray], plan: dict, n: int = 5):
+    """Fig. 8's rows from the physics replays, the sweep's smallest collision weight's and the
+    chosen one's: ``n`` snapshots each at the same plan times [s], one of them where the smallest
+    weight's plan comes closest (collides); parts touching or penetrating are marked."""
+    times = plan["times"] - plan["times"][0]
+    closest = times[np.argmin(plan["sweep_clearance"][0])]
+    at = np.sort(np.r_[np.linspace(0.1, 0.9, n - 1) * times[-1], closest])
+    index = np.round((at + float(states["plan_start"])) / float(states["state_dt"])).astype(int)
+    index = np.minimum(index, len(states["qpos"]) - 1)
+    lowest = float(plan["sweep_weights"][0])
+    rows = []
+    for prefix, weight in (("sweep0_", lowest), ("", config.collision_weight)):
+        shown = {name: states[prefix + name][index] for name in STATE_NAMES}
+        images = list(replay_frames(config.scene(), shown, *SNAPSHOT_SIZE, shadows=True))
+        marks = [_collision(d, pair) for d, pair in penetrations(config.scene(), shown)]
+        cost = "without collision cost" if weight == 0 else "with collision cost"
+        rows.append((f"{cost} (collision weight {weight:g})", images, marks))
+    return rows, at
+
+
+def _collision(distance: float, pair: tuple[str, str]) -> str | None:
+    """What Fig. 8 writes on a snapshot whose closest pair is ``distance`` [m] apart, if they
+    touch: ``"collision: torso_chest / bottle, 2.1 mm deep"``."""
+    if distance >= TOUCHING_M:
+        return None
+    # A geom's name as a reader knows the part: bottle_hull_0 is the bottle.
+    a, b = (re.sub(r"_(hull|wall)_\d+$", "", geom) for geom in pair)
+    return f"collision: {a} / {b}, " + (
+        f"{-1e3 * distance:.1f} mm deep" if distance < 0 else "touching"
+    )
+
+
+def _video_frames(
+    config: RunConfig, states: dict[str, np.ndarray], observations: Observations, plan: dict
+):
+    """The teacher (the robot's eye view and its tracked objects inset), then the robot without
+    the collision cost (the sweep's weight-0 plan, until ``FREE_AFTER`` after it comes closest),
+    then with it."""
+    size = (config.video_width, config.video_height)
+    motion = script_demonstrations(config.teacher())
+    times = np.arange(0.0, motion.duration, config.teacher_speedup / config.video_fps)
+    tracks = observations.tracks
+    teacher = captioned(
+        teacher_frames(
+            motion, times, *size, marks=_tracked_axes(tracks, times),
+            projection=observations.projections[0], image_size=observations.image_size,
+            threads=VIDEO_THREADS,
+        ),
+        TEACHER_CAPTION.format(speedup=config.teacher_speedup),
+    )
+    closest = plan["times"][np.argmin(plan["sweep_clearance"][0])] - plan["times"][0]
+    free = int((float(states["plan_start"]) + closest + FREE_AFTER) / float(states["state_dt"]))
+    robot = [
+        captioned(
+            replay_frames(
+                config.scene(), {name: states[prefix + name][:end] for name in STATE_NAMES},
+                *size, threads=VIDEO_THREADS,
+            ),
+            caption,
+        )
+        for prefix, caption, end in (
+            ("sweep0_", FREE_CAPTION, free),
+            ("", ROBOT_CAPTION.format(weight=config.collision_weight), None),
+        )
+    ]
+    total = len(times) + len(states["sweep0_qpos"][:free]) + len(states["qpos"])
+    return tqdm(
+        itertools.chain(teacher, *robot), desc="video", unit="frame", total=total,
+        disable=bars_off(),
+    )
+
+
+def _tracked_axes(tracks: Tracks, times: np.ndarray) -> np.ndarray:
+    """The tracked objects' axes at ``times`` (the last frame at or before each), as segments
+    ``(len(times), n_objects, 2, 3)`` [m] from bottom to top; NaN where not tracked."""
+    k = np.clip(np.searchsorted(tracks.times, times, side="right") - 1, 0, len(tracks.times) - 1)
+    half = np.array([objects.SHAPES[name].height / 2 for name in tracks.objects])[:, None, None]
+    centre, axis = tracks.position[:, k], tracks.axis[:, k]  # (n_objects, len(times), 3)
+    ends = np.stack([centre - half * axis, centre + half * axis], axis=2)
+    return ends.transpose(1, 0, 2, 3)

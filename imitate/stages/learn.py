@@ -1,0 +1,62 @@
+"""The ``learn`` stage: task space, DTW, GMM (components by BIC), GMR (``model.npz``)."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+
+import numpy as np
+
+from imitate.demos.oracle import true_demos
+from imitate.demos.segment import load_demos, task_demo
+from imitate.envs.teacher_motion import script_demonstrations
+from imitate.learning import LearningConfig, learn
+from imitate.learning.bic import bic_sweep
+from imitate.perception import load_observations
+from imitate.rundir.artifacts import save_npz
+from imitate.stages.config import RunConfig
+
+
+def run(run_dir: Path, config: RunConfig) -> dict:
+    """Task space, DTW, GMM (components by BIC), GMR; the other BIC method for comparison."""
+    if config.oracle:
+        tracks = load_observations(run_dir / "observations.npz").tracks
+        motion = script_demonstrations(config.teacher())
+        demos, gaze, rate = true_demos(motion, tracks.gaze, tracks.times), tracks.gaze, config.fps
+        bridged = 0
+    else:
+        segments, names, gaze = load_demos(run_dir / "demos.npz")
+        bridged = sum(int(np.isnan(d.position).any(axis=-1).sum()) for d in segments)
+        rate = 1.0 / float(np.median(np.diff(segments[0].times)))
+        demos = [
+            task_demo(d, names, gaze, smoothing=config.smoothing, rate=rate) for d in segments
+        ]
+    k_max = min(config.k_max, *(len(d) for d in demos))
+    settings = LearningConfig(k_max=k_max, bic_method=config.bic, seed=config.seed)
+    start = time.perf_counter()
+    model = learn(demos, rate=rate, config=settings)
+    seconds = time.perf_counter() - start
+    other = "fast" if config.bic == "full" else "full"
+    other_sweep = bic_sweep(model.data, k_max, other, config.seed)
+    curves = {config.bic: model.bic_curve, other: other_sweep.curve}
+    chosen = {config.bic: model.gmm.n_components, other: int(other_sweep.k)}
+    raw = learn(
+        demos, rate=rate,
+        config=dataclasses.replace(settings, n_components=model.gmm.n_components, use_dtw=False),
+    )
+    save_npz(run_dir / "model.npz", {
+        **model.to_arrays(), **raw.to_arrays("raw_"), "gaze": gaze, "rate": rate,
+        "bic_fast": curves["fast"], "bic_full": curves["full"], "aligned": model.alignment.aligned,
+    })
+    return {
+        "learning": {
+            "source": "ground truth (oracle)" if config.oracle else "perception",
+            "bic": config.bic,
+            "n_components": model.gmm.n_components,
+            "n_components_fast_bic": chosen["fast"],
+            "n_components_full_bic": chosen["full"],
+            "seconds": seconds,
+            "bridged_samples": bridged,
+        }
+    }

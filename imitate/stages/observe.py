@@ -1,0 +1,42 @@
+"""The ``observe`` stage: the teacher demonstrates, the robot's eyes track the objects,
+stillness cuts the demonstrations (``observations.npz``, ``demos.npz``)."""
+
+from __future__ import annotations
+
+import logging
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from imitate.demos.segment import StillnessConfig, save_demos, segment
+from imitate.envs.observation import ObservationConfig
+from imitate.perception import save_observations
+from imitate.perception.accuracy import demo_counts, tracking_errors
+from imitate.perception.watch import watch
+from imitate.stages.config import RunConfig
+
+log = logging.getLogger(__name__)
+
+
+def run(run_dir: Path, config: RunConfig) -> dict:
+    """The teacher demonstrates, the robot's eyes track the objects, stillness cuts the demos."""
+    watching = ObservationConfig(
+        teacher=config.teacher(),
+        fps=config.fps, width=config.width, height=config.height,
+    )
+    timing = {}
+    progress = log.isEnabledFor(logging.INFO) and sys.stderr.isatty()
+    observations = watch(watching, timing=timing, progress=progress)
+    demos = segment(observations.tracks, StillnessConfig())
+    save_observations(run_dir / "observations.npz", observations)
+    save_demos(run_dir / "demos.npz", demos, observations.tracks)
+    found = np.array([(d.start, d.end) for d in demos])
+    return {
+        "demos": demo_counts(found, observations.truth.boundaries),
+        "perception": {
+            **tracking_errors(observations),
+            "render_pairs_per_s": timing["pairs"] / timing["render"],
+            "track_pairs_per_s": timing["pairs"] / timing["track"],
+        },
+    }

@@ -1,0 +1,81 @@
+"""The ``optimize`` stage: the whole-body attractor optimization at the run's collision weight
+and the Fig. 9 sweep over weights (``plan.npz``)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from imitate.learning import LearnedModel
+from imitate.models import humanoid
+from imitate.motion import PlanConfig, plan_from_model
+from imitate.motion.metrics import deviation, pour_phase_error
+from imitate.motion.replay import planning_task
+from imitate.rundir.artifacts import load_npz, save_npz
+from imitate.stages.config import RunConfig
+from imitate.stages.progress import bars_off
+
+
+def run(run_dir: Path, config: RunConfig) -> dict:
+    """Whole-body attractor optimization at ``collision_weight``, and the Fig. 9 sweep."""
+    arrays = load_npz(run_dir / "model.npz", required=(*LearnedModel.array_names(), "gaze"))
+    model = LearnedModel.from_arrays(arrays)
+    task = planning_task(config.scene(), arrays["gaze"])
+    chosen = config.collision_weight
+    weights = sorted({chosen * s for s in config.sweep} | {chosen})
+    plans, seconds = {}, {}
+    for w in tqdm(weights, desc="optimize", unit="plan", disable=bars_off()):
+        start = time.perf_counter()
+        plans[w] = plan_from_model(
+            task, model, q0=humanoid.rest_pose(),
+            # the sweep shows the paper's optimizer, the attractors alone (Fig. 9)
+            config=PlanConfig(
+                collision_weight=w, max_iter=config.max_iter, nullspace_push=w == chosen,
+                similarity=config.similarity, sigma_max_scale=config.sigma_max_scale,
+            ),
+        )
+        seconds[w] = time.perf_counter() - start
+    main = plans[chosen]
+    save_npz(run_dir / "plan.npz", {
+        **main.to_arrays(),
+        "sweep_weights": np.array(weights),
+        "sweep_x": np.array([plans[w].x for w in weights]),
+        "sweep_q": np.array([plans[w].q for w in weights]),
+        "sweep_clearance": np.array([_clearance(task, plans[w].q) for w in weights]),
+        **{f"sweep{i}_cost_total": plans[w].costs["total"] for i, w in enumerate(weights)},
+    })
+    error_m, error_deg = pour_phase_error(main)
+    first = plans[weights[0]]
+    return {
+        "optimization": {
+            "collision_weight": chosen,
+            "similarity": config.similarity,
+            "sigma_max_scale": config.sigma_max_scale,
+            "seconds": seconds[chosen],
+            "iterations": main.n_iter,
+            "converged": main.converged,
+            "min_distance_m": main.min_distance,
+            "closest_pair": list(main.closest or ()),
+            "pour_phase_err_m": error_m,
+            "pour_phase_err_deg": error_deg,
+            "message": main.message,
+            "sweep": [
+                {"weight": w, "min_distance_m": plans[w].min_distance,
+                 **deviation(plans[w], first)}
+                for w in weights
+            ],
+        }
+    }
+
+
+def _clearance(task, q: np.ndarray) -> np.ndarray:
+    """Smallest signed distance [m] between the robot, the objects and the scene at each step of
+    the joint trajectory ``q`` ``(T + 1, n)``; ``(T + 1,)``, negative when penetrating."""
+    distances = []
+    for q_t in q:
+        task.kin.update(q_t)
+        distances.append(task.kin.min_distance()[0])
+    return np.array(distances)

@@ -1,0 +1,103 @@
+"""The ``replay`` stage: the plan in full physics, liquid and all, from several seeds
+(``replay.npz``)."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from imitate.envs.pour_geometry import PourGeometry
+from imitate.envs.pouring import SUCCESS_FRACTION, PouringEnv
+from imitate.envs.video import StateRecorder
+from imitate.motion import Plan
+from imitate.motion.replay import replay
+from imitate.rundir.artifacts import load_npz, save_npz
+from imitate.stages.config import RunConfig
+from imitate.stages.progress import bars_off
+
+APPROACH_S = 1.0  # [s] from the reset pose to the plan's start in the replay
+STATE_NAMES = ("qpos", "mocap_pos", "mocap_quat")  # a recorded replay state (StateRecorder)
+
+# Replays of the pour, each from its own seed of the initial-state noise; a run succeeds when the
+# smallest of their pour fractions reaches SUCCESS_FRACTION (one replay's fraction is chaotic).
+POUR_REPLAYS = 3
+
+
+def run(run_dir: Path, config: RunConfig) -> dict:
+    """The plan drives the robot's actuators in full physics, liquid and all; the pour again
+    from ``POUR_REPLAYS - 1`` more seeds of the initial-state noise (it is chaotic). The plan of
+    the sweep's smallest collision weight (Fig. 8's top row) too, recorded under ``sweep0_``.
+
+    The replays are independent: they run in threads, one per core at most (MuJoCo's
+    ``mj_step`` releases the GIL), each in its own env, so their results are those of a serial
+    run."""
+    jobs, gaze = _replay_jobs(run_dir, config)
+    with (
+        ThreadPoolExecutor(min(len(jobs), os.cpu_count() or 1)) as pool,
+        tqdm(total=len(jobs), desc="replay", unit="replay", disable=bars_off()) as bar,
+    ):
+        futures = [pool.submit(_physics, p, config, gaze, seed) for p, seed in jobs]
+        for _ in as_completed(futures):
+            bar.update()
+        outcomes = [future.result() for future in futures]
+    result, states, state_dt, geometry = outcomes[0]
+    pours = [outcome[0].pour_fraction for outcome in outcomes[:POUR_REPLAYS]]
+    free_states = outcomes[-1][1]
+    save_npz(run_dir / "replay.npz", {
+        **states, "task_error": result.task_error, "state_dt": state_dt,
+        "pour_fraction": result.pour_fraction, "spilled": result.spilled,
+        "min_distance": result.min_distance, "plan_start": APPROACH_S,
+        **{f"sweep0_{name}": value for name, value in free_states.items()},
+    })
+    return {
+        "replay": {
+            "pour_fraction": result.pour_fraction,
+            "spilled": result.spilled,
+            "min_distance_m": result.min_distance,
+            "task_err_m_max": float(np.linalg.norm(result.task_error[:, :3], axis=1).max()),
+            "pour_fraction_mean": float(np.mean(pours)),
+            "pour_fraction_min": float(np.min(pours)),
+            "pour_fractions": pours,
+            "success": bool(min(pours) >= SUCCESS_FRACTION and result.min_distance >= 0.0),
+            "pour_geometry": geometry,
+        }
+    }
+
+
+def _replay_jobs(run_dir: Path, config: RunConfig) -> tuple[list[tuple[Plan, int]], np.ndarray]:
+    """The replay stage's replays as (plan, seed): the plan from ``POUR_REPLAYS`` seeds, then the
+    sweep's smallest collision weight's plan; and the learned gaze ``(3, 3)``."""
+    arrays = load_npz(run_dir / "plan.npz", required=(*Plan.array_names(), "sweep_q", "sweep_x"))
+    plan = Plan.from_arrays(arrays)
+    gaze = load_npz(run_dir / "model.npz", required=("gaze",))["gaze"]
+    q_free = arrays["sweep_q"][0]
+    free = dataclasses.replace(
+        plan, q=q_free, q_start=q_free[0], approach_bend=np.zeros_like(q_free[0]),
+        x=arrays["sweep_x"][0],
+    )
+    return [(plan, config.seed + k) for k in range(POUR_REPLAYS)] + [(free, config.seed)], gaze
+
+
+def _physics(plan: Plan, config: RunConfig, gaze: np.ndarray, seed: int):
+    """``plan`` replayed in a fresh ``PouringEnv`` from ``seed``: the result, the recorded
+    states (:meth:`StateRecorder.arrays`), their spacing [s] and where the stream met the glass
+    (:meth:`PourGeometry.summary`)."""
+    env = PouringEnv(particles=config.particles, obstacles=config.scene().obstacles)
+    recorder = StateRecorder(every=max(1, round(1.0 / (config.video_fps * env.dt))))
+    geometry = PourGeometry()
+
+    def step(env: PouringEnv) -> None:
+        recorder(env)
+        geometry(env)
+
+    options = {"bottle_grasp": config.bottle_grasp, "glass_grasp": config.glass_grasp}
+    result = replay(
+        plan, env, seed=seed, approach=APPROACH_S, options=options, on_step=step, gaze=gaze,
+    )
+    env.close()
+    return result, recorder.arrays(), recorder.every * env.dt, geometry.summary()

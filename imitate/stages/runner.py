@@ -1,0 +1,112 @@
+"""Runs a stage (see :mod:`imitate.rundir.table`) in a run directory, all or nothing.
+
+Each stage reads the previous stages' artifacts in the run directory and writes its own
+(atomically, see :mod:`imitate.rundir.artifacts`); :func:`run_stage` merges its numbers into
+``report.json``. Every stage is a deterministic function of ``config.json`` and its inputs: the
+same seed gives the same arrays and the same report (timings aside).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+
+from imitate.errors import ImitateError
+from imitate.rundir import page, table
+from imitate.rundir.artifacts import load_json, save_json, staged
+from imitate.stages import provenance
+from imitate.stages.config import RunConfig
+
+__all__ = ["run_stage"]
+
+log = logging.getLogger(__name__)
+
+
+def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False) -> dict:
+    """Run one stage in ``run_dir`` with ``config``, all or nothing: its artifacts,
+    ``config.json``, its record in ``manifest.json`` (see :mod:`imitate.table.provenance`),
+    ``report.json`` (its numbers, its time and the artifacts present merged in; the sections of
+    later stages dropped, as they no longer follow from it) and ``report.html`` (the same as a
+    page, see :mod:`imitate.rundir.page`) are renamed into place only when the stage has
+    succeeded. Returns the report.
+
+    Raises:
+        ImitateError: before the stage runs, ``report.json`` or ``manifest.json`` is unusable,
+            or an input is stale or from another run (with ``force``: a warning on stderr
+            instead); or the stage's own errors. The directory is then unchanged.
+    """
+    current = table.find(stage)
+    run_dir = Path(run_dir)
+    previous = _previous_report(run_dir)
+    manifest = provenance.load(run_dir)
+    problems = provenance.stale(run_dir, current, config, manifest)
+    if problems and not force:
+        raise ImitateError(f"{problems[0]}, or add --force to go on anyway")
+    for problem in problems:
+        log.warning("%s; going on anyway (--force)", problem)
+    with staged(run_dir) as staging:
+        start = time.perf_counter()
+        sections = current.body()(run_dir, config)
+        seconds = time.perf_counter() - start
+        outputs = staging.files()
+        manifest = provenance.recorded(manifest, run_dir, current, config, outputs)
+        report = _report(current, sections, seconds, previous, config.seed)
+        report["artifacts"] = _artifacts(run_dir, set(outputs))
+        save_json(run_dir / "config.json", config.to_json())
+        save_json(run_dir / provenance.MANIFEST, manifest)
+        save_json(run_dir / table.REPORT, report)
+        page.save_run_page(run_dir, report, config.to_json())
+    log.debug("%s wrote %s in %.1f s", stage, ", ".join(sorted(outputs)), seconds)
+    return report
+
+
+def _report(
+    current: table.Stage, sections: dict, seconds: float, previous: dict, seed: int
+) -> dict:
+    """The report after ``current`` returned ``sections`` in ``seconds`` [s]: those of the
+    earlier stages kept from ``previous``, those of later ones dropped."""
+    earlier = table.STAGES[: table.STAGES.index(current)]
+    kept = {name for s in earlier for name in s.sections}
+    report = {"schema": table.REPORT_SCHEMA, "seed": seed}
+    for name in [name for s in table.STAGES for name in s.sections]:
+        if name in sections:
+            report[name] = sections[name]
+        elif name in kept and name in previous:
+            report[name] = previous[name]
+    done = {s.name for s in earlier}
+    timings = {s: t for s, t in previous.get("timings", {}).items() if s in done}
+    report["timings"] = {**timings, current.name: seconds}
+    return report
+
+
+def _previous_report(run_dir: Path) -> dict:
+    """``report.json`` of ``run_dir`` (empty if none yet).
+
+    Raises:
+        ImitateError: it is unreadable, or not an object of sections.
+    """
+    path = run_dir / table.REPORT
+    if not path.exists():
+        return {}
+    report = load_json(path)
+    names = ("timings", *(name for s in table.STAGES for name in s.sections))
+    if not isinstance(report, dict) or any(
+        not isinstance(report.get(name, {}), dict) for name in names
+    ):
+        raise ImitateError(
+            f"{path} is not a report (an object of sections); delete it to start a new report"
+        )
+    return report
+
+
+def _artifacts(run_dir: Path, written: set[str]) -> dict[str, str]:
+    """Relative paths of the artifacts present or ``written`` now, by name (the report:
+    always)."""
+    report = table.REPORT
+    names = (*(name for s in table.STAGES for name in s.writes), report)
+    return {
+        Path(name).stem: name
+        for name in names
+        if name in written or (run_dir / name).exists() or name == report
+    }
