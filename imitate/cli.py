@@ -30,13 +30,36 @@ import signal
 import sys
 import tempfile
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from imitate import __version__, numba_cache
-from imitate.envs import rendering
+from imitate import __version__
+from imitate.errors import ImitateError
+from imitate.rundir.table import NAMES, PAGE, RUN_HELP, STAGES
+
+if TYPE_CHECKING:
+    from imitate.stages.config import RunConfig, Setting
+
+__all__ = ["main"]
+
+log = logging.getLogger(__name__)
+
+DEFAULT_RUN = Path("runs/latest")
+EXPORT_HELP = (
+    "the robot's replay and the teacher's demonstrations as datasets (pip install "
+    "'imitate[export]')"
+)
+EVAL_HELP = "reproduce a run's learned model in seeded variations (obstacles, grasps, physics)"
+COMPARE_HELP = (
+    "similarity weightings on the same variations, paired: success (McNemar) and how far the "
+    "pour moved (Wilcoxon)"
+)
+COMMANDS = {
+    **{s.name: s.help for s in STAGES}, "run": RUN_HELP, "export": EXPORT_HELP,
+    "eval": EVAL_HELP, "compare": COMPARE_HELP,
+}
 
 
 def _matplotlib_config_dir() -> None:
@@ -54,32 +77,34 @@ def _matplotlib_config_dir() -> None:
         atexit.register(shutil.rmtree, os.environ["MPLCONFIGDIR"], ignore_errors=True)
 
 
-# Before the imports below load MuJoCo and the kernels: what the library logs while it loads
-# (numba's cache moved) waits for -v/-q in _LOADING.
+# What the library logs while MuJoCo and the kernels load (numba's cache moved) waits here for
+# -v/-q (see _log_to_stderr).
 _LOADING = logging.handlers.BufferingHandler(capacity=1000)
-logging.getLogger("imitate").addHandler(_LOADING)
-logging.getLogger("imitate").setLevel(logging.DEBUG)
-rendering.import_mujoco()
-_matplotlib_config_dir()
-import matplotlib  # noqa: E402
-
-matplotlib.use("Agg")
-
-from imitate.errors import ImitateError  # noqa: E402
-from imitate.evaluation.suite import SUITE_NAMES  # noqa: E402
-from imitate.motion import SIMILARITIES  # noqa: E402
-from imitate.rundir.lock import locked  # noqa: E402
-from imitate.rundir.table import NAMES, PAGE, RUN_HELP, STAGES  # noqa: E402
-from imitate.stages.config import RunConfig, Setting, load_config, settings  # noqa: E402
-
-__all__ = ["main"]
-
-log = logging.getLogger(__name__)
-
-DEFAULT_RUN = Path("runs/latest")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _prepare() -> None:
+    """Before a sub-command loads MuJoCo, the kernels and matplotlib: buffer the library's log,
+    render headless (:func:`imitate.envs.rendering.import_mujoco`), draw with Agg. Once."""
+    logger = logging.getLogger("imitate")
+    if _LOADING in logger.handlers:
+        return
+    logger.addHandler(_LOADING)
+    logger.setLevel(logging.DEBUG)
+    from imitate.envs import rendering
+
+    rendering.import_mujoco()
+    _matplotlib_config_dir()
+    import matplotlib
+
+    matplotlib.use("Agg")
+
+
+def build_parser(full: Iterable[str] | None = None) -> argparse.ArgumentParser:
+    """The command line: every sub-command, with its arguments for those in ``full`` (default:
+    all; each loads what its settings' defaults need, MuJoCo included)."""
+    full = COMMANDS if full is None else tuple(full)
+    if full:
+        _prepare()
     parser = argparse.ArgumentParser(
         prog="imitate",
         description="Task-level imitation learning of pouring (Muehlig et al., ICRA 2009), "
@@ -88,36 +113,44 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"imitate {__version__}")
     _add_verbosity(parser, logging.INFO)
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    helps = {**{s.name: s.help for s in STAGES}, "run": RUN_HELP}
-    for command, text in helps.items():
+    for command, text in COMMANDS.items():
         sub = commands.add_parser(command, help=text, description=text)
         _add_verbosity(sub, argparse.SUPPRESS)
-        sub.add_argument("run_dir", nargs="?", type=Path, metavar="RUN_DIR",
-                         help=f"run directory (default {DEFAULT_RUN}); same as --out")
-        sub.add_argument("--out", type=Path, metavar="DIR", help="run directory")
-        _add_settings(sub, settings([None]))
-        sub.add_argument("--quick", action="store_true",
-                         help="small images, 3 demonstrations, short optimization (tests)")
-        sub.add_argument("--force", action="store_true",
-                         help="use input artifacts that are stale or from another run (see "
-                         "manifest.json) instead of refusing them")
-        for stage in _stages(command):
-            _add_settings(sub.add_argument_group(f"{stage} settings"), settings([stage]))
-    add_export(commands)
-    _add_eval(commands)
-    _add_compare(commands)
+        if command not in full:
+            continue
+        if command == "export":
+            _add_export(sub)
+        elif command == "eval":
+            _add_eval(sub)
+        elif command == "compare":
+            _add_compare(sub)
+        else:
+            _add_run(sub, command)
     return parser
 
 
-def add_export(commands) -> None:
-    """The ``export`` sub-command: a run's episodes as datasets (:mod:`imitate.export`)."""
+def _add_run(sub: argparse.ArgumentParser, command: str) -> None:
+    """The arguments of ``run`` and of a stage's sub-command: the run directory and the
+    settings the command's stages read."""
+    from imitate.stages.config import settings
+
+    sub.add_argument("run_dir", nargs="?", type=Path, metavar="RUN_DIR",
+                     help=f"run directory (default {DEFAULT_RUN}); same as --out")
+    sub.add_argument("--out", type=Path, metavar="DIR", help="run directory")
+    _add_settings(sub, settings([None]))
+    sub.add_argument("--quick", action="store_true",
+                     help="small images, 3 demonstrations, short optimization (tests)")
+    sub.add_argument("--force", action="store_true",
+                     help="use input artifacts that are stale or from another run (see "
+                     "manifest.json) instead of refusing them")
+    for stage in _stages(command):
+        _add_settings(sub.add_argument_group(f"{stage} settings"), settings([stage]))
+
+
+def _add_export(sub: argparse.ArgumentParser) -> None:
+    """The ``export`` sub-command's arguments (see :mod:`imitate.export`)."""
     from imitate.export import FORMATS
 
-    text = (
-        "the robot's replay and the teacher's demonstrations as datasets "
-        "(pip install 'imitate[export]')"
-    )
-    sub = commands.add_parser("export", help=text, description=text)
     sub.add_argument("run_dir", nargs="?", type=Path, default=DEFAULT_RUN, metavar="RUN_DIR",
                      help=f"run directory (default {DEFAULT_RUN})")
     sub.add_argument("--format", required=True, choices=FORMATS,
@@ -153,22 +186,34 @@ def _add_verbosity(parser: argparse.ArgumentParser, default) -> None:
                        help="print only warnings and errors (and the summary on stdout)")
 
 
-def _add_eval(commands) -> None:
-    """The ``eval`` sub-command's arguments (see :mod:`imitate.evaluation`)."""
-    text = "reproduce a run's learned model in seeded variations (obstacles, grasps, physics)"
-    sub = commands.add_parser("eval", help=text, description=text)
+def _add_eval(sub: argparse.ArgumentParser) -> None:
+    """The ``eval`` sub-command's arguments (see :mod:`imitate.evaluation`); the suite's keys
+    in its help."""
+    from imitate.evaluation.suite import KEYS
+    from imitate.motion import SIMILARITIES
+
     _add_variations(sub, teachers=1)
     sub.add_argument("--similarity", choices=SIMILARITIES, metavar="NAME", dest="weighting",
                      help=f"replaces the suite's similarity weighting: one of {SIMILARITIES}")
     sub.add_argument("--videos", type=int, default=3, metavar="K",
                      help="videos of the first K failures (default 3)")
+    sub.formatter_class = argparse.RawDescriptionHelpFormatter
+    sub.epilog = "suite keys (a .toml or .json file of them; the default of each):\n" + "\n".join(
+        f"  {name} ({_fmt_default(key.default)}): {key.help}" for name, key in KEYS.items()
+    )
 
 
-def _add_compare(commands) -> None:
+def _fmt_default(value: Any) -> str:
+    """A suite key's default as a suite file writes it: ``[low, high]`` for a range."""
+    if isinstance(value, tuple):
+        return "[" + ", ".join(map(str, value)) + "]"
+    return str(value)
+
+
+def _add_compare(sub: argparse.ArgumentParser) -> None:
     """The ``compare`` sub-command's arguments (see :mod:`imitate.evaluation.compare`)."""
-    text = ("similarity weightings on the same variations, paired: success (McNemar) and how "
-            "far the pour moved (Wilcoxon)")
-    sub = commands.add_parser("compare", help=text, description=text)
+    from imitate.motion import SIMILARITIES
+
     _add_variations(sub, teachers=3)
     sub.add_argument("--similarity", default=",".join(SIMILARITIES), metavar="A,B,...",
                      dest="weightings",
@@ -179,6 +224,8 @@ def _add_compare(commands) -> None:
 def _add_variations(sub, teachers: int) -> None:
     """The arguments ``eval`` and ``compare`` share: the run, the suite and its draw, the
     teachers, where the variations run."""
+    from imitate.evaluation.suite import SUITE_NAMES
+
     sub.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="run directory with model.npz")
     sub.add_argument("--suite", metavar="NAME|FILE",
                      help=f"suite of variations: a shipped one ({', '.join(SUITE_NAMES)}) or "
@@ -237,6 +284,8 @@ def config_for(args: argparse.Namespace, base: RunConfig) -> RunConfig:
     """The run's configuration: ``base`` (the run directory's ``config.json`` for a later
     stage, the defaults for ``run`` and ``observe``) with ``--quick`` and the given settings
     applied."""
+    from imitate.stages.config import RunConfig, settings
+
     owned = {name for name, s, _ in settings(_stages(args.command)) if s.flag}
     given = {k: v for k, v in vars(args).items() if k in owned or k == "seed"}
     if args.quick:
@@ -249,7 +298,8 @@ def config_for(args: argparse.Namespace, base: RunConfig) -> RunConfig:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(full=[a for a in argv if a in COMMANDS][:1])
     args = parser.parse_args(argv)
     _log_to_stderr(args.log_level)
     if args.command == "export":
@@ -259,9 +309,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.run_dir and args.out and args.run_dir != args.out:
         parser.error(f"two run directories given: {args.run_dir} and --out {args.out}; give one")
     run_dir = args.out or args.run_dir or DEFAULT_RUN
-    command = " ".join(["imitate", *(sys.argv[1:] if argv is None else argv)])
+    command = " ".join(["imitate", *argv])
     stages, stage = _stages(args.command), None
     fresh = _starts_run(args.command)
+    from imitate import numba_cache
+    from imitate.rundir.lock import locked
+    from imitate.stages.config import RunConfig, load_config
+
     try:
         with _terminated_as_exception(), locked(run_dir, command, create=fresh):
             from imitate.figures import drawing  # the stages: once the directory is ours

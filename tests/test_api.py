@@ -12,6 +12,7 @@ from imitate.learning import LearnedModel
 from imitate.motion import Plan
 from imitate.perception import Observations
 from imitate.run import Demos, Recording
+from imitate.rundir.schema import REPORT_KEYS
 from imitate.stages.config import RunConfig, load_config
 
 README = Path(__file__).resolve().parents[1] / "README.md"
@@ -78,13 +79,6 @@ def test_missing_artifacts_name_the_file_and_the_stage(quick_run, tmp_path):
         imitate.load_run(tmp_path / "nothing")
 
 
-def documented_report_keys() -> set[str]:
-    text = README.read_text()
-    table = text[text.index("### `report.json`"):]
-    table = table[: table.index("\n\n", table.index("| key |"))]
-    return set(re.findall(r"^\| `([^`]+)` \|", table, re.MULTILINE))
-
-
 def report_keys(value, prefix: str = "") -> set[str]:
     """Dotted keys of a report: ``a.b``, ``a[].b`` in lists; ``timings`` and ``artifacts`` by
     their documented placeholders."""
@@ -102,4 +96,4 @@ def report_keys(value, prefix: str = "") -> set[str]:
 
 def test_every_report_key_is_documented(quick_run):
     report = imitate.load_run(quick_run).report
-    assert report_keys(report) == documented_report_keys()
+    assert report_keys(report) == set(REPORT_KEYS)

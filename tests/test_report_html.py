@@ -8,6 +8,7 @@ from pathlib import Path
 from imitate.evaluation.report import summarize
 from imitate.rundir import table
 from imitate.rundir.page import CAPTIONS, save_eval_page, save_run_page
+from imitate.rundir.schema import REPORT_SCHEMA
 from imitate.stages.config import RunConfig
 
 
@@ -56,7 +57,7 @@ def test_run_page_links_every_artifact_and_shows_the_key_numbers(quick_run):
 
 def test_partial_run_has_a_page_of_what_exists(tmp_path):
     report = {
-        "schema": table.REPORT_SCHEMA, "seed": 4,
+        "schema": REPORT_SCHEMA, "seed": 4,
         "demos": {"detected": 5, "expected": 5, "boundary_err_s_max": 0.07},
         "perception": {"pos_err_mm_median": 4.2, "pos_err_mm_p95": 11.9},
         "timings": {"observe": 15.4},

@@ -15,13 +15,12 @@ from dataclasses import dataclass
 from imitate.errors import ImitateError
 
 __all__ = [
-    "FIGURES", "NAMES", "PAGE", "REPORT", "REPORT_SCHEMA", "RUN_HELP", "STAGES", "Stage", "find",
+    "FIGURES", "NAMES", "PAGE", "REPORT", "RUN_HELP", "STAGES", "Stage", "find",
     "producer",
 ]
 
 REPORT = "report.json"  # every stage merges its sections into it
 PAGE = "report.html"  # the report and the settings as a page (imitate.rundir.page), with the report
-REPORT_SCHEMA = 1  # report["schema"]: version of the layout the README's `report.json` documents
 FIGURES = (
     "observation", "fig4_gmm_dtw", "fig5_bic", "gmr", "fig8_snapshots", "fig9_collision_sweep",
     "costs",

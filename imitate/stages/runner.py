@@ -15,6 +15,7 @@ from pathlib import Path
 from imitate.errors import ImitateError
 from imitate.rundir import page, table
 from imitate.rundir.artifacts import load_json, save_json, staged
+from imitate.rundir.schema import REPORT_SCHEMA
 from imitate.stages import provenance
 from imitate.stages.config import RunConfig
 
@@ -68,7 +69,7 @@ def _report(
     earlier stages kept from ``previous``, those of later ones dropped."""
     earlier = table.STAGES[: table.STAGES.index(current)]
     kept = {name for s in earlier for name in s.sections}
-    report = {"schema": table.REPORT_SCHEMA, "seed": seed}
+    report = {"schema": REPORT_SCHEMA, "seed": seed}
     for name in [name for s in table.STAGES for name in s.sections]:
         if name in sections:
             report[name] = sections[name]

@@ -1,0 +1,172 @@
+"""The keys of ``report.json``, declared: the unit and meaning of each (``python -m
+imitate.rundir.schema`` prints them as a table; ``tests/test_api.py`` checks that a run's report
+has exactly these keys).
+
+Every stage merges its sections into the report; ``schema`` is the version of this layout,
+raised when a key changes meaning or goes away. Keys are dotted; ``a[].b`` is key ``b`` of every
+item of the list ``a``; ``<stage>`` and ``<name>`` stand for any stage and any artifact.
+"""
+
+from __future__ import annotations
+
+__all__ = ["REPORT_KEYS", "REPORT_SCHEMA", "markdown"]
+
+REPORT_SCHEMA = 1  # report["schema"]
+
+# key: (unit, meaning)
+REPORT_KEYS: dict[str, tuple[str, str]] = {
+    "schema": ("-", "version of this layout: 1"),
+    "seed": ("-", "seed of the run"),
+    "demos.detected": ("-", "demonstrations the segmentation found"),
+    "demos.expected": ("-", "demonstrations the teacher showed"),
+    "demos.boundary_err_s_max": (
+        "s",
+        "largest start or end error of a found demonstration against the true one",
+    ),
+    "perception.pos_err_mm_median": (
+        "mm",
+        "median tracked-point position error against ground truth",
+    ),
+    "perception.pos_err_mm_p95": ("mm", "its 95th percentile"),
+    "perception.angle_err_deg_median": (
+        "deg",
+        "median error of the objects' angles around the gaze",
+    ),
+    "perception.detected_fraction": ("1", "fraction of (object, frame) pairs the tracker found"),
+    "perception.long_gaps": ("-", "tracking gaps too long to interpolate"),
+    "perception.render_pairs_per_s": ("1/s", "stereo pairs rendered per second"),
+    "perception.track_pairs_per_s": ("1/s", "stereo pairs tracked and triangulated per second"),
+    "learning.source": ("-", "`perception` or `ground truth (oracle)`"),
+    "learning.bic": (
+        "-",
+        "how the number of components was chosen: `full` (EM for every K) or `fast`",
+    ),
+    "learning.n_components": ("-", "GMM components K used"),
+    "learning.n_components_fast_bic": ("-", "K the fast BIC chooses"),
+    "learning.n_components_full_bic": ("-", "K the full BIC chooses"),
+    "learning.seconds": ("s", "time to learn (DTW, BIC, EM, GMR)"),
+    "learning.bridged_samples": (
+        "-",
+        "tracked samples missing in the demonstrations, bridged linearly",
+    ),
+    "optimization.collision_weight": ("-", "weight of the collision cost of the plan"),
+    "optimization.similarity": (
+        "-",
+        "the similarity weighting of the plan (`variance`: eq. 21, `uniform`, `inverted`, "
+        "`precision`)",
+    ),
+    "optimization.sigma_max_scale": (
+        "-",
+        "eq. 21's `sigma_max` as a multiple of each dimension's largest GMR variance (1: the "
+        "paper's)",
+    ),
+    "optimization.seconds": ("s", "time to optimize the plan"),
+    "optimization.iterations": ("-", "optimizer iterations"),
+    "optimization.converged": ("-", "whether the stopping rule was met within `max_iter`"),
+    "optimization.min_distance_m": (
+        "m",
+        "smallest signed distance between geoms that must not touch, over the plan",
+    ),
+    "optimization.closest_pair": (
+        "-",
+        "the two geoms at that distance (empty if none is within 0.2 m)",
+    ),
+    "optimization.pour_phase_err_m": (
+        "m",
+        "largest relative-position error from the GMR mean while pouring",
+    ),
+    "optimization.pour_phase_err_deg": (
+        "deg",
+        "largest bottle or glass angle error from the GMR mean while pouring",
+    ),
+    "optimization.message": ("-", "what happened, in words"),
+    "optimization.sweep[].weight": ("-", "collision weight of one plan of the Fig. 9 sweep"),
+    "optimization.sweep[].min_distance_m": ("m", "its smallest signed distance"),
+    "optimization.sweep[].max_deviation_m": (
+        "m",
+        "largest distance of its relative position (dx, dy, dz) from the weight-0 plan's",
+    ),
+    "optimization.sweep[].deviation_m2": (
+        "m^2",
+        "its squared deviation from the GMR mean, summed over steps",
+    ),
+    "optimization.sweep[].deviation_high_variance_share": (
+        "1",
+        "share of that in steps of above-median GMR variance",
+    ),
+    "optimization.sweep[].change_from_first_m2": (
+        "m^2",
+        "squared change from the sweep's first plan, summed over steps",
+    ),
+    "optimization.sweep[].change_high_variance_share": (
+        "1",
+        "share of that in steps of above-median GMR variance",
+    ),
+    "replay.pour_fraction": (
+        "1",
+        "fraction of the particles in the glass at the end of the replay",
+    ),
+    "replay.spilled": ("-", "particles in neither container at the end"),
+    "replay.min_distance_m": (
+        "m",
+        "smallest signed distance between geoms that must not touch, in physics",
+    ),
+    "replay.task_err_m_max": (
+        "m",
+        "largest relative-position error of the objects against the plan, in physics",
+    ),
+    "replay.pour_fraction_mean": (
+        "1",
+        "mean pour fraction over three replays from seeds `seed`, `seed + 1`, `seed + 2` of the "
+        "initial-state noise",
+    ),
+    "replay.pour_fraction_min": ("1", "the smallest of them"),
+    "replay.pour_fractions": ("1", "the three"),
+    "replay.success": ("-", "the smallest pour fraction >= 0.9 and nothing penetrated"),
+    "replay.pour_geometry.mouth_above_rim_min_m": (
+        "m",
+        "in the first replay, while liquid leaves the bottle: the lowest height of the bottle's "
+        "mouth above the glass rim, in the glass's frame",
+    ),
+    "replay.pour_geometry.mouth_above_rim_median_m": ("m", "its median"),
+    "replay.pour_geometry.mouth_offset_median_m": (
+        "m",
+        "median distance of the mouth from the glass's axis (the inner rim radius is 40 mm)",
+    ),
+    "replay.pour_geometry.mouth_offset_max_m": ("m", "its largest"),
+    "replay.pour_geometry.tilt_max_deg": ("deg", "the bottle's largest tilt from upright"),
+    "replay.pour_geometry.pour_seconds": (
+        "s",
+        "from the first to the last step at which liquid left the bottle",
+    ),
+    "replay.pour_geometry.stream_offset_median_m": (
+        "m",
+        "median distance from the glass's axis at which the particles first fell through the rim's"
+        " plane",
+    ),
+    "replay.pour_geometry.stream_centre_offset_m": (
+        "m",
+        "distance of their mean crossing point from the axis",
+    ),
+    "replay.pour_geometry.stream_inside_share": (
+        "1",
+        "share of them that fell through within the rim's inner radius",
+    ),
+    "video.frames": ("-", "frames of `video.mp4`"),
+    "video.seconds": ("s", "its length"),
+    "timings.<stage>": ("s", "wall time of each stage run last"),
+    "artifacts.<name>": (
+        "-",
+        "path of each artifact present, relative to the run directory, by file stem",
+    ),
+}
+
+
+def markdown() -> str:
+    """The keys as a Markdown table (key, unit, meaning)."""
+    rows = [f"| `{key}` | {unit} | {meaning} |" for key, (unit, meaning) in REPORT_KEYS.items()]
+    return "\n".join(["| key | unit | meaning |", "|---|---|---|", *rows])
+
+
+if __name__ == "__main__":
+    print(markdown())
