@@ -25,7 +25,8 @@ and ``"agent_pos"``, the joint angles ``(18,) float64`` [rad]; ``obs_type="state
 since the last step (the sum over an episode is the final fraction). ``reward_collision``:
 ``-collision_weight`` on every step where two geoms that must not touch penetrate
 (``min_distance < 0``). ``info`` also has ``pour_fraction``, ``spilled`` (particles in neither
-container), ``is_success`` (>= 90 % in the glass), ``min_distance`` [m] and ``diverged``.
+container), ``is_success`` (a pour: :func:`imitate.envs.outcome.poured`), ``min_distance`` [m]
+and ``diverged``.
 
 ## Episode end
 Never ``terminated``. ``truncated`` (with ``info["diverged"]``) when the physics diverged in the
@@ -73,6 +74,7 @@ import numpy as np
 from imitate.envs import assembly
 from imitate.envs.collision import CollisionPairs, signed_distances
 from imitate.envs.observation import EYES
+from imitate.envs.outcome import poured
 from imitate.envs.rendering import make_renderer
 from imitate.envs.teacher_motion import pose_arm, shoulder_position
 from imitate.errors import ImitateError
@@ -88,7 +90,6 @@ DIVERGENCE = (
     mujoco.mjtWarning.mjWARN_BADQVEL,
     mujoco.mjtWarning.mjWARN_BADQACC,
 )
-SUCCESS_FRACTION = 0.9
 # How far [m] below its shoulder the teacher's hand hangs at rest (arms down, hands by the hips).
 TEACHER_HAND_DROP = 0.53
 
@@ -340,7 +341,7 @@ class PouringEnv(gym.Env):
         return {
             "pour_fraction": in_glass,
             "spilled": int(round(n * (1.0 - in_glass - in_bottle))),
-            "is_success": bool(n > 0 and in_glass >= SUCCESS_FRACTION),
+            "is_success": bool(n > 0 and poured(in_glass)),
             "min_distance": min_distance,
             "diverged": False,
         }

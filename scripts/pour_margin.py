@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-from imitate.envs.pouring import SUCCESS_FRACTION
+from imitate.envs.outcome import SUCCESS_FRACTION
 from imitate.errors import ImitateError
 from imitate.evaluation.evaluate import last_records
 

@@ -126,8 +126,8 @@ def test_numba_cache_moves_where_the_default_is_not_writable(tmp_path):
     shutil.copytree(ROOT / "imitate", site / "imitate", ignore=ignore)
     for folder in ("envs", "models"):
         shutil.copytree(ROOT / folder, site / "imitate" / folder, ignore=ignore)
-    for package in (site / "imitate", site / "imitate" / "perception"):
-        (package / "__pycache__").write_text("not a folder")
+    for init in (site / "imitate").rglob("__init__.py"):
+        (init.parent / "__pycache__").write_text("not a folder")
     blocked, temp = tmp_path / "blocked", tmp_path / "tmp"
     blocked.write_text("not a folder")
     temp.mkdir()
@@ -151,3 +151,5 @@ outline._extremes(np.zeros((3, 2)), np.zeros(2), np.array([1.0, 0.0]))
     result = python(code, env=env, cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     assert list(fallback.rglob("_outline._extremes-*.nbi")), sorted(fallback.rglob("*"))
+    result = python("import imitate.motion.taskspace", env=env, cwd=tmp_path)  # alone
+    assert result.returncode == 0, result.stderr

@@ -15,12 +15,12 @@ import pytest
 
 from imitate.cli import main
 from imitate.demos.oracle import oracle_model
+from imitate.envs.outcome import outcome
 from imitate.errors import ImitateError
 from imitate.evaluation import Suite, evaluate, load_suite
 from imitate.evaluation.evaluate import RESULTS, last_records, read_records
 from imitate.evaluation.report import summarize, text, wilson
 from imitate.evaluation.suite import KEYS
-from imitate.evaluation.trial import classify
 from imitate.evaluation.variation import Variation, draw
 from imitate.learning import LearningConfig
 from imitate.models.scene import TABLE_HEIGHT
@@ -137,7 +137,7 @@ def _replay(pour, spilled=0, distance=0.01, diverged=False):
 
 
 @pytest.mark.parametrize(
-    "plan, replays, outcome",
+    "plan, replays, expected",
     [
         (0.01, [_replay(1.0), _replay(0.95)], "success"),
         (0.01, [_replay(1.0), _replay(0.85, spilled=3)], "spill"),
@@ -147,8 +147,33 @@ def _replay(pour, spilled=0, distance=0.01, diverged=False):
         (-0.002, [_replay(1.0, diverged=True)], "diverged"),
     ],
 )
-def test_classify(plan, replays, outcome):
-    assert classify(plan, replays, particles=20) == outcome
+def test_outcome(plan, replays, expected):
+    assert outcome(plan, replays, particles=20) == expected
+
+
+def test_a_variation_whose_physics_diverges_is_recorded_and_the_next_goes_on(
+    model_arrays, monkeypatch
+):
+    from imitate.evaluation import trial
+
+    suite = Suite.from_dict({**TINY, "obstacle_share": 0.0, "replays": 1})
+    first, second = (draw(suite, 0, i, np.zeros((2, 3))) for i in range(2))
+    runner = trial.Trial(model_arrays)
+    replay = trial.replay
+
+    def diverging(plan, env, on_step, **kwargs):
+        def step(env):
+            on_step(env)
+            if env.data.time > 0.1:
+                env.data.qvel[:] = 1e30  # blows up the next step
+
+        return replay(plan, env, on_step=step, **kwargs)
+
+    monkeypatch.setattr(trial, "replay", diverging)
+    record = runner.run(first)
+    assert record["outcome"] == "diverged" and record["replays"][0]["diverged"]
+    monkeypatch.setattr(trial, "replay", replay)
+    assert runner.run(second)["outcome"] != "diverged"
 
 
 @pytest.fixture(scope="module")

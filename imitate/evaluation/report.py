@@ -11,9 +11,9 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Patch, Rectangle
 
-from imitate.envs.pouring import SUCCESS_FRACTION
+from imitate.envs.outcome import OUTCOMES, SUCCESS_FRACTION
 from imitate.envs.video import StateRecorder, captioned, replay_frames, write_video
-from imitate.evaluation.trial import OUTCOMES, physics, plan_variation, replay_once
+from imitate.evaluation.trial import physics, plan_variation, replay_once
 from imitate.evaluation.variation import Variation
 from imitate.learning import LearnedModel
 from imitate.models.scene import TABLE_X

@@ -3,14 +3,7 @@ each of its seeds, classify the outcome, and measure how far the constraints mov
 the unconstrained reproduction (the same model and weighting in the default scene, collision
 weight 0 and the default path-length weight).
 
-Outcomes, the first that applies: ``diverged`` (a replay's physics blew up), ``plan_collision``
-(the plan itself comes closer than 0 to something), ``physics_contact`` (the plan keeps clear,
-a replay does not), ``spill`` or ``low_pour`` (the smallest pour fraction over the replays is
-below 0.9: ``spill`` when the particles spilled outside both containers are at least half of
-those missing from the glass, ``low_pour`` when most stayed in the bottle), ``success``.
-Success asks for the minimum over the replays, not the mean: the pour is chaotic (a tiny change
-of the initial state moves one replay's fraction by a few particles), and a reproduction that
-pours in two replays of three is not one that pours.
+The outcome is :func:`imitate.envs.outcome.outcome`'s.
 """
 
 from __future__ import annotations
@@ -22,8 +15,9 @@ import mujoco
 import numpy as np
 
 from imitate.envs.assembly import SceneConfig
+from imitate.envs.outcome import outcome
 from imitate.envs.pour_geometry import PourGeometry
-from imitate.envs.pouring import SUCCESS_FRACTION, PouringEnv
+from imitate.envs.pouring import PouringEnv
 from imitate.evaluation.variation import Variation
 from imitate.learning import LearnedModel
 from imitate.models import humanoid, objects
@@ -31,9 +25,8 @@ from imitate.motion import Plan, PlanConfig, plan_from_model
 from imitate.motion.metrics import pour_phase_error, task_change
 from imitate.motion.replay import planning_task, replay
 
-__all__ = ["OUTCOMES", "Trial", "classify", "physics", "plan_variation", "replay_once"]
+__all__ = ["Trial", "physics", "plan_variation", "replay_once"]
 
-OUTCOMES = ("success", "plan_collision", "physics_contact", "spill", "low_pour", "diverged")
 
 
 def plan_variation(learned: LearnedModel, gaze: np.ndarray, variation: Variation) -> Plan:
@@ -73,9 +66,9 @@ def replay_once(
     on_step: Callable[[PouringEnv], None] | None = None,
 ) -> dict:
     """One replay of ``plan`` in ``env`` (from :func:`physics`) from ``seed``: ``{"seed",
-    "pour_fraction", "spilled", "min_distance_m", "diverged", "geometry"}``; diverged when
-    MuJoCo met a bad acceleration (and reset the state) or the state is not finite; geometry:
-    where the stream met the glass (:meth:`PourGeometry.summary`)."""
+    "pour_fraction", "spilled", "min_distance_m", "diverged", "geometry"}``; diverged: the
+    physics diverged and the replay stopped there; geometry: where the stream met the glass
+    (:meth:`PourGeometry.summary`)."""
     options = {"bottle_grasp": variation.bottle_grasp, "glass_grasp": variation.glass_grasp}
     geometry = PourGeometry()
 
@@ -85,31 +78,14 @@ def replay_once(
             on_step(env)
 
     result = replay(plan, env, seed=seed, options=options, on_step=step, gaze=gaze)
-    bad = env.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
     return {
         "seed": seed,
         "pour_fraction": result.pour_fraction,
         "spilled": result.spilled,
         "min_distance_m": result.min_distance,
-        "diverged": bool(bad > 0 or not np.all(np.isfinite(env.data.qpos))),
+        "diverged": result.diverged_at is not None,
         "geometry": geometry.summary(),
     }
-
-
-def classify(plan_min_distance: float, replays: list[dict], particles: int) -> str:
-    """The outcome (one of :data:`OUTCOMES`, see the module) of a plan's clearance [m] and its
-    replays (from :func:`replay_once`)."""
-    if any(r["diverged"] for r in replays):
-        return "diverged"
-    if plan_min_distance < 0:
-        return "plan_collision"
-    if min(r["min_distance_m"] for r in replays) < 0:
-        return "physics_contact"
-    worst = min(replays, key=lambda r: r["pour_fraction"])
-    if worst["pour_fraction"] >= SUCCESS_FRACTION:
-        return "success"
-    missing = 1.0 - worst["pour_fraction"]
-    return "spill" if worst["spilled"] / particles >= missing / 2 else "low_pour"
 
 
 class Trial:
@@ -156,7 +132,7 @@ class Trial:
         return {
             "id": variation.id,
             "settings": variation.to_json(),
-            "outcome": classify(plan.min_distance, replays, variation.particles),
+            "outcome": outcome(plan.min_distance, replays, variation.particles),
             "pour_mean": float(np.mean(pours)),
             "pour_min": float(np.min(pours)),
             "plan": {

@@ -14,7 +14,6 @@ import numpy as np
 
 from imitate.envs import assembly
 from imitate.envs.pouring import PouringEnv
-from imitate.errors import ImitateError
 from imitate.models import humanoid, objects
 from imitate.motion import Plan
 from imitate.motion.approach import approach_path
@@ -59,8 +58,12 @@ class ReplayResult:
         spilled: Particles in neither container at the end.
         min_distance: Smallest signed distance [m] over all steps between pairs that must not
             touch.
-        task_error: ``(T + 1, m)`` task state in physics minus the plan's, at the plan's times.
-        is_success: ``pour_fraction >= 0.9``.
+        task_error: ``(T + 1, m)`` task state in physics minus the plan's, at the plan's times
+            (fewer rows if the replay stopped early).
+        is_success: The pour fraction is a pour (:func:`imitate.envs.outcome.poured`) and the
+            physics did not diverge.
+        diverged_at: Time [s] into the replay at which the physics diverged (the replay stopped
+            there), None if it did not.
     """
 
     pour_fraction: float
@@ -68,6 +71,7 @@ class ReplayResult:
     min_distance: float
     task_error: np.ndarray
     is_success: bool
+    diverged_at: float | None = None
 
 
 def replay(
@@ -90,9 +94,8 @@ def replay(
     task error is measured in ``gaze``, which should be the plan's (``None``:
     :func:`planning_task`'s default).
 
-    Raises:
-        ImitateError: the physics diverged (``info["diverged"]`` of a step): the replay stops
-            there, naming the time.
+    Where the physics diverges (``info["diverged"]`` of a step), the replay stops and says when
+    (``diverged_at``), with the pour and the clearance measured so far.
     """
     env.reset(seed=seed, options=options)
     dt = env.dt
@@ -113,29 +116,28 @@ def replay(
     min_distance = np.inf
     reached = []
     info = {}
+    diverged_at = None
     if on_step is not None:
         on_step(env)
     for k, target in enumerate(targets):
         _, _, _, _, info = env.step(target)
         if info["diverged"]:
-            raise ImitateError(
-                f"the physics diverged {(k + 1) * dt:.2f} s into the replay (step {k + 1} of "
-                f"{len(targets)}): MuJoCo found a NaN, infinite or huge joint position, velocity "
-                f"or acceleration; the replay stopped there"
-            )
+            diverged_at = (k + 1) * dt
+            break
         if on_step is not None:
             on_step(env)
         min_distance = min(min_distance, info["min_distance"])
         if n_approach <= k < n_approach + len(play):
             reached.append(_task_state(env, task, plan, (k - n_approach) * dt))
-    x = np.array(reached)
+    x = np.reshape(reached, (len(reached), plan.x.shape[1]))
     ref = _resample(plan.times - plan.times[0], plan.x, t_play)
     return ReplayResult(
         pour_fraction=float(info["pour_fraction"]),
         spilled=int(info["spilled"]),
         min_distance=float(min_distance),
         task_error=x - ref[: len(x)],
-        is_success=bool(info["is_success"]),
+        is_success=bool(info["is_success"]) and diverged_at is None,
+        diverged_at=diverged_at,
     )
 
 

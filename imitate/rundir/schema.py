@@ -122,7 +122,12 @@ REPORT_KEYS: dict[str, tuple[str, str]] = {
     ),
     "replay.pour_fraction_min": ("1", "the smallest of them"),
     "replay.pour_fractions": ("1", "the three"),
-    "replay.success": ("-", "the smallest pour fraction >= 0.9 and nothing penetrated"),
+    "replay.outcome": (
+        "-",
+        "success, plan_collision, physics_contact, spill, low_pour or diverged, of the plan and "
+        "its three pours (imitate.envs.outcome)",
+    ),
+    "replay.success": ("-", "the outcome is success"),
     "replay.pour_geometry.mouth_above_rim_min_m": (
         "m",
         "in the first replay, while liquid leaves the bottle: the lowest height of the bottle's "

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import dataclasses
+import logging
 import os
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
@@ -11,8 +12,9 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from imitate.envs.outcome import outcome
 from imitate.envs.pour_geometry import PourGeometry
-from imitate.envs.pouring import SUCCESS_FRACTION, PouringEnv
+from imitate.envs.pouring import PouringEnv
 from imitate.envs.video import StateRecorder
 from imitate.motion import Plan
 from imitate.motion.replay import replay
@@ -20,11 +22,13 @@ from imitate.rundir.artifacts import load_npz, save_npz
 from imitate.stages.config import RunConfig
 from imitate.stages.progress import bars_off
 
+log = logging.getLogger(__name__)
+
 APPROACH_S = 1.0  # [s] from the reset pose to the plan's start in the replay
 STATE_NAMES = ("qpos", "mocap_pos", "mocap_quat")  # a recorded replay state (StateRecorder)
 
-# Replays of the pour, each from its own seed of the initial-state noise; a run succeeds when the
-# smallest of their pour fractions reaches SUCCESS_FRACTION (one replay's fraction is chaotic).
+# Replays of the pour, each from its own seed of the initial-state noise; their outcome is the
+# run's (imitate.envs.outcome: the smallest pour fraction counts, one replay's is chaotic).
 POUR_REPLAYS = 3
 
 
@@ -44,10 +48,19 @@ def run(run_dir: Path, config: RunConfig) -> dict:
         futures = [pool.submit(_physics, p, config, gaze, seed) for p, seed in jobs]
         for _ in as_completed(futures):
             bar.update()
-        outcomes = [future.result() for future in futures]
-    result, states, state_dt, geometry = outcomes[0]
-    pours = [outcome[0].pour_fraction for outcome in outcomes[:POUR_REPLAYS]]
-    free_states = outcomes[-1][1]
+        replayed = [future.result() for future in futures]
+    result, states, state_dt, geometry = replayed[0]
+    pours = [r.pour_fraction for r, *_ in replayed[:POUR_REPLAYS]]
+    free_states = replayed[-1][1]
+    verdict = outcome(jobs[0][0].min_distance, [
+        {"pour_fraction": r.pour_fraction, "spilled": r.spilled, "min_distance_m": r.min_distance,
+         "diverged": r.diverged_at is not None}
+        for r, *_ in replayed[:POUR_REPLAYS]
+    ], config.particles)
+    for (r, *_), (_, seed) in zip(replayed, jobs, strict=True):
+        if r.diverged_at is not None:
+            log.warning("the physics diverged %.2f s into the replay from seed %d", r.diverged_at,
+                        seed)
     save_npz(run_dir / "replay.npz", {
         **states, "task_error": result.task_error, "state_dt": state_dt,
         "pour_fraction": result.pour_fraction, "spilled": result.spilled,
@@ -59,11 +72,14 @@ def run(run_dir: Path, config: RunConfig) -> dict:
             "pour_fraction": result.pour_fraction,
             "spilled": result.spilled,
             "min_distance_m": result.min_distance,
-            "task_err_m_max": float(np.linalg.norm(result.task_error[:, :3], axis=1).max()),
+            "task_err_m_max": float(
+                np.linalg.norm(result.task_error[:, :3], axis=1).max(initial=0.0)
+            ),
             "pour_fraction_mean": float(np.mean(pours)),
             "pour_fraction_min": float(np.min(pours)),
             "pour_fractions": pours,
-            "success": bool(min(pours) >= SUCCESS_FRACTION and result.min_distance >= 0.0),
+            "outcome": verdict,
+            "success": verdict == "success",
             "pour_geometry": geometry,
         }
     }
