@@ -44,9 +44,9 @@ from imitate.demos.synthetic import pouring_demos
 from imitate.learning import LearningConfig, learn, time_stacked
 from imitate.learning.bic import _FAST_CHAINS, _FAST_TOL, bic_sweep
 from imitate.learning.dtw import align, dtw
-from imitate.learning.gmm import GMM
+from imitate.learning.gmm import GMM, kmeans_parameters
 from imitate.learning.gmr import gmr
-from imitate.learning.kmeans import kmeans, kmeans_parameters
+from imitate.learning.kmeans import kmeans
 
 K_MAX = 30
 K_GMR = 9

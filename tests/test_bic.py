@@ -8,8 +8,7 @@ import pytest
 from imitate.errors import ImitateError
 from imitate.learning._em import _e_step, _factor, _sorted_transposed
 from imitate.learning.bic import _LOG_NEGLIGIBLE, bic_sweep
-from imitate.learning.gmm import GMM, _bic
-from imitate.learning.kmeans import kmeans_parameters
+from imitate.learning.gmm import GMM, _bic, kmeans_parameters
 
 
 def test_fast_bic_is_the_bic_of_its_kmeans_clusters_and_above_full(demo_data):

@@ -9,8 +9,8 @@ from hypothesis import strategies as st
 from sklearn.mixture import GaussianMixture
 
 from imitate.errors import ImitateError
-from imitate.learning.gmm import GMM, n_parameters
-from imitate.learning.kmeans import kmeans, kmeans_parameters
+from imitate.learning.gmm import GMM, kmeans_parameters, n_parameters
+from imitate.learning.kmeans import kmeans
 
 
 def _sklearn_from(init, k, **kwargs) -> GaussianMixture:

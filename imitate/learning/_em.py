@@ -340,3 +340,45 @@ def _sorted_transposed(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Samples sorted by their first dimension and transposed, ``(D, N)``, and the order."""
     order = np.argsort(X[:, 0], kind="stable")
     return np.ascontiguousarray(X[order].T), order
+
+
+@numba.njit(cache=True)
+def _cluster_parameters(
+    x: np.ndarray, labels: np.ndarray, n_components: int, reg_covar: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The M-step (eqs. 9-12) for hard responsibilities: counts and means in one pass over the
+    samples, covariances about those means in a second (no cancellation)."""
+    n, d = x.shape
+    counts = np.zeros(n_components)
+    means = np.zeros((n_components, d))
+    cov = np.zeros((n_components, d, d))
+    for i in range(n):
+        c = labels[i]
+        counts[c] += 1.0
+        for e in range(d):
+            means[c, e] += x[i, e]
+    for c in range(n_components):  # element loops: no compiled shape checks (see _copy_row)
+        counts[c] += _EPS_COUNTS
+        for e in range(d):
+            means[c, e] /= counts[c]
+    diff = np.empty(d)
+    for i in range(n):
+        c = labels[i]
+        for e in range(d):
+            diff[e] = x[i, e] - means[c, e]
+        for e in range(d):
+            for f in range(e + 1):
+                cov[c, e, f] += diff[e] * diff[f]
+    for c in range(n_components):
+        for e in range(d):
+            for f in range(e + 1):
+                cov[c, e, f] /= counts[c]
+                cov[c, f, e] = cov[c, e, f]
+            cov[c, e, e] += reg_covar
+    total = 0.0
+    for c in range(n_components):
+        total += counts[c]
+    weights = np.empty(n_components)
+    for c in range(n_components):
+        weights[c] = counts[c] / total
+    return weights, means, cov

@@ -17,9 +17,15 @@ from numpy.typing import ArrayLike
 from imitate import numba_cache
 from imitate._validation import check_n_components, check_samples
 from imitate.errors import ImitateError
-from imitate.learning._em import _BLOCK, _e_step, _factor, _sorted_transposed
-from imitate.learning.gmm import GMM, _bic, _not_positive_definite
-from imitate.learning.kmeans import _cluster_parameters, _kmeans_sweep, kmeans_parameters
+from imitate.learning._em import (
+    _BLOCK,
+    _cluster_parameters,
+    _e_step,
+    _factor,
+    _sorted_transposed,
+)
+from imitate.learning.gmm import GMM, _bic, _not_positive_definite, kmeans_parameters
+from imitate.learning.kmeans import _kmeans_sweep
 
 numba_cache.ensure_writable()  # before the kernels below are declared
 

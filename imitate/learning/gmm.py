@@ -18,14 +18,40 @@ from numpy.typing import ArrayLike
 
 from imitate._validation import check_samples
 from imitate.errors import ImitateError
-from imitate.learning._em import _LOG_FLUSH, _e_step, _em_loop, _factor, _sorted_transposed
-from imitate.learning.kmeans import kmeans, kmeans_parameters
+from imitate.learning._em import (
+    _LOG_FLUSH,
+    _cluster_parameters,
+    _e_step,
+    _em_loop,
+    _factor,
+    _sorted_transposed,
+)
+from imitate.learning.kmeans import kmeans
 
-__all__ = ["GMM", "exp_flushed", "n_parameters"]
+__all__ = ["GMM", "exp_flushed", "kmeans_parameters", "n_parameters"]
 
 def n_parameters(n_components: int, n_dims: int) -> int:
     """Number of free parameters ``P`` of a full-covariance GMM (eq. 7)."""
     return (n_components - 1) + n_components * (n_dims + n_dims * (n_dims + 1) // 2)
+
+
+def kmeans_parameters(
+    X: ArrayLike, labels: ArrayLike, n_components: int, reg_covar: float = 1e-6
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """GMM parameters from hard cluster labels (the paper's initialisation and fast heuristic).
+
+    Args:
+        X: Samples, shape ``(n_samples, n_dims)``.
+        labels: Cluster of each sample, shape ``(n_samples,)``, values in ``[0, n_components)``.
+        n_components: Number of components ``K``.
+        reg_covar: Added to the diagonal of every covariance, ``>= 0``.
+
+    Returns:
+        ``(weights, means, covariances)`` of shapes ``(K,)``, ``(K, D)``, ``(K, D, D)``:
+        cluster fractions, centroids and (biased) cluster covariances plus ``reg_covar * I``.
+    """
+    X = check_samples(X)
+    return _cluster_parameters(X, np.asarray(labels, dtype=np.intp), n_components, reg_covar)
 
 
 def _bic(log_likelihood: float, n_components: int, n_dims: int, n_samples: int) -> float:
@@ -158,7 +184,7 @@ class GMM:
 
         Returns:
             ``(weights, means, covariances)``, see
-            :func:`imitate.learning.kmeans.kmeans_parameters`.
+            :func:`kmeans_parameters`.
         """
         X = check_samples(X)
         labels = kmeans(X, self.n_components, n_init=self.n_init, seed=self.seed).labels

@@ -21,7 +21,7 @@ from imitate.errors import ImitateError
 
 numba_cache.ensure_writable()  # before the kernels below are declared
 
-__all__ = ["KMeansResult", "kmeans", "kmeans_parameters"]
+__all__ = ["KMeansResult", "kmeans"]
 
 # scikit-learn's K-means defaults, used for the initialisation of EM and for the BIC sweep.
 _MAX_ITER = 100
@@ -426,65 +426,3 @@ def kmeans(
     return KMeansResult(
         centres=sweep.centres[-1], labels=sweep.labels[-1], inertia=float(sweep.inertia[-1])
     )
-
-
-def kmeans_parameters(
-    X: ArrayLike, labels: ArrayLike, n_components: int, reg_covar: float = 1e-6
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """GMM parameters from hard cluster labels (the paper's initialisation and fast heuristic).
-
-    Args:
-        X: Samples, shape ``(n_samples, n_dims)``.
-        labels: Cluster of each sample, shape ``(n_samples,)``, values in ``[0, n_components)``.
-        n_components: Number of components ``K``.
-        reg_covar: Added to the diagonal of every covariance, ``>= 0``.
-
-    Returns:
-        ``(weights, means, covariances)`` of shapes ``(K,)``, ``(K, D)``, ``(K, D, D)``:
-        cluster fractions, centroids and (biased) cluster covariances plus ``reg_covar * I``.
-    """
-    X = check_samples(X)
-    return _cluster_parameters(X, np.asarray(labels, dtype=np.intp), n_components, reg_covar)
-
-
-@numba.njit(cache=True)
-def _cluster_parameters(
-    x: np.ndarray, labels: np.ndarray, n_components: int, reg_covar: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The M-step (eqs. 9-12) for hard responsibilities: counts and means in one pass over the
-    samples, covariances about those means in a second (no cancellation)."""
-    n, d = x.shape
-    counts = np.zeros(n_components)
-    means = np.zeros((n_components, d))
-    cov = np.zeros((n_components, d, d))
-    for i in range(n):
-        c = labels[i]
-        counts[c] += 1.0
-        for e in range(d):
-            means[c, e] += x[i, e]
-    for c in range(n_components):  # element loops: no compiled shape checks (see _copy_row)
-        counts[c] += _EPS_COUNTS
-        for e in range(d):
-            means[c, e] /= counts[c]
-    diff = np.empty(d)
-    for i in range(n):
-        c = labels[i]
-        for e in range(d):
-            diff[e] = x[i, e] - means[c, e]
-        for e in range(d):
-            for f in range(e + 1):
-                cov[c, e, f] += diff[e] * diff[f]
-    for c in range(n_components):
-        for e in range(d):
-            for f in range(e + 1):
-                cov[c, e, f] /= counts[c]
-                cov[c, f, e] = cov[c, e, f]
-            cov[c, e, e] += reg_covar
-    total = 0.0
-    for c in range(n_components):
-        total += counts[c]
-    weights = np.empty(n_components)
-    for c in range(n_components):
-        weights[c] = counts[c] / total
-    return weights, means, cov
-

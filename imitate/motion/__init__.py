@@ -32,15 +32,9 @@ from imitate.motion.costs import (
     similarity_weights,
     weighting,
 )
-from imitate.motion.optimizer import (
-    OPTIMIZERS,
-    PlanConfig,
-    Problem,
-    Setup,
-    plan_from_model,
-    setup,
-)
+from imitate.motion.optimizer import Problem, Setup, plan_from_model, setup
 from imitate.motion.plan import Plan
+from imitate.motion.plan_config import OPTIMIZERS, PlanConfig
 
 __all__ = [
     "OPTIMIZERS",

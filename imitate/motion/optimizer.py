@@ -11,23 +11,22 @@ without changing the task. The plan's start, RMR's posture on the learned start,
 same null space away from the table and obstacles closer than the margin plus 3 cm. The approach
 from the given posture to the plan's start is part of the movement: its clearance counts in the
 plan's, and where its straight joint-space line would pass within the margin of something it is
-bent (:mod:`.approach`). It returns a frozen :class:`Plan` with
-the best variables found, whether or not the optimizer converged.
+bent (:mod:`.approach`). The minimizers are :mod:`.minimize`'s, the settings
+:class:`~.plan_config.PlanConfig`. It returns a frozen :class:`Plan` with the best variables found,
+whether or not the optimizer converged.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.optimize import minimize
 
 from imitate.errors import ImitateError
 from imitate.motion.approach import approach_clearance, bend_approach, clear_start
 from imitate.motion.attractors import AttractorDynamics
 from imitate.motion.control import (
-    ControlConfig,
     JointLimitCost,
     Rollout,
     backward,
@@ -36,7 +35,6 @@ from imitate.motion.control import (
     segment_fractions,
 )
 from imitate.motion.costs import (
-    SIMILARITIES,
     Collision,
     JointAcceleration,
     JointLimits,
@@ -45,15 +43,16 @@ from imitate.motion.costs import (
     weighting,
 )
 from imitate.motion.kinematics import Kinematics
+from imitate.motion.minimize import lbfgs, rprop
 from imitate.motion.plan import Plan
+from imitate.motion.plan_config import PlanConfig
 from imitate.motion.taskspace import TaskMap
 
 if TYPE_CHECKING:
     from imitate.learning import LearnedModel
 
-__all__ = ["OPTIMIZERS", "PlanConfig", "Problem", "Setup", "plan_from_model", "setup"]
+__all__ = ["Problem", "Setup", "plan_from_model", "setup"]
 
-OPTIMIZERS = ("rprop", "lbfgs")
 # Default similarity tolerances per task dimension (eq. 1 order): the error that, held for 1 s
 # at zero variance, costs 1: 1 cm for positions, 2 deg for angles, 0.05 for gaze components.
 _TOLERANCE = (0.01, 0.01, 0.01, np.radians(2.0), 0.05, np.radians(2.0), 0.05)
@@ -61,9 +60,6 @@ _TOLERANCE = (0.01, 0.01, 0.01, np.radians(2.0), 0.05, np.radians(2.0), 0.05)
 # steps and x, y, z) above which a plan's message says the target was not reached: deviating
 # where the demonstrations varied is the planner's answer to obstacles, not a miss.
 UNREACHED_ERROR = 0.05
-# iRprop- step factors: growth while a gradient keeps its sign, shrink on a change, and the
-# largest step as a multiple of the initial one.
-_RPROP_GROW, _RPROP_SHRINK, _RPROP_MAX = 1.2, 0.5, 50.0
 # Width of an evenly spaced attractor's soft switch: the standard deviation of its Gaussian
 # share, in spacings (a component's time spread is about as wide relative to the components'
 # spacing).
@@ -74,105 +70,6 @@ _PUSH_SCALE = 0.1
 # Ranges [m] of _min_distance's queries, the nearer first: a plan's closest pair is almost
 # always within the first, and a pair's distance does not depend on the range it is asked in.
 _MIN_DISTANCE_QUERIES = (0.05, 0.2)
-
-
-@dataclass(frozen=True)
-class PlanConfig:
-    """Parameters of :func:`plan_from_model`.
-
-    Attributes:
-        dt: Planning step [s].
-        attractor_spacing: Time between attractors [s]: evenly spaced over the movement, each
-            switched in softly (a Gaussian of ``_SWITCH_WIDTH`` spacings); ``None`` for the
-            paper's one attractor per GMM component (at its time mean, width and prior).
-        omega_per_interval: Attractor stiffness: ``omega = omega_per_interval / L`` [rad/s]
-            with ``L`` the mean interval between attractor switches.
-        w_max: Eq. 21 weights at zero variance per task dimension ``(m,)``; ``None`` for
-            ``1 / tolerance^2`` with 1 cm, 1 cm, 1 cm, 2 deg, 0.05, 2 deg, 0.05.
-        sigma_max: Eq. 21 variance where the weight reaches 0 per dimension ``(m,)``; ``None``
-            for ``sigma_max_scale`` times each dimension's largest GMR variance.
-        sigma_max_scale: 1 is the paper's choice, where a dimension's weight is 0 at its
-            peak-variance step, so that the plan may move freely there (Fig. 9's excursion at
-            the start, where ``dy`` varies most); above 1 every step keeps a weight.
-        similarity: How ``W_t`` is made (:data:`~imitate.motion.costs.SIMILARITIES`):
-            ``"variance"`` (eq. 21) or an alternative with its total weight
-            (:func:`~imitate.motion.costs.weighting`).
-        similarity_weight, collision_weight, joint_limit_weight, path_length_weight,
-            joint_acceleration_weight: ``w_i``.
-        max_joint_acceleration: Joint acceleration [rad/s^2] above which the acceleration
-            term costs: the position servos follow the plan's speed (the replay leads them by
-            it) but not sudden changes of it.
-        margin: Clearance [m] the collision cost treats as contact.
-        epsilon: Width [m] of the proximity zone above ``margin``.
-        optimizer: ``"rprop"`` or ``"lbfgs"``.
-        max_iter: Iteration limit of each run of the optimizer (the null-space push adds two).
-        tol: Converged when the best cost improved by less than ``tol`` (relative) over the
-            last ``patience`` iterations.
-        patience: See ``tol``.
-        rprop_step: Initial iRprop- step as a fraction of each dimension's tolerance.
-        nullspace_push: Whether a plan that keeps less than ``margin`` with the attractors
-            alone is optimized once more with a null-space push per attractor (``Plan.push``).
-        control: RMR parameters.
-    """
-
-    dt: float = 0.08
-    attractor_spacing: float | None = 0.15
-    omega_per_interval: float = 2.0
-    w_max: tuple[float, ...] | None = None
-    sigma_max: tuple[float, ...] | None = None
-    sigma_max_scale: float = 1.0
-    similarity: str = "variance"
-    similarity_weight: float = 1.0
-    collision_weight: float = 10000.0
-    joint_limit_weight: float = 1.0
-    path_length_weight: float = 0.01
-    joint_acceleration_weight: float = 3.0
-    max_joint_acceleration: float = 20.0
-    margin: float = 0.011
-    epsilon: float = 0.004
-    optimizer: str = "rprop"
-    max_iter: int = 100
-    tol: float = 1e-2
-    patience: int = 5
-    rprop_step: float = 0.1
-    nullspace_push: bool = True
-    control: ControlConfig = field(default_factory=ControlConfig)
-
-    def __post_init__(self):
-        if self.optimizer not in OPTIMIZERS:
-            raise ImitateError(f"optimizer {self.optimizer!r} unknown; accepted: {OPTIMIZERS}")
-        if self.similarity not in SIMILARITIES:
-            raise ImitateError(
-                f"similarity {self.similarity!r} unknown; accepted: {SIMILARITIES}"
-            )
-        weights = (
-            self.similarity_weight,
-            self.collision_weight,
-            self.joint_limit_weight,
-            self.path_length_weight,
-            self.joint_acceleration_weight,
-        )
-        if not self.dt > 0 or not self.omega_per_interval > 0 or min(weights) < 0:
-            raise ImitateError(
-                f"PlanConfig needs dt > 0, omega_per_interval > 0 and weights >= 0; got dt="
-                f"{self.dt}, omega_per_interval={self.omega_per_interval}, weights={weights}"
-            )
-        if self.attractor_spacing is not None and not self.attractor_spacing > 0:
-            raise ImitateError(
-                f"attractor_spacing={self.attractor_spacing!r} not accepted: a time > 0 [s], "
-                "or None for one attractor per GMM component"
-            )
-        if not self.sigma_max_scale > 0:
-            raise ImitateError(f"sigma_max_scale {self.sigma_max_scale} not accepted: > 0")
-        if not self.max_joint_acceleration > 0:
-            raise ImitateError(
-                f"max_joint_acceleration {self.max_joint_acceleration} not accepted: > 0 rad/s^2"
-            )
-        if self.max_iter < 0 or self.patience < 1 or not self.tol >= 0:
-            raise ImitateError(
-                f"max_iter >= 0, patience >= 1 and tol >= 0 needed; got {self.max_iter}, "
-                f"{self.patience}, {self.tol}"
-            )
 
 
 class Problem:
@@ -390,7 +287,7 @@ def plan_from_model(
             best.update(v=v.copy(), cost=total, rollout=problem.last)
         history.append((total, values))
 
-    converged = _minimize(problem, a0, c, record, history)
+    converged = _minimize(problem, a0, c, record)
     target, final = best["rollout"] or problem.rollout(best["v"])
     min_d, closest = _min_distance(task.kin, final.q)
     pushed = c.nullspace_push and c.collision_weight > 0 and min_d < c.margin
@@ -398,7 +295,7 @@ def plan_from_model(
     if pushed:  # from the least-squares fit and from the best attractors, the better wins
         for a in (a0, best["v"]):
             v0 = np.hstack([a, np.zeros((len(a), task.kin.n))])
-            converged = _minimize(problem, v0, c, record, history)
+            converged = _minimize(problem, v0, c, record)
         target, final = best["rollout"] or problem.rollout(best["v"])
         min_d, closest = _min_distance(task.kin, final.q)
 
@@ -443,22 +340,20 @@ def plan_from_model(
     )
 
 
-def _minimize(problem: Problem, v0: np.ndarray, c: PlanConfig, record, history) -> bool:
-    """Minimizes ``problem`` from ``v0`` by ``c.optimizer``, each iterate passed to ``record``.
-    Returns whether it converged."""
-    if c.optimizer == "rprop":
-        return _rprop(problem, v0, c, record, history)
-
-    def fun(flat):
-        total, values, grad = problem.evaluate(flat.reshape(v0.shape))
-        record(flat.reshape(v0.shape), total, values)
-        return total, grad.ravel()
-
-    result = minimize(
-        fun, v0.ravel(), jac=True, method="L-BFGS-B",
-        options={"maxiter": c.max_iter, "ftol": c.tol * 1e-2},
+def _minimize(problem: Problem, v0: np.ndarray, c: PlanConfig, record) -> bool:
+    """Minimizes ``problem`` from ``v0`` by ``c.optimizer``, each iterate passed to ``record``;
+    iRprop-'s first steps scaled per variable (``c.rprop_step`` times the similarity tolerance of
+    an attractor's dimension, :data:`_PUSH_SCALE` for a null-space push). Returns whether it
+    converged."""
+    if c.optimizer == "lbfgs":
+        return lbfgs(problem.evaluate, v0, max_iter=c.max_iter, tol=c.tol, record=record)
+    m = problem.task.m
+    scale = np.concatenate([_TOLERANCE[:m], np.full(v0.shape[1] - m, _PUSH_SCALE)])
+    step = c.rprop_step * np.broadcast_to(scale, v0.shape)
+    return rprop(
+        problem.evaluate, v0, step, max_iter=c.max_iter, tol=c.tol, patience=c.patience,
+        record=record,
     )
-    return bool(result.success)
 
 
 def _min_distance(kin: Kinematics, q: np.ndarray) -> tuple[float, tuple[str, str] | None]:
@@ -480,34 +375,3 @@ def _min_distance(kin: Kinematics, q: np.ndarray) -> tuple[float, tuple[str, str
         if pair is not None:
             break
     return float(best), pair
-
-
-def _rprop(problem: Problem, v0: np.ndarray, c: PlanConfig, record, history) -> bool:
-    """iRprop-: per-coordinate steps grow by 1.2 while the gradient keeps its sign, halve on a
-    sign change (and skip that coordinate once). Returns whether it converged."""
-    v = v0.copy()
-    m = problem.task.m
-    scale = np.concatenate([_TOLERANCE[:m], np.full(v.shape[1] - m, _PUSH_SCALE)])
-    step = c.rprop_step * np.broadcast_to(scale, v.shape).copy()
-    step_max = _RPROP_MAX * step
-    prev = np.zeros_like(v)
-    first = len(history)
-    total, values, grad = problem.evaluate(v)
-    record(v, total, values)
-    for _ in range(c.max_iter):
-        if not np.all(np.isfinite(grad)):
-            return False
-        sign = prev * grad
-        step = np.where(sign > 0, np.minimum(step * _RPROP_GROW, step_max), step)
-        step = np.where(sign < 0, step * _RPROP_SHRINK, step)
-        grad = np.where(sign < 0, 0.0, grad)
-        v = v - np.sign(grad) * step
-        prev = grad
-        total, values, grad = problem.evaluate(v)
-        record(v, total, values)
-        best = [h[0] for h in history[first:]]
-        if len(best) > c.patience:
-            old, new = min(best[: -c.patience]), min(best)
-            if old - new <= c.tol * abs(old):
-                return True
-    return False

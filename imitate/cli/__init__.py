@@ -13,31 +13,25 @@ Each stage reads the previous stage's artifacts in the run directory (see
 for a bad flag, 130 for Ctrl-C and 143 for SIGTERM; a stage that does not finish changes
 nothing.
 
-Progress goes to stderr through :mod:`logging` (the ``imitate`` logger, configured here only):
-``-q`` leaves warnings and errors, ``-v`` adds debug lines. MuJoCo renders headless (see
-:func:`imitate.envs.rendering.import_mujoco`) and matplotlib draws with Agg.
+Progress goes to stderr (``-q`` leaves warnings and errors, ``-v`` adds debug lines; see
+:mod:`imitate.cli.console`). The command line is built for the sub-command given only, so that
+``imitate --help`` loads no MuJoCo.
 """
 
 from __future__ import annotations
 
 import argparse
-import atexit
 import logging
-import logging.handlers
-import os
-import shutil
-import signal
 import sys
-import tempfile
-import threading
-from collections.abc import Callable, Iterable, Iterator
-from contextlib import ExitStack, contextmanager
+from collections.abc import Callable, Iterable
+from contextlib import ExitStack
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from imitate import __version__
+from imitate.cli import console
 from imitate.errors import ImitateError
-from imitate.rundir.table import NAMES, PAGE, RUN_HELP, STAGES
+from imitate.rundir.table import NAMES, RUN_HELP, STAGES
 
 if TYPE_CHECKING:
     from imitate.stages.config import RunConfig, Setting
@@ -62,49 +56,12 @@ COMMANDS = {
 }
 
 
-def _matplotlib_config_dir() -> None:
-    """``MPLCONFIGDIR`` in a temporary folder, removed at exit, when matplotlib's default
-    (``$XDG_CONFIG_HOME/matplotlib`` or ``~/.config/matplotlib``) is not writable, as under a
-    read-only home, where matplotlib would warn about it on every run."""
-    if os.environ.get("MPLCONFIGDIR"):
-        return
-    config = Path(os.environ.get("XDG_CONFIG_HOME") or Path.home() / ".config", "matplotlib")
-    try:
-        config.mkdir(parents=True, exist_ok=True)
-        tempfile.TemporaryFile(dir=config).close()
-    except OSError:
-        os.environ["MPLCONFIGDIR"] = tempfile.mkdtemp(prefix="imitate-matplotlib-")
-        atexit.register(shutil.rmtree, os.environ["MPLCONFIGDIR"], ignore_errors=True)
-
-
-# What the library logs while MuJoCo and the kernels load (numba's cache moved) waits here for
-# -v/-q (see _log_to_stderr).
-_LOADING = logging.handlers.BufferingHandler(capacity=1000)
-
-
-def _prepare() -> None:
-    """Before a sub-command loads MuJoCo, the kernels and matplotlib: buffer the library's log,
-    render headless (:func:`imitate.envs.rendering.import_mujoco`), draw with Agg. Once."""
-    logger = logging.getLogger("imitate")
-    if _LOADING in logger.handlers:
-        return
-    logger.addHandler(_LOADING)
-    logger.setLevel(logging.DEBUG)
-    from imitate.envs import rendering
-
-    rendering.import_mujoco()
-    _matplotlib_config_dir()
-    import matplotlib
-
-    matplotlib.use("Agg")
-
-
 def build_parser(full: Iterable[str] | None = None) -> argparse.ArgumentParser:
     """The command line: every sub-command, with its arguments for those in ``full`` (default:
     all; each loads what its settings' defaults need, MuJoCo included)."""
     full = COMMANDS if full is None else tuple(full)
     if full:
-        _prepare()
+        console.prepare()
     parser = argparse.ArgumentParser(
         prog="imitate",
         description="Task-level imitation learning of pouring (Muehlig et al., ICRA 2009), "
@@ -301,7 +258,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(full=[a for a in argv if a in COMMANDS][:1])
     args = parser.parse_args(argv)
-    _log_to_stderr(args.log_level)
+    console.log_to_stderr(args.log_level)
     if args.command == "export":
         return export_command(args)
     if args.command in ("eval", "compare"):
@@ -317,7 +274,7 @@ def main(argv: list[str] | None = None) -> int:
     from imitate.stages.config import RunConfig, load_config
 
     try:
-        with _terminated_as_exception(), locked(run_dir, command, create=fresh):
+        with console.terminated_as_exception(), locked(run_dir, command, create=fresh):
             from imitate.figures import drawing  # the stages: once the directory is ours
             from imitate.stages import runner
 
@@ -339,83 +296,17 @@ def main(argv: list[str] | None = None) -> int:
                         log.info(notice)
                     report = runner.run_stage(stage, run_dir, config, force=args.force)
     except ImitateError as err:
-        return _fail(args.command, str(err), 1)
+        return console.fail(args.command, str(err), 1)
     except OSError as err:
-        return _fail(args.command, str(err), 1)
+        return console.fail(args.command, str(err), 1)
     except KeyboardInterrupt:
-        return _fail(args.command, _stopped("interrupted (Ctrl-C)", stage, run_dir), 130)
-    except _Terminated:
-        return _fail(args.command, _stopped("terminated (SIGTERM)", stage, run_dir), 143)
-    print(summary(report, stages, run_dir))
+        stopped = console.stopped("interrupted (Ctrl-C)", stage, run_dir)
+        return console.fail(args.command, stopped, 130)
+    except console.Terminated:
+        stopped = console.stopped("terminated (SIGTERM)", stage, run_dir)
+        return console.fail(args.command, stopped, 143)
+    print(console.summary(report, stages, run_dir))
     return 0
-
-
-class _Lines(logging.Formatter):
-    """A record as its message; a debug line, warning or error prefixed with its level."""
-
-    def format(self, record: logging.LogRecord) -> str:
-        text = super().format(record)
-        return text if record.levelno == logging.INFO else f"{record.levelname.lower()}: {text}"
-
-
-class _Stderr(logging.Handler):
-    """Writes to the ``sys.stderr`` of the moment (tests replace it)."""
-
-    def emit(self, record: logging.LogRecord) -> None:
-        try:
-            print(self.format(record), file=sys.stderr, flush=True)
-        except Exception:
-            self.handleError(record)
-
-
-_STDERR = _Stderr()
-_STDERR.setFormatter(_Lines())
-
-
-def _log_to_stderr(level: int) -> None:
-    """The ``imitate`` logger's records from ``level`` up on stderr, those kept while the
-    library loaded first."""
-    logger = logging.getLogger("imitate")
-    logger.removeHandler(_LOADING)
-    logger.addHandler(_STDERR)
-    logger.setLevel(level)
-    for record in _LOADING.buffer:
-        if record.levelno >= level:
-            _STDERR.handle(record)
-    _LOADING.buffer.clear()
-
-
-class _Terminated(BaseException):
-    """SIGTERM arrived; unwinds like Ctrl-C, so that temporary files and child processes go."""
-
-
-@contextmanager
-def _terminated_as_exception() -> Iterator[None]:
-    """Within the block, SIGTERM raises :class:`_Terminated` (in the main thread)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def terminate(signum, frame):
-        raise _Terminated
-
-    previous = signal.signal(signal.SIGTERM, terminate)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
-def _stopped(how: str, stage: str | None, run_dir: Path) -> str:
-    if stage is None:
-        return f"{how} before any stage ran"
-    return f"{how} in stage {stage}, which changed nothing in {run_dir}"
-
-
-def _fail(command: str, message: str, status: int) -> int:
-    """Print ``message`` as the command's one-line error; returns ``status``."""
-    print(f"imitate {command}: error: {' '.join(message.split())}", file=sys.stderr)
-    return status
 
 
 def _starts_run(command: str) -> bool:
@@ -434,7 +325,7 @@ def _eval(args: argparse.Namespace) -> int:
         name, suite = evaluation.named_suite(args.suite)
         if args.weight is not None:
             suite = suite.replace(collision_weight=args.weight)
-        with _terminated_as_exception():
+        with console.terminated_as_exception():
             if args.command == "compare":
                 result = compare.compare(
                     args.run_dir, suite, args.weightings.split(","), name=name, n=args.n,
@@ -451,43 +342,13 @@ def _eval(args: argparse.Namespace) -> int:
                 )
                 text = evaluation.text(summary, folder)
     except ImitateError as err:
-        return _fail(args.command, str(err), 1)
+        return console.fail(args.command, str(err), 1)
     except KeyboardInterrupt:
-        return _fail(args.command, f"interrupted (Ctrl-C); {kept}", 130)
-    except _Terminated:
-        return _fail(args.command, f"terminated (SIGTERM); {kept}", 143)
+        return console.fail(args.command, f"interrupted (Ctrl-C); {kept}", 130)
+    except console.Terminated:
+        return console.fail(args.command, f"terminated (SIGTERM); {kept}", 143)
     print(text)
     return 0
-
-
-def summary(report: dict, stages: tuple[str, ...], run_dir: Path) -> str:
-    """The stage-timing table and the headline numbers of ``report``."""
-    lines = ["", f"{'stage':<10} {'seconds':>8}"]
-    timings = report.get("timings", {})
-    lines += [f"{stage:<10} {timings[stage]:8.1f}" for stage in stages]
-    lines.append(f"{'total':<10} {sum(timings[s] for s in stages):8.1f}")
-    headline = {
-        "demos": ("detected", "expected"),
-        "perception": ("pos_err_mm_median", "pos_err_mm_p95", "angle_err_deg_median"),
-        "learning": ("bic", "n_components", "n_components_fast_bic", "n_components_full_bic"),
-        "optimization": ("min_distance_m", "pour_phase_err_m", "pour_phase_err_deg"),
-        "replay": ("pour_fraction", "spilled", "min_distance_m", "success"),
-    }
-    lines.append("")
-    for section, keys in headline.items():
-        if section in report:
-            values = ", ".join(f"{k} {_fmt(report[section][k])}" for k in keys)
-            lines.append(f"{section}: {values}")
-    lines.append("")
-    for name in ("video", "report"):
-        if name in report.get("artifacts", {}):
-            lines.append(f"{name}: {run_dir / report['artifacts'][name]}")
-    lines.append(f"page: {run_dir / PAGE}")
-    return "\n".join(lines)
-
-
-def _fmt(value) -> str:
-    return f"{value:.4g}" if isinstance(value, float) else str(value)
 
 
 if __name__ == "__main__":
