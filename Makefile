@@ -11,20 +11,20 @@ export MUJOCO_GL
 
 # System libraries, the virtual environment and the package with $(1) (extras, or nothing).
 define install
-	bash scripts/install_system_deps.sh
+	bash scripts/ci/install_system_deps.sh
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e ".$(1)"
 endef
 
 # What `make run` needs.
-$(BIN)/.installed: pyproject.toml scripts/install_system_deps.sh
+$(BIN)/.installed: pyproject.toml scripts/ci/install_system_deps.sh
 	$(call install,)
 	touch $@
 
 # Plus the test-only dependencies (pytest, ruff and the cross-check libraries), in the same
 # pip call on a fresh machine (each editable install builds the package once more).
-$(BIN)/.installed-test: pyproject.toml scripts/install_system_deps.sh
+$(BIN)/.installed-test: pyproject.toml scripts/ci/install_system_deps.sh
 	$(call install,[test])
 	touch $(BIN)/.installed $@
 
@@ -51,12 +51,12 @@ run: setup
 # suite leaves a core idle (pip, the warm-up, the suite's last test files). The system
 # libraries first, once, so that the two jobs never run apt-get at the same time.
 test:
-	bash scripts/install_system_deps.sh
+	bash scripts/ci/install_system_deps.sh
 	$(MAKE) -j2 suite test-lowest
 
 suite: setup-test lint
 	$(BIN)/python -m pytest -n auto --dist loadfile
-	$(BIN)/python scripts/render_ci_video.py --out runs/ci/video.mp4 --width 160 --height 120 --check
+	$(BIN)/python scripts/ci/render_ci_video.py --out runs/ci/video.mp4 --width 160 --height 120 --check
 
 lint: setup-test
 	$(BIN)/ruff check .
@@ -69,11 +69,11 @@ lint: setup-test
 # PYTHONDONTWRITEBYTECODE keeps no .pyc; not so for .venv, whose packages a hundred processes
 # of the suite import).
 LOWEST_ENV := NUMBA_CACHE_DIR=$(LOWEST)/numba nice -n 10
-$(LOWEST)/.installed: pyproject.toml scripts/lowest_requirements.py scripts/install_system_deps.sh
-	bash scripts/install_system_deps.sh
+$(LOWEST)/.installed: pyproject.toml scripts/ci/lowest_requirements.py scripts/ci/install_system_deps.sh
+	bash scripts/ci/install_system_deps.sh
 	rm -rf $(LOWEST)
 	$(PYTHON) -m venv $(LOWEST)
-	$(PYTHON) scripts/lowest_requirements.py > $(LOWEST)/requirements.txt
+	$(PYTHON) scripts/ci/lowest_requirements.py > $(LOWEST)/requirements.txt
 	nice -n 10 $(LOWEST)/bin/pip install --quiet --no-compile --only-binary :all: -r $(LOWEST)/requirements.txt pytest
 	$(LOWEST)/bin/pip install --quiet --no-compile --no-deps -e .
 	touch $@

@@ -246,7 +246,7 @@ def captioned(frames: Iterable[np.ndarray], text: str) -> Iterator[np.ndarray]:
 
 
 # x264's veryfast preset at imageio's quality 6 (of 10): less encoding time than imageio's default
-# (the medium preset at quality 5) at a higher PSNR, in larger files (scripts/bench_video.py).
+# (the medium preset at quality 5) at a higher PSNR, in larger files (scripts/bench/bench_video.py).
 ENCODER = {"codec": "libx264", "quality": 6, "ffmpeg_params": ["-preset", "veryfast"]}
 
 

@@ -25,7 +25,7 @@ log = logging.getLogger(__name__)
 
 PACKAGE = Path(__file__).parent
 # The one list of numba-compiled kernel modules: by the stage that first compiles them, with
-# about how long that takes on the 2-core CI machine [s] (`python scripts/bench_run.py`). Each
+# about how long that takes on the 2-core CI machine [s] (`python scripts/bench/bench_run.py`). Each
 # calls ensure_writable() before declaring its kernels; the warm-up compiles them all and the
 # Makefile's warm-up stamp depends on their files.
 STAGE_KERNELS = {

@@ -8,8 +8,8 @@ cache. It runs the tracker on one rendered stereo pair, the learner on a few sho
 demonstrations and one planner iteration, the code paths of a run with the argument types of a
 run, in two processes at once (numba compiles on one core): the tracker's and the planner's
 kernels in one, the learner's (DTW, K-means, EM, BIC) in the other. Between them they compile
-every kernel a run calls (a warm run compiles nothing: ``scripts/bench_run.py`` shows it); with
-one process, all of it runs here, one after the other.
+every kernel a run calls (a warm run compiles nothing: ``scripts/bench/bench_run.py`` shows it);
+with one process, all of it runs here, one after the other.
 
 :func:`announce_compiles` makes a process say on stderr which kernel it compiles, so that a
 stage that compiles for seconds is not silent.

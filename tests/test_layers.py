@@ -5,6 +5,7 @@ alike. The README's Architecture section draws the same map."""
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -161,3 +162,11 @@ def test_a_type_checking_import_counts(tmp_path):
     )
     known = {"imitate.cli", "imitate.motion", "imitate.motion.plan"}
     assert imports("imitate.learning.m", source, known) == {"imitate.cli", "imitate.motion.plan"}
+
+
+def test_the_readme_draws_the_same_map():
+    text = (ROOT / "README.md").read_text()
+    section = text[text.index("## Architecture"):]
+    rows = re.findall(r"^\| (\d+) [^|]*\| (.*) \|$", section, re.MULTILINE)
+    drawn = [tuple(re.findall(r"`(imitate\.[a-z_]+)`", row)) for _, row in rows]
+    assert drawn == list(LAYERS[:-1])  # the entry point __main__ aside

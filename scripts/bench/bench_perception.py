@@ -7,7 +7,7 @@ Accuracy: 3D error of the tracked point (axis centre at half height), error of t
 around the gaze vector, demonstrations found and the largest boundary error against the
 scripted ones.
 
-    python scripts/bench_perception.py [--seeds 0 1 2] [--width 640 --height 480] [--json F]
+    python scripts/bench/bench_perception.py [--seeds 0 1 2] [--width 640 --height 480] [--json F]
         [--out DIR]
 """
 

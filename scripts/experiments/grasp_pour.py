@@ -2,7 +2,7 @@
 planned once with the actual grasp (what ``imitate optimize`` and ``imitate eval`` do) and once
 with the default grasp (as if the planner ignored it), each replayed from several seeds.
 
-Usage: ``python scripts/grasp_pour.py RUN_DIR [--seeds 3]``; no obstacle, 60 particles.
+Usage: ``python scripts/experiments/grasp_pour.py RUN_DIR [--seeds 3]``; no obstacle, 60 particles.
 Columns: grasp heights [m]; per plan: its clearance [mm], its pour-phase task error [mm] and
 the pour fraction over the replays (mean and minimum).
 """

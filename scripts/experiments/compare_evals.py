@@ -1,6 +1,7 @@
 """Two evaluations of the same suite side by side (before and after a change), from their records.
 
-Usage: ``python scripts/compare_evals.py BEFORE_RUN_DIR AFTER_RUN_DIR``: the last ``imitate eval``
+Usage: ``python scripts/experiments/compare_evals.py BEFORE_RUN_DIR AFTER_RUN_DIR``: the last
+``imitate eval``
 of each (``eval/summary.json``'s digest; run the same suite, ``--n`` and ``--seed`` in both, for
 instance on copies of one ``model.npz`` with the code before and after). Nothing is re-run.
 

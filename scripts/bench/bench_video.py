@@ -1,7 +1,7 @@
 """The video: its frames rendered in one thread or several, and x264 presets and qualities on
 them (time, quality, size).
 
-    python scripts/bench_video.py [RUN_DIR] [--repeats 2] [--render [--threads N ...]]
+    python scripts/bench/bench_video.py [RUN_DIR] [--repeats 2] [--render [--threads N ...]]
 
 Decodes ``RUN_DIR/video.mp4`` (default ``runs/latest``) once and encodes its frames again with
 each encoder setting below, interleaved ``--repeats`` times: imageio's default for H.264 (x264's

@@ -1,7 +1,7 @@
 """Print the dependencies of ``pyproject.toml`` pinned at their lower bounds, one per line
 (``numpy>=1.26,<3`` -> ``numpy==1.26``), for ``make test-lowest``.
 
-    python scripts/lowest_requirements.py > requirements-lowest.txt
+    python scripts/ci/lowest_requirements.py > requirements-lowest.txt
 
 Every dependency must have a lower bound (``>=``); the pins install only if each bound is a
 release that exists.
@@ -13,7 +13,7 @@ import re
 import sys
 from pathlib import Path
 
-PYPROJECT = Path(__file__).resolve().parents[1] / "pyproject.toml"
+PYPROJECT = Path(__file__).resolve().parents[2] / "pyproject.toml"
 
 
 def dependencies(pyproject: str) -> list[str]:

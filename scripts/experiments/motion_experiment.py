@@ -2,7 +2,8 @@
 error, where the deviation from the GMR mean falls, and (``--physics``) the replay in physics,
 also over seeded variations of grasp heights and an obstacle.
 
-Usage: ``python scripts/motion_experiment.py [--weights 0 1000 10000] [--physics] [--variations 10]
+Usage: ``python scripts/experiments/motion_experiment.py [--weights 0 1000 10000] [--physics]
+[--variations 10]
 [--out runs/motion]``; writes ``fig9.png`` and ``costs.png`` under ``--out``.
 """
 

@@ -3,7 +3,7 @@ stereo frame pairs per second from the robot's head cameras, printed as a table:
 shadows, and as the observation stage renders them (``ObservationConfig.fast_render``: no
 shadows, reflections, multisampling, skybox or textures).
 
-    python scripts/bench_sim.py [--seconds 3] [--pairs 20]
+    python scripts/bench/bench_sim.py [--seconds 3] [--pairs 20]
 """
 
 from __future__ import annotations

@@ -1,7 +1,8 @@
 """Why a pour falls short: where the stream met the glass, against the pour, over the replays of
 an evaluation (``imitate eval``'s last one of RUN_DIR).
 
-Usage: ``python scripts/pour_margin.py RUN_DIR``. Nothing is re-run: every replay's record holds
+Usage: ``python scripts/experiments/pour_margin.py RUN_DIR``. Nothing is re-run: every replay's
+record holds
 its pour fraction, its spilled particles and where the stream met the glass
 (:mod:`imitate.envs.pour_geometry`).
 

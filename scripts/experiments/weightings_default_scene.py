@@ -1,7 +1,7 @@
 """The default scene's collision (the bottle into the chest) under each similarity weighting: what
 the share of the change in high-variance steps can and cannot tell apart.
 
-Usage: ``python scripts/weightings_default_scene.py RUN_DIR [--weights 300 10000]
+Usage: ``python scripts/experiments/weightings_default_scene.py RUN_DIR [--weights 300 10000]
 [--sigma-max-scale 1] [--similarity variance ...]``: the run's learned model planned in the
 default scene at collision weight 0 and at each of ``--weights``, with each weighting (default:
 every one of :data:`imitate.motion.SIMILARITIES`), the attractors alone (as Fig. 9's sweep);

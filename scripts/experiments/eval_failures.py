@@ -1,6 +1,7 @@
 """The failed variations of an evaluation, one line each, from its records (nothing is re-run).
 
-Usage: ``python scripts/eval_failures.py RUN_DIR``: the records of the last ``imitate eval RUN_DIR``
+Usage: ``python scripts/experiments/eval_failures.py RUN_DIR``: the records of the last
+``imitate eval RUN_DIR``
 (the suite digest in ``RUN_DIR/eval/summary.json``) whose outcome is not ``success``.
 
 Columns: ``id``, ``outcome``, where the obstacle was placed (``path`` or ``rand``) and its shape,

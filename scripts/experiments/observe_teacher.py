@@ -2,7 +2,8 @@
 
 Writes ``observations.npz``, ``demos.npz`` and ``figures/observation.png`` into ``--out``.
 
-    python scripts/observe_teacher.py --out runs/observe [--seed 0] [--width 640 --height 480]
+    python scripts/experiments/observe_teacher.py --out runs/observe [--seed 0] \
+        [--width 640 --height 480]
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The parts of a run's stages measured one at a time: what bounds each stage on a machine.
 
-    python scripts/bench_stages.py [RUN_DIR] [--parts observe replay video] [--threads 1 2 4]
+    python scripts/bench/bench_stages.py [RUN_DIR] [--parts observe replay video] [--threads 1 2 4]
 
 On the run ``RUN_DIR`` (default ``runs/latest``; its config, plan and replay):
 
@@ -11,7 +11,7 @@ On the run ``RUN_DIR`` (default ``runs/latest``; its config, plan and replay):
 - replay: each of the stage's physics replays alone, then all of them in threads as the stage
   runs them (each one's wall time there too).
 - video: the video's frames rendered in each of ``--threads`` threads (not encoded), as
-  ``scripts/bench_video.py --render`` does.
+  ``scripts/bench/bench_video.py --render`` does.
 
 Prints the wall time and this process's processor time (all its threads) of each.
 """

@@ -1,6 +1,6 @@
 """Kill, interrupt and race ``imitate`` on copies of one quick run; print what each leaves behind.
 
-    MUJOCO_GL=egl python scripts/fault_injection.py [--base runs/quick] [--work /tmp/faults]
+    MUJOCO_GL=egl python scripts/ci/fault_injection.py [--base runs/quick] [--work /tmp/faults]
 
 Without ``--base`` it first makes one (``imitate run --quick``). Every case works on a fresh
 copy of it and prints one row: the exit status, what changed in the directory (against the copy

@@ -1,7 +1,7 @@
 """The observation stage's rendering and tracking, with the pairs rendered ahead in a thread or
 in the tracking thread.
 
-    python scripts/bench_observe.py [--pairs 240] [--repeats 2]
+    python scripts/bench/bench_observe.py [--pairs 240] [--repeats 2]
 
 Renders the first ``--pairs`` stereo pairs of the default session (640x480, 30 Hz) and tracks
 them, once rendered in the tracking thread pair by pair (``frames(..., ahead=False)``) and once

@@ -1,7 +1,7 @@
 """Benchmark of the movement optimization: total time and per-iteration breakdown, this tree's
 planner beside an earlier commit's on the same problem.
 
-Usage: ``python scripts/bench_motion.py [--repeats 3] [--max-iter 100]
+Usage: ``python scripts/bench/bench_motion.py [--repeats 3] [--max-iter 100]
 [--collision-weight 10000] [--baseline 8a4964a]``.
 
 The problem is the oracle model's 5 s movement with the paper's attractors (K, one per GMM
@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 # The planner before issue 16 (the speed work): the tree this branch started from.
 BASELINE = "8a4964a"
 

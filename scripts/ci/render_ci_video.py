@@ -3,7 +3,7 @@ turns, the teacher stands across the table; a caption on top. With ``--check``, 
 again and verify that the frames show both object colours, change over time and carry the
 caption as written (exit status 1 if not).
 
-    python scripts/render_ci_video.py --out runs/ci/video.mp4 --width 160 --height 120 --check
+    python scripts/ci/render_ci_video.py --out runs/ci/video.mp4 --width 160 --height 120 --check
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Plan-to-physics clearance per variation: the clearance the plan promises, the one the replay
 keeps, how deep anything physically touches, and how far the joints lag their targets.
 
-Usage: ``python scripts/clearance_gap.py RUN_DIR [--n 20] [--seed 0]``: the first ``n``
+Usage: ``python scripts/experiments/clearance_gap.py RUN_DIR [--n 20] [--seed 0]``: the first ``n``
 variations of the default ``imitate eval`` suite (seed ``seed``) on ``RUN_DIR``'s learned model,
 one replay each (the first of its seeds).
 

@@ -1,6 +1,6 @@
 """Stage timings of a whole run, cold (empty numba cache) and warm, and where the time goes.
 
-    python scripts/bench_run.py [--quick] [--keep DIR]
+    python scripts/bench/bench_run.py [--quick] [--keep DIR]
 
 Runs ``imitate run`` twice, each in a child process under a pseudo-terminal (so the progress bars
 show as they do on a terminal): first with ``NUMBA_CACHE_DIR`` pointing at a new, empty

@@ -1,6 +1,6 @@
 """The number of components each BIC sweep chooses on the learned data of run directories.
 
-    python scripts/bic_choices.py runs/latest runs/seed20 runs/seed21 ...
+    python scripts/experiments/bic_choices.py runs/latest runs/seed20 runs/seed21 ...
 
 Runs the fast (paper) and the full sweep on every run's ``model.npz: data`` (the aligned,
 time-stacked demonstrations, shape ``(N, 1 + m)``) with the run's ``k_max`` (the length of its

@@ -1,6 +1,6 @@
 """Compare two run directories: every array of every ``.npz`` and the report's numbers.
 
-    python scripts/compare_runs.py runs/before runs/after
+    python scripts/experiments/compare_runs.py runs/before runs/after
 
 Prints one row per array and per report value that differs (with the largest absolute
 difference), then a verdict; exits 1 when anything differs. Timings and rates (``seconds``,

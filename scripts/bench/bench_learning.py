@@ -19,7 +19,7 @@ A last table runs the BIC sweeps on data of the same shape that are not demonstr
 Gaussian mixtures, random walks, ``--data-seeds`` draws of each): a speed-up that holds only on
 one data set is not one.
 
-Usage: ``python scripts/bench_learning.py [--blas-threads 1] [--repeats 7] [--data-seeds 10]``
+Usage: ``python scripts/bench/bench_learning.py [--blas-threads 1] [--repeats 7] [--data-seeds 10]``
 """
 
 from __future__ import annotations

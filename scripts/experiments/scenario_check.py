@@ -16,7 +16,7 @@ one row is printed from its ``report.json``:
 
 and a final line ``k of n seeds meet all targets``.
 
-Usage: ``python scripts/scenario_check.py [--seeds 20 21 ...] [--out runs/scenario]
+Usage: ``python scripts/experiments/scenario_check.py [--seeds 20 21 ...] [--out runs/scenario]
 [--from-stage optimize]`` (``--from-stage`` re-runs only the later stages on existing run
 directories, e.g. to check a new optimizer setting on the same learned models;
 ``--collision-weight W`` instead of the default).

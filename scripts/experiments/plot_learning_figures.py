@@ -3,7 +3,7 @@
 Writes ``fig4_gmm_dtw.png``, ``fig5_bic.png`` and ``gmr.png`` to the output directory and prints
 the chosen numbers of components and the pouring-phase variance ratio (without / with DTW).
 
-Usage: ``python scripts/plot_learning_figures.py --out runs/figures``
+Usage: ``python scripts/experiments/plot_learning_figures.py --out runs/figures``
 """
 
 from __future__ import annotations
