@@ -8,5 +8,5 @@ log = logging.getLogger("imitate")
 
 
 def bars_off() -> bool | None:
-    """tqdm's ``disable``: progress bars on a terminal (None), none below INFO (``-q``)."""
+    """The ``disable`` of tqdm: progress bars on a terminal (None), none below INFO (``-q``)."""
     return None if log.isEnabledFor(logging.INFO) else True
