@@ -60,6 +60,7 @@ suite: setup-test lint
 
 lint: setup-test
 	$(BIN)/ruff check .
+	$(BIN)/python scripts/ci/typecheck.py
 
 # The lowest versions pyproject.toml allows (every lower bound pinned, wheels only) on the env
 # and scene tests and a whole quick run, at a lower priority (nice); numba's cache of them kept

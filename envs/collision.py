@@ -73,6 +73,9 @@ def signed_distances(
     """Signed distance of each pair at ``data``'s current kinematics.
 
     Args:
+        model: the compiled model the geom ids refer to.
+        data: its state, with the kinematics (geom poses) already computed.
+        pairs: the geom pairs to measure.
         distmax: distances beyond this are reported as ``distmax`` [m] (faster).
 
     Returns:

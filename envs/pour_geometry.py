@@ -26,7 +26,7 @@ class PourGeometry:
     mouth's position relative to the rim centre in the glass's frame ``(3,)`` [m] and the share
     of particles in the bottle."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self._rows: list[tuple[float, ...]] = []
         self._dt = 0.0
         self._above: np.ndarray | None = None  # particles' positions in the rim's frame
@@ -59,6 +59,7 @@ class PourGeometry:
         the distance of their mean point from it [m] and the share of them within the rim's inner
         radius. ``None`` where no particle left the bottle or fell through."""
         rows = np.array(self._rows)
+        left: np.ndarray | list[int]  # steps where particles left the bottle
         left = np.flatnonzero(np.diff(rows[:, 4]) < 0) + 1 if len(rows) > 1 else []
         crossings = np.array(list(self._crossed.values())).reshape(-1, 2)
         distance = np.hypot(crossings[:, 0], crossings[:, 1])

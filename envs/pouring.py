@@ -120,23 +120,21 @@ class PouringEnv(gym.Env):
         for name, value in (("width", width), ("height", height), ("frame_skip", frame_skip)):
             if not isinstance(value, int | np.integer) or value <= 0:
                 raise ImitateError(f"{name}={value!r} not accepted: a positive integer")
-        for name, value in (
+        for name, number in (
             ("reset_noise_scale", reset_noise_scale),
             ("pour_weight", pour_weight),
             ("collision_weight", collision_weight),
         ):
-            if not isinstance(value, Real) or not np.isfinite(value) or value < 0:
-                raise ImitateError(f"{name}={value!r} not accepted: a finite number >= 0")
+            if not isinstance(number, Real) or not np.isfinite(number) or number < 0:
+                raise ImitateError(f"{name}={number!r} not accepted: a finite number >= 0")
         self.render_mode, self.obs_type, self.camera = render_mode, obs_type, camera
         self.width, self.height = width, height
         self.frame_skip = frame_skip
         self._reset_noise_scale = reset_noise_scale
         self._pour_weight, self._collision_weight = pour_weight, collision_weight
 
-        obstacles = tuple(assembly.Obstacle(**o) if isinstance(o, dict) else o for o in obstacles)
-        self.config = assembly.SceneConfig(
-            teacher=teacher, particles=particles, obstacles=obstacles
-        )
+        parsed = tuple(assembly.Obstacle(**o) if isinstance(o, dict) else o for o in obstacles)
+        self.config = assembly.SceneConfig(teacher=teacher, particles=particles, obstacles=parsed)
         assembly.check_clearance(self.config)
         self.model = assembly.build_model(self.config)
         self.data = mujoco.MjData(self.model)
@@ -268,7 +266,7 @@ class PouringEnv(gym.Env):
         """
         for warning in DIVERGENCE:
             self.data.warning[warning].number = 0
-        caught = []
+        caught: list[str] = []
         previous = mujoco.get_mju_user_warning()
         mujoco.set_mju_user_warning(caught.append)
         try:

@@ -27,7 +27,7 @@ import queue
 import sys
 import threading
 from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING, TypeVar
+from typing import TYPE_CHECKING, TypeVar, cast
 
 from imitate.errors import ImitateError
 
@@ -216,7 +216,7 @@ def interleaved(part: Callable[[slice], Iterator[T]], threads: int) -> Iterator[
                 item = next(items, _END)
                 if item is _END:
                     return
-                yield item
+                yield cast(T, item)  # not the sentinel _END
 
 
 _END = object()  # the end of a thread's items

@@ -348,15 +348,15 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
         * config.spread
     )
     rests = nominal[0] + spread[0] * rng.standard_normal((config.n_demos + 1, nominal.shape[1]))
-    noises, warps, boundaries = [], [], []
+    draws, warps, boundaries = [], [], []
     t = rng.uniform(*config.pause)
     for _ in range(config.n_demos):
-        noises.append(rng.standard_normal(nominal.shape))
+        draws.append(rng.standard_normal(nominal.shape))
         warps.append(_time_warp(rng, config.speed_variation))
         duration = rng.uniform(*config.duration)
         boundaries.append((t, t + duration))
         t += duration + rng.uniform(*config.pause)
-    noises = np.array(noises)
+    noises = np.array(draws)
     # One swing per demonstration, wide or narrow, spread around the nominal swing: the offsets
     # are centred over the session (n > 1), so the mean swing is the nominal one, and scaled by
     # sqrt(n / (n - 1)) so that they spread as much as independent draws.

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
 from pathlib import Path
+from typing import Any
 
 import cv2
 import imageio.v2 as imageio
@@ -42,7 +43,9 @@ class StateRecorder:
 
     def __init__(self, every: int = 1):
         self.every, self._calls = max(1, int(every)), 0
-        self.qpos, self.mocap_pos, self.mocap_quat = [], [], []
+        self.qpos: list[np.ndarray] = []
+        self.mocap_pos: list[np.ndarray] = []
+        self.mocap_quat: list[np.ndarray] = []
 
     def __call__(self, env: PouringEnv) -> None:
         if self._calls % self.every == 0:
@@ -74,10 +77,16 @@ def teacher_frames(
     view inset in the top-right corner: ``(height, width, 3) uint8``.
 
     Args:
+        motion: the scripted session whose object poses are shown.
+        times: ``(n,)`` instants of the session [s], one frame each.
+        width: frame width [px].
+        height: frame height [px].
         marks: ``(len(times), k, 2, 3)`` world points [m]: ``k`` segments (the tracked objects'
             axes) drawn on the eye view; NaN ones are skipped.
         projection: ``(3, 4)`` the left eye's projection matrix for images of ``image_size``
             ``(width, height)`` [px], which the marks are projected with.
+        image_size: ``(width, height)`` [px] of the images ``projection`` is for; needed with
+            ``marks``.
         threads: render in this many threads at once (:func:`interleaved`); the same frames.
     """
 
@@ -247,7 +256,9 @@ def captioned(frames: Iterable[np.ndarray], text: str) -> Iterator[np.ndarray]:
 
 # x264's veryfast preset at imageio's quality 6 (of 10): less encoding time than imageio's default
 # (the medium preset at quality 5) at a higher PSNR, in larger files (scripts/bench/bench_video.py).
-ENCODER = {"codec": "libx264", "quality": 6, "ffmpeg_params": ["-preset", "veryfast"]}
+ENCODER: dict[str, Any] = {
+    "codec": "libx264", "quality": 6, "ffmpeg_params": ["-preset", "veryfast"],
+}
 
 
 def write_video(path: Path, frames: Iterable[np.ndarray], fps: float) -> int:

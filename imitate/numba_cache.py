@@ -71,7 +71,9 @@ def ensure_writable() -> None:
     os.environ["NUMBA_CACHE_DIR"] = str(fallback)
     import numba
 
-    numba.config.CACHE_DIR = str(fallback)  # numba read the environment when imported
+    # numba read the environment when imported; its config sets this attribute through
+    # globals(), which its type annotations do not show.
+    numba.config.CACHE_DIR = str(fallback)  # type: ignore[attr-defined]
     log.info("the kernels' default cache is not writable; numba caches them in %s", fallback)
 
 
@@ -84,6 +86,7 @@ def compile_notice(stage: str) -> str | None:
     modules, seconds = STAGE_KERNELS[stage]
     uncached = set()
     for module in map(importlib.import_module, modules):
+        assert module.__file__ is not None  # the kernel modules are source files
         where = cache_dir(Path(module.__file__))
         if where is None or not any((where / name).exists() for name in _index_names(module)):
             uncached.add(str(where))

@@ -107,7 +107,8 @@ def add_container(spec: mujoco.MjSpec, parent: mujoco.MjsBody, name: str, shape:
         density=0,
     )
     wall_geoms = 0
-    corners = []  # per wall segment: the corners (8 per box, 3) of its boxes [m]
+    # per wall segment: the corners (8 per box, 3) of its boxes [m]
+    corners: list[list[np.ndarray]] = []
     for (r0, z0), (r1, z1) in zip(shape.profile[:-1], shape.profile[1:], strict=True):
         length, tilt = np.hypot(r1 - r0, z1 - z0), np.arctan2(r1 - r0, z1 - z0)
         radius = (r0 + r1) / 2

@@ -22,6 +22,7 @@ rather than on the later moment the spread test notices it.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
@@ -326,5 +327,6 @@ def load_demos(path) -> tuple[list[Demonstration], tuple[str, ...], np.ndarray]:
         fields = {name: a.get(f"demo{i}_{name}") for name in ("times", "position", "axis", "angle")}
         if any(value is None for value in fields.values()):
             raise ImitateError(f"{path} lacks the arrays of demonstration {i}; re-run observe")
-        demos.append(Demonstration(float(start), float(end), **fields))
+        arrays = cast(dict[str, np.ndarray], fields)  # none is None (checked above)
+        demos.append(Demonstration(float(start), float(end), **arrays))
     return demos, tuple(str(name) for name in a["objects"]), a["gaze"]

@@ -123,7 +123,7 @@ def paired(by_weighting: dict[str, list[dict]]) -> dict:
         ok = [r["outcome"] == "success" for r in rs]
         change = {k: np.array([r["change"][k] for r in rs]) for k in ("pour_m", "pour_deg",
                                                                       "low_variance_m")}
-        per_teacher = {}
+        per_teacher: dict[str, list[int]] = {}  # successes, variations
         for r, good in zip(rs, ok, strict=True):
             done = per_teacher.setdefault(str(r["teacher"]), [0, 0])
             done[0] += good

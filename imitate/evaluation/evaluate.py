@@ -153,9 +153,10 @@ def run_jobs(
     arrays = {t.seed: t.arrays for t in models if t.seed in {d.teacher for d in drawn}}
     total = sum(len(d.variations) for d in drawn)
     start, load = time.perf_counter(), os.getloadavg()
+    no_records: tuple[dict, ...] = ()
     finished = (
         run_ray(arrays, jobs, ray) if ray else run_local(arrays, jobs, min(workers, len(jobs)))
-    ) if jobs else (record for record in ())  # closable, as the workers' iterators
+    ) if jobs else (record for record in no_records)  # closable, as the workers' iterators
     _end_line(results)
     # closing: an interruption stops the workers before it propagates
     with closing(finished), open(results, "a") as f, tqdm(

@@ -13,7 +13,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
-from collections.abc import Iterator, Sequence
+from collections.abc import Generator, Sequence
 
 import numpy as np
 
@@ -31,7 +31,7 @@ Job = tuple[str, int, Variation]  # (digest, teacher seed, variation)
 Models = dict[int, dict[str, np.ndarray]]  # model.npz's arrays by teacher seed
 
 
-def run_local(models: Models, jobs: Sequence[Job], workers: int) -> Iterator[dict]:
+def run_local(models: Models, jobs: Sequence[Job], workers: int) -> Generator[dict, None, None]:
     """Records of ``jobs`` from ``workers`` spawned processes, in the order they finish, each
     with its ``digest`` and ``teacher``; ``models``: each teacher's ``model.npz`` arrays. If the
     caller stops (Ctrl-C, an error, closing the iterator), the workers are terminated at once:
@@ -48,7 +48,7 @@ def run_local(models: Models, jobs: Sequence[Job], workers: int) -> Iterator[dic
         pool.join()
 
 
-def run_ray(models: Models, jobs: Sequence[Job], address: str) -> Iterator[dict]:
+def run_ray(models: Models, jobs: Sequence[Job], address: str) -> Generator[dict, None, None]:
     """As :func:`run_local`, one Ray task (one CPU) per variation, on the Ray instance this
     process is connected to, or else on the cluster at ``address`` (``"auto"``: the one Ray
     finds). The workers need ``imitate`` installed.

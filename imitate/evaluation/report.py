@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -58,7 +59,8 @@ def summarize(records: Sequence[dict]) -> dict:
     low, high = wilson(successes, n)
     seconds = np.array([r["seconds"] for r in records])
     clear = [r for r in records if r["plan"]["min_distance_m"] >= 0]
-    gap = {"plans": len(clear)}  # plan minus physics [mm], over the plans that keep clear
+    # plan minus physics [mm], over the plans that keep clear
+    gap: dict[str, float] = {"plans": len(clear)}
     if clear:
         values = np.array([r["clearance_gap_m"] for r in clear]) * 1000
         gap.update(median=float(np.median(values)), p95=float(np.percentile(values, 95)),
@@ -193,8 +195,10 @@ def plot_outcomes(records: Sequence[dict], path: np.ndarray) -> Figure:
             continue
         (x, y, _), size = obstacle["pos"], obstacle["size"]
         colour = COLOURS[r["outcome"]]
-        style = dict(edgecolor=colour, facecolor=colour if r["settings"]["in_path"] else "none",
-                     alpha=0.8, lw=1.2)
+        style: dict[str, Any] = dict(
+            edgecolor=colour, facecolor=colour if r["settings"]["in_path"] else "none",
+            alpha=0.8, lw=1.2,
+        )
         if obstacle["shape"] == "box":
             top.add_patch(Rectangle((x - size[0], y - size[1]), 2 * size[0], 2 * size[1], **style))
         else:

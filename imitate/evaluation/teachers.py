@@ -82,6 +82,7 @@ def teachers(run_dir: Path, out: Path, n: int) -> list[Teacher]:
     found = [_read(own, run_dir / MODEL)]
     for seed in teacher_seeds(own, n)[1:]:
         folder = Path(out) / "teachers" / f"seed-{seed}"
+        assert config is not None  # loaded: there are other teachers (n > 1)
         _prepare(folder, dataclasses.replace(config, seed=seed))
         found.append(_read(seed, folder / MODEL))
     return found

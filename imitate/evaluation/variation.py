@@ -105,11 +105,11 @@ def path_points(learned: LearnedModel, gaze: np.ndarray, max_iter: int) -> np.nd
         config=PlanConfig(collision_weight=0.0, max_iter=max_iter),
     )
     kin = task.kin
-    points = []
+    passed: list[np.ndarray] = []
     for q in plan.q:
         kin.update(q)
-        points += [kin.data.body(b).xpos.copy() for b in PATH_BODIES]
-    points = np.array(points)
+        passed += [kin.data.body(b).xpos.copy() for b in PATH_BODIES]
+    points = np.array(passed)
     (x0, x1), (y0, y1) = TABLE_X, TABLE_Y
     x, y, z = points.T
     return points[(x >= x0) & (x <= x1) & (y >= y0) & (y <= y1) & (z > TABLE_HEIGHT)]

@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -83,7 +84,10 @@ class Recorder(gym.Wrapper):
     def __init__(self, env: PouringEnv):
         super().__init__(env)
         self.seed, self.options = None, None
-        self.observations, self.infos, self.actions, self.steps = [], [], [], []
+        self.observations: list[np.ndarray | dict[str, Any]] = []
+        self.infos: list[dict[str, Any]] = []
+        self.actions: list[np.ndarray] = []
+        self.steps: list[tuple[float, bool, bool]] = []  # reward, terminated, truncated
 
     def reset(self, *, seed=None, options=None):
         obs, info = self.env.reset(seed=seed, options=options)
@@ -118,7 +122,7 @@ def robot_episode(run: Run, images: bool = False) -> Episode:
         images: Also record both head-camera images at every step.
     """
     config = run.config
-    kwargs = {
+    kwargs: dict[str, Any] = {
         "particles": config.particles,
         "obstacles": [dataclasses.asdict(o) for o in config.scene().obstacles],
     }
@@ -128,7 +132,8 @@ def robot_episode(run: Run, images: bool = False) -> Episode:
     env = Recorder(PouringEnv(**kwargs))
     options = {"bottle_grasp": config.bottle_grasp, "glass_grasp": config.glass_grasp}
     try:
-        replay(run.plan, env, seed=config.seed, options=options, gaze=gaze)
+        # The Recorder stands in for the env it wraps (its attributes are read through).
+        replay(run.plan, cast(PouringEnv, env), seed=config.seed, options=options, gaze=gaze)
     finally:
         env.close()
     rewards, terminated, truncated = (np.array(v) for v in zip(*env.steps, strict=True))

@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -39,7 +40,7 @@ def _write(path: Path, episodes: Iterable[Episode]) -> None:
             _write_demo(data.create_group(f"demo_{i}"), episode)
             total += len(episode)
             env = episode.env
-        env_args = {"env_name": None, "type": None, "env_kwargs": {}}
+        env_args: dict[str, Any] = {"env_name": None, "type": None, "env_kwargs": {}}
         if env is not None:
             env_args = {
                 "env_name": env.id, "type": GYM_TYPE,

@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pyarrow as pa
@@ -63,6 +64,7 @@ def _write_dataset(root: Path, episodes: Iterable[Episode], robot_type: str | No
         _append(root / "meta/episodes_stats.jsonl", {"episode_index": i, "stats": stats})
         frames += len(episode)
     n = i + 1
+    assert info is not None  # set at the first episode, and there was one (i is bound)
     info.update(
         total_episodes=n, total_frames=frames, total_videos=n * len(videos),
         total_chunks=-(-n // CHUNKS_SIZE), splits={"train": f"0:{n}"},
@@ -126,7 +128,7 @@ def _info(columns, videos, episode: Episode, fps: int, robot_type: str | None) -
         "observation.environment_state": [f"{k}.{n}" for k in OBJECTS for n in episode.names[k]],
         "action": list(episode.names["action"]),
     }
-    features = {}
+    features: dict[str, dict[str, Any]] = {}
     for key, values in columns.items():
         shape = list(values.shape[1:]) or [1]
         features[key] = {"dtype": str(values.dtype), "shape": shape, "names": names.get(key)}

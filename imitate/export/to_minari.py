@@ -12,6 +12,7 @@ import os
 import warnings
 from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import minari
@@ -57,6 +58,7 @@ def write(root: Path, robot: Episode, teacher: Iterable[Episode]) -> None:
 
 
 def _buffer(episode: Episode) -> EpisodeBuffer:
+    observations: dict[str, Any] | np.ndarray
     observations = episode.observations
     if episode.env is not None:  # as the env returns them: a state vector, with images a dict
         state = np.hstack([v for k, v in observations.items() if k not in EYES])

@@ -16,6 +16,7 @@ from collections.abc import Callable, Sequence
 import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.artist import Artist
 from matplotlib.figure import Figure
 from matplotlib.patches import Ellipse
 
@@ -48,7 +49,8 @@ def _ellipse(ax, mean: np.ndarray, cov: np.ndarray, n_std: float = 2.0, **kwargs
     values, vectors = np.linalg.eigh(cov)
     angle = np.degrees(np.arctan2(vectors[1, -1], vectors[0, -1]))
     width, height = 2 * n_std * np.sqrt(np.maximum(values[::-1], 0.0))
-    ax.add_patch(Ellipse(mean, width, height, angle=angle, **kwargs))
+    # matplotlib's stubs want a tuple for xy; any (2,) array-like is accepted.
+    ax.add_patch(Ellipse(mean, width, height, angle=angle, **kwargs))  # type: ignore[arg-type]
 
 
 def _gmm_panel(ax, data: np.ndarray, gmm: GMM, column: int, title: str) -> None:
@@ -113,7 +115,7 @@ def plot_gmr(model: LearnedModel, demos: Sequence[np.ndarray] | None = None) -> 
     """
     if demos is None and model.alignment is not None:
         demos = list(model.alignment.aligned)
-    n_dims = model.mean.shape[1]
+    n_dims: int = model.mean.shape[1]
     fig, axes = plt.subplots(n_dims, 1, figsize=(7, 1.6 * n_dims), sharex=True,
                              layout="constrained")
     sigma = np.sqrt(model.variance)
@@ -195,7 +197,10 @@ def plot_collision_sweep(
 
     Args:
         times: ``(T,)`` [s].
-        mean, variance: GMR mean and variance at ``times``, ``(T, 7)``.
+        mean: ``(T, 7)`` GMR mean of the task state at ``times`` (units of
+            :data:`~imitate.motion.taskspace.TASK_UNITS`).
+        variance: ``(T, 7)`` GMR variance of each task dimension at ``times`` (those units
+            squared).
         reproductions: ``{collision weight: task states (T, 7)}``.
         clearance: ``{collision weight: smallest signed distance (T,) [m]}``.
         similarity: ``(T, 7)`` diagonals of the similarity weights ``W_t``, or ``None``.
@@ -236,7 +241,7 @@ def plot_collision_sweep(
     _sweep_curves(ax, times, {w: 1e3 * clearance[w] for w in weights}, clearance, colours)
     ax.set_ylabel("planned\nclearance [mm]")
     ax.set_xlabel("t [s]")
-    handles = {}
+    handles: dict[str, Artist] = {}
     for a in axes:
         handles.update(zip(*a.get_legend_handles_labels()[::-1], strict=True))
     order = sorted(handles, key=lambda label: ("collision" in label, "penetration" in label))
@@ -278,7 +283,8 @@ def plot_snapshots(
     """
     h, w = rows[0][1][0].shape[:2]
     fig = plt.figure(figsize=(len(times) * w / DPI, len(rows) * (h + 70) / DPI), dpi=DPI)
-    for subfig, (title, images, marks) in zip(fig.subfigures(len(rows), 1), rows, strict=True):
+    subfigs = fig.subfigures(len(rows), 1, squeeze=False)[:, 0]  # one row: still an array
+    for subfig, (title, images, marks) in zip(subfigs, rows, strict=True):
         subfig.suptitle(title, fontsize=12, fontweight="bold")
         axes = subfig.subplots(1, len(images), gridspec_kw={
             "left": 0.003, "right": 0.997, "bottom": 0.005, "top": 1 - 62 / (h + 70),

@@ -136,15 +136,23 @@ def _block_log_densities(
 
     Args:
         xt: Sorted samples, transposed, shape ``(D, N)``.
-        start, stop: The block, samples ``start..stop-1``.
-        means, prec_chol, log_coef: The mixture, see :func:`_factor`.
+        start: First sample of the block.
+        stop: One past the block's last sample (the block is ``start..stop-1``).
+        means: Component means ``mu_k``, shape ``(K, D)``.
+        prec_chol: Cholesky factors ``U_k`` of the precisions, shape ``(K, D, D)``, see
+            :func:`_factor`.
+        log_coef: Log normalisers ``log pi_k - log |L_k| - D/2 log(2 pi)``, shape ``(K,)``, see
+            :func:`_factor`.
         threshold: Log-ratio to a sample's best term below which terms may be dropped (< 0).
         terms: Output, shape ``(K, >= stop - start)``.
-        diff, partial: Scratch, shapes ``(D, B)`` and ``(B,)`` with ``B >= stop - start``.
+        diff: Scratch, shape ``(D, B)`` with ``B >= stop - start``: the samples minus a mean.
+        partial: Scratch, shape ``(B,)``: one row of ``U_k^T d_i`` at a time.
         tops: Output, shape ``(B,)``: each sample's largest term.
-        kept, valid: Log-densities kept across calls, shapes ``(K, N)`` and ``(K, N / B)``
-            (rounded up): a component's row of this block is copied from ``kept`` where
-            ``valid``, else computed and kept; shapes ``(0, 0)`` keep nothing.
+        kept: Log-densities kept across calls, shape ``(K, N)``, or ``(0, 0)`` to keep nothing:
+            a component's row of this block is copied from it where ``valid``, else computed
+            and stored in it.
+        valid: Which blocks of ``kept`` hold current values, shape ``(K, N / B)`` (rounded up),
+            boolean, or ``(0, 0)`` to keep nothing; set here for the rows computed.
     """
     n_components, d = means.shape
     block = start // _BLOCK
@@ -227,11 +235,17 @@ def _e_step(
 
     Args:
         xt: Samples sorted by their first dimension, transposed, shape ``(D, N)``.
-        means, prec_chol, log_coef: The mixture, see :func:`_factor`.
+        means: Component means ``mu_k``, shape ``(K, D)``.
+        prec_chol: Cholesky factors ``U_k`` of the precisions, shape ``(K, D, D)``, see
+            :func:`_factor`.
+        log_coef: Log normalisers, shape ``(K,)``, see :func:`_factor`.
         threshold: Terms below ``exp(threshold)`` of a sample's largest are dropped (< 0).
         resp: Output, shape ``(N, K)``, or ``(0, K)`` to skip it: responsibilities ``p(k | x_i)``
             (eq. 8), exactly 0 where below ``exp(threshold)``.
-        kept, valid: Log-densities kept across calls, see :func:`_block_log_densities`.
+        kept: Log-densities kept across calls, shape ``(K, N)`` or ``(0, 0)``, see
+            :func:`_block_log_densities`.
+        valid: Which blocks of ``kept`` are current, shape ``(K, ceil(N / B))`` or ``(0, 0)``,
+            see :func:`_block_log_densities`.
     """
     d, n = xt.shape
     n_components = means.shape[0]

@@ -168,6 +168,7 @@ def bic_sweep(
         labels = _kmeans_sweep(X, k_max, _FAST_CHAINS, seed, tol=_FAST_TOL).labels
     else:
         labels = _kmeans_sweep(X, k_max, n_init, seed).labels
+    log_likelihoods: np.ndarray | list[float]  # per K
     if method == "fast":
         log_likelihoods = _cluster_log_likelihoods(
             X, _sorted_transposed(X)[0], labels, reg_covar

@@ -98,8 +98,8 @@ class GMM:
         >>> rng = np.random.default_rng(0)
         >>> X = np.vstack([rng.normal(0.0, 0.1, (200, 2)), rng.normal(3.0, 0.1, (200, 2))])
         >>> gmm = GMM(2).fit(X)
-        >>> np.round(np.sort(gmm.means_[:, 0]), 1).tolist()
-        [0.0, 3.0]
+        >>> np.allclose(np.sort(gmm.means_[:, 0]), [0.0, 3.0], atol=0.05)
+        True
     """
 
     def __init__(

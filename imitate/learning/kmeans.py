@@ -192,7 +192,11 @@ def _lloyd(
     Args:
         x: Samples, shape ``(N, D)``.
         centres: Centres, shape ``(K, D)``, updated in place.
-        labels, upper, lower: Cluster of each sample and valid bounds, shape ``(N,)``, updated.
+        labels: Cluster of each sample, shape ``(N,)``, updated in place.
+        upper: Valid upper bound on each sample's distance to its centre, shape ``(N,)``,
+            updated in place.
+        lower: Valid lower bound on each sample's distance to every other centre, shape
+            ``(N,)``, updated in place.
         max_iter: Maximum number of centre updates.
         tol: Stop when the summed squared centre shift of an update is at most this.
 
@@ -308,7 +312,8 @@ def _kmeans_chains(
         first: Index of the first centre of every chain, shape ``(n_init,)``.
         draws: Uniform numbers in ``[0, 1)`` that pick the k-means++ centre added at ``K = 2..``,
             shape ``(n_init, k_max - 1)``.
-        max_iter, tol: Lloyd's limits, see :func:`_lloyd`.
+        max_iter: Maximum number of centre updates per Lloyd run, see :func:`_lloyd`.
+        tol: Lloyd's tolerance on the summed squared centre shift, see :func:`_lloyd`.
         best_centres: Output, shape ``(k_max, k_max, D)``; row ``K-1`` holds ``K`` centres.
         best_labels: Output, shape ``(k_max, N)``.
         best_inertia: Output, shape ``(k_max,)``, filled with ``inf`` by the caller.

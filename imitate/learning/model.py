@@ -158,7 +158,10 @@ def time_stacked(demos: Sequence[np.ndarray], rate: float) -> np.ndarray:
 
 
 def learn(
-    demos: Sequence[ArrayLike], *, rate: float, config: LearningConfig | None = None
+    demos: Sequence[np.ndarray | Sequence[Sequence[float]]],
+    *,
+    rate: float,
+    config: LearningConfig | None = None,
 ) -> LearnedModel:
     """Learns the GMR mean and covariance over time from segmented demonstrations.
 

@@ -32,6 +32,9 @@ def _task_state(xpos, xmat, bodies, gaze, angle_ref, singular_rho2, points, proj
     9)``, and what the Jacobian needs; all outputs are written.
 
     Args:
+        xpos: ``(nbody, 3)`` MuJoCo's body positions (``data.xpos``) [m].
+        xmat: ``(nbody, 9)`` MuJoCo's body orientations, row-major rotation matrices
+            (``data.xmat``).
         bodies: ``(2,)`` the bottle's and the glass's body ids.
         gaze: ``R_gaze`` ``(3, 3)``, columns right, down, forward.
         angle_ref: ``(2,)`` the angles' reference branches [rad].
@@ -110,12 +113,22 @@ def _curvature(a, b, c, d, rates, dof, axes, rows, proj, inv, axis_jac, rot_jac,
     """``a^T D_b J + c^T D_d J`` into ``out (n,)`` (see :meth:`TaskMap.curvature`).
 
     Args:
-        a, c: ``(7,)`` task vectors.
-        b, d: ``(n,)`` joint directions.
+        a: ``(7,)`` task vector contracted with ``D_b J``.
+        b: ``(n,)`` joint direction [rad].
+        c: ``(7,)`` task vector contracted with ``D_d J``.
+        d: ``(n,)`` joint direction [rad].
         rates: ``(2, 2, 2, 3, nv)`` per direction (``b``, ``d``) and object, the derivatives of
             its origin's translational and rotational Jacobian (columns ``dof (n,)``).
-        axes, rows, proj, inv, axis_jac, rot_jac: the task frame.
-        gaze: ``R_gaze``; mask: ``(n,)`` as in :func:`_task_jacobian`.
+        dof: ``(n,)`` the planned joints' columns in MuJoCo's ``nv`` Jacobian columns.
+        axes: ``(2, 3)`` the long axes ``a`` (task frame, see :class:`TaskFrame`).
+        rows: ``(2, 3)`` the angles' gradients with respect to the axes (task frame).
+        proj: ``(2, 3)`` the axes' gaze coordinates ``p`` (task frame).
+        inv: ``(2,)`` ``1 / rho^2``, 0 where the angle is undefined (task frame).
+        axis_jac: ``(2, 3, n)`` ``da/dq`` (task frame).
+        rot_jac: ``(2, 3, n)`` the objects' rotational Jacobians (task frame).
+        gaze: ``R_gaze`` ``(3, 3)``, columns right, down, forward.
+        mask: ``(n,)`` 1 for a driven joint, 0 for a fixed one, as in :func:`_task_jacobian`.
+        out: ``(n,)`` output, written.
 
     With ``A = omega x a`` per joint, ``D_b A = omega' x a + omega x a'`` and ``a' = A b``; a
     row ``w`` of ``C R_gaze^T`` weighs it as ``w . (omega' x a) = omega' . (a x w)`` and
@@ -394,6 +407,9 @@ def _hold(held, weld, qpos, xpos, xquat):
     Args:
         held: ``(k, 2)`` per object: its hand's body and its free joint's qpos address.
         weld: ``(k, 7)`` the object's pose in its hand's frame (position, quaternion).
+        qpos: ``(nq,)`` MuJoCo's joint positions, the held objects' free joints written.
+        xpos: ``(nbody, 3)`` the bodies' world positions (``data.xpos``) [m].
+        xquat: ``(nbody, 4)`` the bodies' world orientations (``data.xquat``), ``w`` first.
     """
     rotated = np.empty(3)
     for o in range(held.shape[0]):

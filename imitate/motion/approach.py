@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import minimize
 
+from imitate.errors import ImitateError
 from imitate.motion.control import SAMPLE_STEP, ControlConfig, JointLimitCost, rollout
 from imitate.motion.costs import potential
 from imitate.motion.taskspace import TaskMap
@@ -115,6 +116,8 @@ def clear_start(
     the collision cost's potential over the pairs with a fixed geom closer than ``margin +
     START_ZONE`` [m]; at most ``_START_STEPS`` of them. ``q`` itself where none is closer."""
     kin = task.kin
+    if kin.pairs is None:
+        raise ImitateError("clear_start needs the Kinematics to be built with geoms")
     fixed = kin.pairs.fixed(kin.model)
     target = np.tile(goal, (2, 1))
     for _ in range(_START_STEPS):

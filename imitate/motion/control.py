@@ -160,6 +160,11 @@ def rollout(
     """Tracks ``target`` ``(T + 1, m)`` (``target[0]`` unused) by RMR from ``q0`` ``(n,)``.
 
     Args:
+        task: The task map ``phi`` and its Jacobian, on the robot's kinematics.
+        target: ``(T + 1, m)`` task states to track; ``target[0]`` is unused.
+        q0: ``(n,)`` start joint angles [rad].
+        config: Damping and null-space gain of the steps.
+        limits: Joint-limit cost ``H`` the null-space step descends.
         distmax: Compute the signed distances (and their gradients) of pairs closer than this
             [m] at every step and midway between steps; 0 for none.
         push: ``(T, n)`` null-space push ``c_t`` [1/rad] of the steps; ``None`` for none.
@@ -235,6 +240,9 @@ def backward(
     ``dPhi/dc_t = alpha lambda_{t+1} (I - J^# J) W^-1``. Exact: no term is neglected.
 
     Args:
+        result: The rollout to differentiate (:func:`rollout`).
+        task: The task map the rollout used; its kinematics are updated here.
+        config: The control parameters the rollout used.
         gq: ``(T + 1, n)`` explicit gradients of the cost w.r.t. ``q_t``.
         gx: ``(T + 1, m)`` explicit gradients w.r.t. the target ``x_t``.
         push_gradient: ``(T, n)``, written with ``dPhi/dc_t`` if given.

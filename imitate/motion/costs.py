@@ -25,6 +25,7 @@ import numpy as np
 
 from imitate.errors import ImitateError
 from imitate.motion.control import JointLimitCost, Rollout
+from imitate.motion.kinematics import Distances
 
 __all__ = [
     "SIMILARITIES",
@@ -62,7 +63,7 @@ def similarity_weights(variance: np.ndarray, w_max: np.ndarray, sigma_max: np.nd
 def weighting(
     similarity: str,
     variance: np.ndarray,
-    covariance: np.ndarray,
+    covariance: np.ndarray | None,
     w_max: np.ndarray,
     sigma_max: np.ndarray,
 ) -> np.ndarray:
@@ -79,14 +80,16 @@ def weighting(
     Args:
         similarity: One of :data:`SIMILARITIES`.
         variance: GMR variances ``(T, m)``.
-        covariance: GMR covariances ``(T, m, m)`` (read by ``precision`` only).
-        w_max, sigma_max: Eq. 21's ``(m,)``.
+        covariance: GMR covariances ``(T, m, m)``, read by ``precision`` only (``None`` for
+            the others).
+        w_max: ``(m,)`` eq. 21's weights at zero variance.
+        sigma_max: ``(m,)`` eq. 21's variances where the weight reaches zero.
 
     Returns:
         ``(T, m)`` diagonals of ``W_t``, or ``(T, m, m)`` matrices for ``precision``.
 
     Raises:
-        ImitateError: an unknown ``similarity``.
+        ImitateError: an unknown ``similarity``, or ``precision`` without ``covariance``.
     """
     if similarity not in SIMILARITIES:
         raise ImitateError(f"similarity {similarity!r} unknown; accepted: {SIMILARITIES}")
@@ -95,6 +98,8 @@ def weighting(
     if similarity == "variance":
         return ramp
     if similarity == "precision":
+        if covariance is None:
+            raise ImitateError("similarity 'precision' needs the GMR covariances")
         precision = np.linalg.inv(covariance)
         diagonal = np.diagonal(precision, axis1=1, axis2=2).sum(axis=0)
         scale = np.sqrt(total / diagonal)
@@ -163,7 +168,9 @@ class Collision:
         # Each sample: its distances, its weight and the steps its gradient goes to, with their
         # shares. The samples along a step weigh together as much as one at a step; a sample's
         # gradient goes to the two ends by its place between them.
-        samples = [(d, 1.0, ((t, 1.0),)) for t, d in enumerate(result.distances) if len(d.dist)]
+        samples: list[tuple[Distances, float, tuple[tuple[int, float], ...]]] = [
+            (d, 1.0, ((t, 1.0),)) for t, d in enumerate(result.distances) if len(d.dist)
+        ]
         along = np.bincount([t for t, _, _ in result.between], minlength=len(result.q))
         samples += [
             (d, 1.0 / along[t], ((t, 1.0 - s), (t + 1, s)))

@@ -135,9 +135,9 @@ class Kinematics:
         d = self.data
         if self.pairs is not None:
             self._pair_geoms = (self.pairs.geom1.tolist(), self.pairs.geom2.tolist())
-            pairs = (np.ascontiguousarray(g, dtype=np.intp) for g in self._pair_geoms)
+            geom1, geom2 = (np.ascontiguousarray(g, dtype=np.intp) for g in self._pair_geoms)
             # _near_pairs' arguments but the range and the output
-            self._near_args = (d.geom_xpos, d.geom_xmat, *pairs, *_geom_bounds(model))
+            self._near_args = (d.geom_xpos, d.geom_xmat, geom1, geom2, *_geom_bounds(model))
             self._near = np.empty(len(self.pairs), dtype=np.intp)
             self._fromto = np.zeros((len(self.pairs), 6))
             self._none_near = Distances(  # shared by the queries that find no pair (read only)
@@ -276,7 +276,8 @@ class Kinematics:
         m, d = self.model, self.data
         g1, g2 = self._pair_geoms
         near = self._near[:count].tolist()
-        kept, dist = [], []
+        kept: list[int] = []
+        dist: list[float] = []
         fromto, geom_distance = self._fromto, mujoco.mj_geomDistance
         for p in near:
             value = geom_distance(m, d, g1[p], g2[p], distmax, fromto[len(kept)])
@@ -311,4 +312,5 @@ class Kinematics:
         if len(result.dist) == 0:
             return distmax, None
         k = int(np.argmin(result.dist))
+        assert self.pairs is not None  # else distances() raised
         return float(result.dist[k]), self.pairs.names(self.model, int(result.pairs[k]))

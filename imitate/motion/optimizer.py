@@ -18,8 +18,9 @@ whether or not the optimizer converged.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal, TypedDict, cast, overload
 
 import numpy as np
 
@@ -71,6 +72,9 @@ _PUSH_SCALE = 0.1
 # always within the first, and a pair's distance does not depend on the range it is asked in.
 _MIN_DISTANCE_QUERIES = (0.05, 0.2)
 
+# A cost term of :mod:`.costs`: ``term(rollout, target) -> (value, dc/dq, dc/dx)``.
+CostTerm = Callable[[Rollout, np.ndarray], tuple[float, np.ndarray, np.ndarray]]
+
 
 class Problem:
     """The total cost ``Phi(v)`` and its gradient for one start posture and learned model.
@@ -102,7 +106,7 @@ class Problem:
         self.x_start, _ = task(mean[0, [3, 5]])
         dt = config.dt
         self.limits = JointLimitCost(kin.lower, kin.upper, config.control.free_ratio)
-        self.terms = {
+        self.terms: dict[str, tuple[float, CostTerm]] = {
             "similarity": (config.similarity_weight, Similarity(mean, weights, dt)),
             "collision": (config.collision_weight, Collision(config.margin, config.epsilon, dt)),
             "joint_limits": (config.joint_limit_weight, JointLimits(self.limits, dt)),
@@ -121,12 +125,22 @@ class Problem:
         target = self.dynamics.trajectory(v[:, :m], self.x_start)
         push = self.dynamics.blend @ v[:, m:] if v.shape[1] > m else None
         with_distances = self.config.collision_weight > 0
-        distmax = self.terms["collision"][1].distmax if with_distances else 0.0
+        distmax = cast(Collision, self.terms["collision"][1]).distmax if with_distances else 0.0
         self.n_evaluations += 1
         result = rollout(
             self.task, target, self.q_start, self.config.control, self.limits, distmax, push
         )
         return target, result
+
+    @overload
+    def evaluate(
+        self, v: np.ndarray, terms: tuple[str, ...] | None = None, gradient: Literal[True] = True
+    ) -> tuple[float, dict[str, float], np.ndarray]: ...
+
+    @overload
+    def evaluate(
+        self, v: np.ndarray, terms: tuple[str, ...] | None = None, gradient: bool = True
+    ) -> tuple[float, dict[str, float], np.ndarray | None]: ...
 
     def evaluate(
         self, v: np.ndarray, terms: tuple[str, ...] | None = None, gradient: bool = True
@@ -256,6 +270,14 @@ def setup(
     return Setup(grid, mu, var, weights, problem, a0)
 
 
+class _Best(TypedDict):
+    """The best iterate of :func:`plan_from_model`'s minimizations."""
+
+    v: np.ndarray
+    cost: float
+    rollout: tuple[np.ndarray, Rollout] | None  # the target and rollout of ``v``, if kept
+
+
 def plan_from_model(
     task: TaskMap, model: LearnedModel, *, q0: np.ndarray, config: PlanConfig = PlanConfig()
 ) -> Plan:
@@ -280,7 +302,7 @@ def plan_from_model(
     problem, a0, mu = start.problem, start.a0, start.mean
 
     history: list[tuple[float, dict[str, float]]] = []
-    best = {"v": a0, "cost": np.inf, "rollout": None}
+    best: _Best = {"v": a0, "cost": np.inf, "rollout": None}
 
     def record(v, total, values):
         if np.isfinite(total) and total < best["cost"]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -86,7 +87,7 @@ class Plan:
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> Plan:
         """The plan stored by :meth:`to_arrays`; other arrays in ``arrays`` are ignored."""
-        values = {
+        values: dict[str, Any] = {
             name: arrays[name] if arrays[name].ndim else arrays[name].item()
             for name in cls.array_names()
         }

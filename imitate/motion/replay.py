@@ -100,17 +100,17 @@ def replay(
     env.reset(seed=seed, options=options)
     dt = env.dt
     q_reset = env.joint_positions()
-    targets = []
+    waypoints: list[np.ndarray] = []
     n_approach = int(round(approach / dt))
     blend = 0.5 - 0.5 * np.cos(np.pi * np.arange(1, n_approach + 1) / n_approach)
-    targets.extend(approach_path(q_reset, plan.q_start, plan.approach_bend, blend))
+    waypoints.extend(approach_path(q_reset, plan.q_start, plan.approach_bend, blend))
     t_play = np.arange(0.0, plan.times[-1] - plan.times[0] + 1e-9, dt)
     play = _resample(plan.times - plan.times[0], plan.q, t_play)
-    targets.extend(play)
-    targets.extend([plan.q[-1]] * int(round(settle / dt)))
+    waypoints.extend(play)
+    waypoints.extend([plan.q[-1]] * int(round(settle / dt)))
     # Velocity feed-forward: each step holds its target (half a step behind on average) and the
     # servos trail a moving target by servo_lag; both are led by the target's speed.
-    targets = np.array(targets)
+    targets = np.array(waypoints)
     targets += (env.servo_lag + dt / 2) * np.gradient(targets, dt, axis=0)
     task = planning_task(env.config, gaze)
     min_distance = np.inf

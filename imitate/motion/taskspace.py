@@ -108,11 +108,11 @@ def gaze_frame(forward: ArrayLike, up: ArrayLike = (0.0, 0.0, 1.0)) -> np.ndarra
     f = np.asarray(forward, dtype=float)
     norm = np.linalg.norm(f)
     if f.shape != (3,) or not norm > 0:
-        raise ImitateError(f"forward must be a non-zero 3-vector; got {forward}")
+        raise ImitateError(f"forward must be a non-zero 3-vector; got {forward!s}")
     f = f / norm
     r = np.cross(f, np.asarray(up, dtype=float))
     if not np.linalg.norm(r) > 1e-9:
-        raise ImitateError(f"up {up} must not be parallel to forward {forward}")
+        raise ImitateError(f"up {up!s} must not be parallel to forward {forward!s}")
     r /= np.linalg.norm(r)
     return np.column_stack((r, np.cross(f, r), f))
 

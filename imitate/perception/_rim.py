@@ -72,9 +72,13 @@ def _rim_fit(ends, radii, intrinsics, rotations, positions, origins, directions,
     Args:
         ends: ``(2, 3)`` bottom and top centres [m].
         radii: ``(2,)`` bottom and top rim radii [m].
-        intrinsics, rotations, positions: the cameras, as in :func:`_correct_ends`.
-        origins, directions, extents: ``(2, 2)`` per view (left, right), as in
-            :class:`imitate.perception.tracker.ViewMeasurement`.
+        intrinsics: ``(2, 3, 3)`` left and right ``K`` [px].
+        rotations: ``(2, 3, 3)`` left and right world-to-camera rotations.
+        positions: ``(2, 3)`` left and right optical centres [m].
+        origins: ``(2, 2)`` per view (left, right) a point of the axis line [px].
+        directions: ``(2, 2)`` per view the line's unit direction, bottom to top.
+        extents: ``(2, 2)`` per view the observed extremes along the line from its origin [px]
+            (as in :class:`imitate.perception.tracker.ViewMeasurement`).
 
     Returns:
         ``(shifted (2, 2, 2) [px] (view, end, (col, row)), misfit [px^2])``: the shifted
@@ -139,8 +143,13 @@ def _refine(
 
     Args:
         ends: ``(2, 3)`` start bottom and top centres [m].
-        radii, intrinsics, rotations, positions, origins, directions, extents: as in
-            :func:`_rim_fit`.
+        radii: ``(2,)`` bottom and top rim radii [m].
+        intrinsics: ``(2, 3, 3)`` left and right ``K`` [px].
+        rotations: ``(2, 3, 3)`` left and right world-to-camera rotations.
+        positions: ``(2, 3)`` left and right optical centres [m].
+        origins: ``(2, 2)`` per view a point of the axis line [px].
+        directions: ``(2, 2)`` per view the line's unit direction, bottom to top.
+        extents: ``(2, 2)`` per view the observed extremes along the line from its origin [px].
         iterations: corrections applied.
 
     Returns:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from imitate.errors import ImitateError
 from imitate.perception import Observations
 
 __all__ = ["demo_counts", "tracking_errors"]
@@ -30,6 +31,8 @@ def tracking_errors(observations: Observations) -> dict:
     """Position [mm] and axis-angle [deg] errors of the tracks against the ground truth (median,
     95th percentile), the fraction of detections and the number of gaps left unfilled."""
     tracks, truth = observations.tracks, observations.truth
+    if truth is None:
+        raise ImitateError("tracking errors need the ground truth (simulated frames)")
     pos = np.linalg.norm(tracks.position - truth.position, axis=-1) * 1e3
     turn = np.angle(np.exp(1j * (tracks.angle - truth.angle)))
     pos, turn = pos[np.isfinite(pos)], np.degrees(np.abs(turn[np.isfinite(turn)]))

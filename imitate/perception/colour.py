@@ -54,7 +54,8 @@ class ColourRange:
             return cv2.inRange(hsv, lo, hi)
         top, bottom = hi.copy(), lo.copy()
         top[0], bottom[0] = 179, 0
-        return cv2.inRange(hsv, lo, top) | cv2.inRange(hsv, bottom, hi)
+        # cv2's stubs type inRange's uint8 mask as an integer or floating array.
+        return cv2.inRange(hsv, lo, top) | cv2.inRange(hsv, bottom, hi)  # type: ignore[operator]
 
 
 # Skin, the colour of the teacher's hands: what may cover an object's side.

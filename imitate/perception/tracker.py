@@ -201,10 +201,11 @@ class StereoTracker:
         self._eyes = 0.5 * (left.position + right.position)  # between the optical centres [m]
         # (intrinsics (2, 3, 3) [px], rotations (2, 3, 3), positions (2, 3) [m]), for
         # the compiled rim correction.
-        self._camera_arrays = tuple(
+        intrinsics, rotations, positions = (
             np.ascontiguousarray([getattr(cam, name) for cam in self.cameras], dtype=float)
             for name in ("intrinsics", "rotation", "position")
         )
+        self._camera_arrays = (intrinsics, rotations, positions)
         self.config = config
         self._boxes: dict[tuple[str, int], tuple[int, int, int, int]] = {}
         self._directions: dict[tuple[str, int], np.ndarray] = {}

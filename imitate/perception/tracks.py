@@ -101,8 +101,8 @@ def track(tracker: StereoTracker, pairs, times: np.ndarray, timing: dict | None 
             result = tracker.update(left, right)
             elapsed += time.perf_counter() - start
             for k, obj in enumerate(objects):
-                if result[obj.name] is not None:
-                    ends[k, i] = result[obj.name].ends
+                if (measurement := result[obj.name]) is not None:
+                    ends[k, i] = measurement.ends
             count = i + 1
     if timing is not None:
         timing["track"] = timing.get("track", 0.0) + elapsed

@@ -43,7 +43,7 @@ class Staging:
         """Whether ``path`` lies under the root (and so waits for the commit)."""
         return Path(os.path.abspath(path)).is_relative_to(self.root)
 
-    def write(self, path: Path, write: Callable[[Path], None]) -> None:
+    def write(self, path: Path, write: Callable[[Path], object]) -> None:
         """``write(tmp)`` a temporary file in the root that :meth:`commit` renames to ``path``."""
         path = Path(os.path.abspath(path))
         tmp = _temporary(self.root / path.name)
@@ -91,7 +91,7 @@ def staged(root: Path) -> Iterator[Staging]:
         staging.discard()
 
 
-def write_atomic(path: Path, write: Callable[[Path], None]) -> Path:
+def write_atomic(path: Path, write: Callable[[Path], object]) -> Path:
     """Call ``write(tmp)`` for a temporary file beside ``path``, then rename it to ``path``
     (inside :func:`staged`: when the stage commits)."""
     path = Path(path)
@@ -123,7 +123,8 @@ def remove_temporary(directory: Path) -> list[Path]:
 def save_npz(path: Path, arrays: Mapping[str, Any]) -> Path:
     """Write ``arrays`` (name -> array-like) as an uncompressed ``.npz``, atomically."""
     return write_atomic(
-        path, lambda tmp: np.savez(tmp, **{k: np.asarray(v) for k, v in arrays.items()})
+        # numpy's stubs read the arrays' names as its keywords (allow_pickle: bool)
+        path, lambda tmp: np.savez(tmp, **{k: np.asarray(v) for k, v in arrays.items()}),  # type: ignore[arg-type]
     )
 
 

@@ -89,12 +89,12 @@ def _acquire(path: Path, command: str) -> int:
         if _same_file(fd, path):
             break
         os.close(fd)  # its holder unlinked it between our open and flock: lock the new one
-    holder = {
+    record = {
         "pid": os.getpid(), "host": socket.gethostname(), "command": command,
         "since": time.strftime("%Y-%m-%d %H:%M:%S"),
     }
     os.ftruncate(fd, 0)
-    os.pwrite(fd, json.dumps(holder).encode(), 0)
+    os.pwrite(fd, json.dumps(record).encode(), 0)
     return fd
 
 

@@ -8,6 +8,7 @@ report (a run stopped before ``replay``) is left out.
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from html import escape
 from pathlib import Path
 
@@ -252,7 +253,7 @@ def _section(heading: str, content: str) -> str:
     return f"<section><h2>{escape(heading)}</h2>{content}</section>"
 
 
-def _table(rows, header: tuple[str, ...] = (), bold: list[bool] = ()) -> str:
+def _table(rows, header: tuple[str, ...] = (), bold: Sequence[bool] = ()) -> str:
     """Rows of cell HTML (a cell that starts with ``<td`` keeps its own tag); the rows marked
     in ``bold`` in bold."""
     lines = ["<tr>" + "".join(f"<th>{escape(h)}</th>" for h in header) + "</tr>"] if header else []

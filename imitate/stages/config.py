@@ -84,6 +84,7 @@ class Setting:
         """The help with the range and the default: ``"camera rate [Hz], 5..120 (default 30)"``."""
         text = ", ".join(part for part in (self.help, self.bounds()) if part)
         if isinstance(default, bool):
+            assert self.flag is not None  # a boolean setting is a flag pair --x / --no-x
             return f"{text} (default --{'' if default else 'no-'}{self.flag.removeprefix('--')})"
         if default is None:
             return text
@@ -141,7 +142,7 @@ def parse_obstacle(text: str) -> assembly.Obstacle | None:
         return None
     try:
         shape, pos, size = text.split(":")
-        values = {
+        values: dict[str, Any] = {
             "shape": shape,
             "pos": tuple(float(v) for v in pos.split(",")),
             "size": tuple(float(v) for v in size.split(",")),
@@ -370,4 +371,5 @@ def _documentation() -> str:
     return "\n\n    Attributes:\n" + "\n".join(lines) + "\n    "
 
 
+assert RunConfig.__doc__ is not None  # a dataclass always has one (its signature at least)
 RunConfig.__doc__ = RunConfig.__doc__.rstrip() + _documentation()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
@@ -53,7 +54,8 @@ def run(run_dir: Path, config: RunConfig) -> dict:
     weights = plan["sweep_weights"]
     sweep = dict(zip(weights, plan["sweep_x"], strict=True))
     clearance = dict(zip(weights, plan["sweep_clearance"], strict=True))
-    drawings = {  # name: (plots' function, its arguments); Fig. 8's snapshots rendered below
+    # name: (plots' function, its arguments); Fig. 8's snapshots rendered below
+    drawings: dict[str, tuple[Any, ...]] = {
         "observation": (plots.plot_observation, observations, boundaries),
         "fig4_gmm_dtw": (plots.plot_gmm_with_and_without_dtw, raw, model),
         "fig5_bic": (plots.plot_bic_curves, {

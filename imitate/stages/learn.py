@@ -45,6 +45,7 @@ def run(run_dir: Path, config: RunConfig) -> dict:
         demos, rate=rate,
         config=dataclasses.replace(settings, n_components=model.gmm.n_components, use_dtw=False),
     )
+    assert model.alignment is not None  # learned with DTW (LearningConfig's default)
     save_npz(run_dir / "model.npz", {
         **model.to_arrays(), **raw.to_arrays("raw_"), "gaze": gaze, "rate": rate,
         "bic_fast": curves["fast"], "bic_full": curves["full"], "aligned": model.alignment.aligned,

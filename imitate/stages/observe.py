@@ -25,13 +25,14 @@ def run(run_dir: Path, config: RunConfig) -> dict:
         teacher=config.teacher(),
         fps=config.fps, width=config.width, height=config.height,
     )
-    timing = {}
+    timing: dict[str, float] = {}
     progress = log.isEnabledFor(logging.INFO) and sys.stderr.isatty()
     observations = watch(watching, timing=timing, progress=progress)
     demos = segment(observations.tracks, StillnessConfig())
     save_observations(run_dir / "observations.npz", observations)
     save_demos(run_dir / "demos.npz", demos, observations.tracks)
     found = np.array([(d.start, d.end) for d in demos])
+    assert observations.truth is not None  # watch() simulates the frames: it keeps the truth
     return {
         "demos": demo_counts(found, observations.truth.boundaries),
         "perception": {

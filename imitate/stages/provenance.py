@@ -115,6 +115,7 @@ def code_digest() -> str:
 
     h = hashlib.sha256()
     for package in (imitate, imitate.envs, imitate.models):
+        assert package.__file__ is not None  # regular packages, not namespace ones
         root = Path(package.__file__).parent
         for path in sorted(root.rglob("*")):
             if path.is_file() and "__pycache__" not in path.parts:

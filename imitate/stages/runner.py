@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import time
 from pathlib import Path
+from typing import Any
 
 from imitate.errors import ImitateError
 from imitate.rundir import page, table
@@ -69,7 +70,7 @@ def _report(
     earlier stages kept from ``previous``, those of later ones dropped."""
     earlier = table.STAGES[: table.STAGES.index(current)]
     kept = {name for s in earlier for name in s.sections}
-    report = {"schema": REPORT_SCHEMA, "seed": seed}
+    report: dict[str, Any] = {"schema": REPORT_SCHEMA, "seed": seed}
     for name in [name for s in table.STAGES for name in s.sections]:
         if name in sections:
             report[name] = sections[name]
