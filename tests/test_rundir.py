@@ -62,7 +62,7 @@ def test_1_second_command_is_refused_at_once_naming_the_holder(run_dir):
     before = snapshot(run_dir)
     with locked(run_dir, "imitate figures (the test)"):
         done = subprocess.run(
-            [sys.executable, "-m", "imitate.cli", "figures", str(run_dir)],
+            [sys.executable, "-m", "imitate", "figures", str(run_dir)],
             capture_output=True, text=True, timeout=120, check=False,
         )
     assert done.returncode == 1
@@ -302,7 +302,7 @@ def test_6_ctrl_c_while_the_drawing_process_starts_is_not_lost():
 
 def _figures_with_its_drawing_process(in_a_terminal, run_dir, stderr) -> subprocess.Popen:
     """``imitate figures run_dir`` started by ``in_a_terminal``, once its drawing process runs."""
-    command = [sys.executable, "-m", "imitate.cli", "figures", str(run_dir)]
+    command = [sys.executable, "-m", "imitate", "figures", str(run_dir)]
     stage = in_a_terminal(command, stderr=stderr, text=True)
     for _ in range(600):  # up to 60 s
         if _drawing_processes(stage.pid):

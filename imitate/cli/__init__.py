@@ -350,6 +350,3 @@ def _eval(args: argparse.Namespace) -> int:
     print(text)
     return 0
 
-
-if __name__ == "__main__":
-    sys.exit(main())

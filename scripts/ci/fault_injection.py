@@ -25,7 +25,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-IMITATE = (sys.executable, "-m", "imitate.cli")
+IMITATE = (sys.executable, "-m", "imitate")
 TEMPORARY = ".*.partial*"
 
 
