@@ -2,9 +2,14 @@
 
 Importing the package registers the Gymnasium environment ``imitate/Pouring-v0``
 (``gym.make("imitate:imitate/Pouring-v0")`` imports it for you) and sets nothing else: no
-environment variable, no matplotlib backend (see :mod:`imitate.envs.rendering`).
-``imitate.load_run(path)`` reads a run directory as typed objects (:mod:`imitate.run`; imported
-on first use, it loads the learner and the planner).
+environment variable, no matplotlib backend (see :mod:`imitate.envs.rendering`). The Python
+API, each imported on first use (they load the learner and the planner):
+
+- :func:`load_run`: a run directory as typed objects (:class:`Run`: ``config``, ``model``,
+  ``plan``, ``replay``, ``report``, ..., and ``replan(**settings)``).
+- :func:`learn`: a :class:`~imitate.learning.LearnedModel` from task-space demonstrations.
+- :func:`reproduce`: the robot's plan for a learned model in a scene.
+- :func:`actions`: a plan's actions at the env's step, to play it in ``imitate/Pouring-v0``.
 """
 
 from typing import TYPE_CHECKING
@@ -14,9 +19,11 @@ import gymnasium as gym
 from imitate.errors import ImitateError
 
 if TYPE_CHECKING:
+    from imitate.learning import learn
+    from imitate.motion.replay import actions, reproduce
     from imitate.run import Run, load_run
 
-__all__ = ["ENV_ID", "ImitateError", "Run", "load_run"]
+__all__ = ["ENV_ID", "ImitateError", "Run", "actions", "learn", "load_run", "reproduce"]
 __version__ = "0.1.0"  # the package's version (pyproject.toml reads it)
 
 ENV_ID = "imitate/Pouring-v0"
@@ -24,11 +31,21 @@ ENV_ID = "imitate/Pouring-v0"
 if ENV_ID not in gym.registry:
     gym.register(id=ENV_ID, entry_point="imitate.envs.pouring:PouringEnv", max_episode_steps=500)
 
+# The API's names and the modules they come from, imported when first asked for.
+_LAZY = {
+    "Run": "imitate.run", "load_run": "imitate.run", "learn": "imitate.learning",
+    "reproduce": "imitate.motion.replay", "actions": "imitate.motion.replay",
+}
+
 
 def __getattr__(name: str):
-    """``Run`` and ``load_run`` from :mod:`imitate.run`, imported when first asked for."""
-    if name in ("Run", "load_run"):
-        from imitate import run
+    """The API's names of :data:`_LAZY`, imported when first asked for."""
+    if name in _LAZY:
+        import importlib
 
-        return getattr(run, name)
+        return getattr(importlib.import_module(_LAZY[name]), name)
     raise AttributeError(f"module 'imitate' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_LAZY})

@@ -3,6 +3,7 @@
     run = imitate.load_run("runs/latest")
     mean, covariance = run.model.predict([0.0, 1.5])    # GMR at any time [s]
     run.plan.q, run.replay.pour_fraction, run.report["replay"]["success"]
+    plan = run.replan(collision_weight=0.0)              # the learned model planned again
 
 Each member reads its artifact the first time it is used; a missing or corrupt artifact raises
 :class:`~imitate.errors.ImitateError` naming the file and the stage to re-run.
@@ -10,16 +11,20 @@ Each member reads its artifact the first time it is used; a missing or corrupt a
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
-from imitate.demos.segment import Demonstration, load_demos
+from imitate.demos.segment import Demonstration, load_demos, task_demos
+from imitate.envs.assembly import Obstacle, check_clearance
 from imitate.errors import ImitateError
 from imitate.learning import LearnedModel
 from imitate.motion import Plan
+from imitate.motion.replay import reproduce
 from imitate.perception import Observations, load_observations
 from imitate.rundir import table
 from imitate.rundir.artifacts import load_json, load_npz
@@ -101,12 +106,24 @@ class Run:
         segments, objects, gaze = load_demos(self.path / "demos.npz")
         return Demos(tuple(segments), objects, gaze)
 
+    def task_demos(self) -> tuple[list[np.ndarray], float]:
+        """The demonstrations in eq. 1's task space as the ``learn`` stage projects them (one
+        ``(n_i, 7)`` array each, in :attr:`gaze`'s frame) and their rate [Hz]: the arrays
+        :func:`imitate.learn` takes."""
+        d = self.demos
+        return task_demos(d.segments, d.objects, d.gaze, smoothing=self.config.smoothing)
+
     @cached_property
     def model(self) -> LearnedModel:
         """The learned model (``model.npz``): GMM, BIC curve, GMR mean and covariance at its
         ``times``, and :meth:`~imitate.learning.LearnedModel.predict` at any time."""
         path = self.path / "model.npz"
         return LearnedModel.from_arrays(load_npz(path, required=LearnedModel.array_names()))
+
+    @cached_property
+    def gaze(self) -> np.ndarray:
+        """``(3, 3)`` gaze frame the model's task space is expressed in (``model.npz``)."""
+        return load_npz(self.path / "model.npz", required=("gaze",))["gaze"]
 
     @cached_property
     def plan(self) -> Plan:
@@ -126,8 +143,29 @@ class Run:
 
     @cached_property
     def report(self) -> dict:
-        """``report.json``: its keys are documented in the README's "report.json" table."""
+        """``report.json``: its keys are declared in :mod:`imitate.rundir.schema`."""
         return load_json(self.path / table.REPORT)
+
+    def replan(self, *, obstacles: Sequence[Obstacle] | None = None, **settings) -> Plan:
+        """The learned model planned again as the ``optimize`` stage plans it, with
+        ``settings`` replaced; nothing written.
+
+        Args:
+            obstacles: Obstacles on the table instead of the run's (``()`` for none).
+            **settings: Fields of :class:`~imitate.motion.PlanConfig` (``collision_weight``,
+                ``similarity``, ``sigma_max_scale``, ``max_iter``, ...) instead of the run's.
+
+        Raises:
+            ImitateError: an unknown setting, a bad value, or an obstacle that overlaps the
+                robot or what it holds.
+        """
+        scene = self.config.scene()
+        if obstacles is not None:
+            scene = dataclasses.replace(scene, obstacles=tuple(obstacles))
+            check_clearance(scene)
+        return reproduce(
+            self.model, gaze=self.gaze, scene=scene, config=self.config.plan_config(), **settings
+        )
 
     def __repr__(self) -> str:
         return f"Run({str(self.path)!r})"

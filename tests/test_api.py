@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 
 import imitate
+from imitate.envs.assembly import Obstacle
+from imitate.envs.pouring import PouringEnv
 from imitate.learning import LearnedModel
 from imitate.motion import Plan
 from imitate.perception import Observations
@@ -19,21 +21,43 @@ README = Path(__file__).resolve().parents[1] / "README.md"
 MARKER = "<!-- tests/test_api.py runs the next code block -->"
 
 
-def readme_example() -> str:
-    text = README.read_text()
-    match = re.search(re.escape(MARKER) + r"\s*```python\n(.*?)```", text, re.DOTALL)
-    assert match, f"README.md lacks the code block after {MARKER}"
-    return match.group(1)
+def readme_examples() -> list[str]:
+    """The README's code blocks that follow the marker, in order."""
+    found = re.findall(re.escape(MARKER) + r"\s*```python\n(.*?)```", README.read_text(), re.DOTALL)
+    assert len(found) >= 2, f"README.md lacks the code blocks after {MARKER}"
+    return found
 
 
-def test_readme_example_runs_as_written(quick_run, tmp_path, monkeypatch):
+def test_readme_examples_run_as_written(quick_run, tmp_path, monkeypatch, capsys):
     (tmp_path / "runs").mkdir()
     (tmp_path / "runs" / "latest").symlink_to(quick_run)
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("MINARI_DATASETS_PATH", "restored after the test")
-    exec(compile(readme_example(), str(README), "exec"), {"__name__": "readme"})
+    data, api = readme_examples()
+    exec(compile(data, str(README), "exec"), {"__name__": "readme"})
     assert (tmp_path / "gmr_vs_plan.png").stat().st_size > 0
     assert (tmp_path / "datasets" / "imitate" / "pouring" / "robot-v0").is_dir()
+    exec(compile(api, str(README), "exec"), {"__name__": "readme"})
+    printed = capsys.readouterr().out
+    assert re.search(r"clearance -?\d+\.\d mm, pour \d\.\d\d", printed), printed
+    assert re.search(r"without the collision cost -?\d+\.\d mm", printed), printed
+
+
+def test_replan_plays_in_the_env_as_the_replay_stage_does(quick_run):
+    run = imitate.load_run(quick_run)
+    again = run.replan()  # the run's settings: the stage's plan, bit for bit
+    assert np.array_equal(again.q, run.plan.q) and again.min_distance == run.plan.min_distance
+    env = PouringEnv(particles=0)
+    env.reset(seed=0)
+    steps = imitate.actions(run.plan, env)
+    assert steps.shape == (len(steps), 18) and np.all(np.isfinite(steps))
+    duration = run.plan.times[-1] - run.plan.times[0]
+    assert len(steps) == round((1.0 + duration + 1.5) / env.dt) + 1  # approach, plan, settle
+    with pytest.raises(imitate.ImitateError, match=r"plan setting\(s\) \['colision_weight'\]"):
+        run.replan(colision_weight=0.0)
+    with pytest.raises(imitate.ImitateError, match="overlaps"):
+        run.replan(obstacles=[Obstacle("box", (0.45, -0.17, 0.70), (0.05, 0.05, 0.09))])
+    assert {"load_run", "learn", "reproduce", "actions"} <= set(dir(imitate))
 
 
 def test_members_are_typed_and_read_lazily(quick_run):

@@ -21,6 +21,7 @@ rather than on the later moment the spread test notices it.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import cast
 
@@ -330,3 +331,13 @@ def load_demos(path) -> tuple[list[Demonstration], tuple[str, ...], np.ndarray]:
         arrays = cast(dict[str, np.ndarray], fields)  # none is None (checked above)
         demos.append(Demonstration(float(start), float(end), **arrays))
     return demos, tuple(str(name) for name in a["objects"]), a["gaze"]
+
+
+def task_demos(
+    segments: Sequence[Demonstration], objects: tuple[str, ...], gaze: np.ndarray, *,
+    smoothing: float,
+) -> tuple[list[np.ndarray], float]:
+    """The demonstrations ``segments`` in the task space (:func:`task_demo` each) and their
+    rate [Hz] (the first one's median frame rate): what :func:`imitate.learn` takes."""
+    rate = 1.0 / float(np.median(np.diff(segments[0].times)))
+    return [task_demo(d, objects, gaze, smoothing=smoothing, rate=rate) for d in segments], rate

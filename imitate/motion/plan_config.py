@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 from imitate.errors import ImitateError
@@ -110,3 +111,15 @@ class PlanConfig:
                 f"max_iter >= 0, patience >= 1 and tol >= 0 needed; got {self.max_iter}, "
                 f"{self.patience}, {self.tol}"
             )
+
+    def replace(self, **settings) -> PlanConfig:
+        """These settings with ``settings`` (field names and values) replaced.
+
+        Raises:
+            ImitateError: a name that is no field (the message lists them), or a bad value.
+        """
+        names = tuple(f.name for f in dataclasses.fields(self))
+        unknown = sorted(set(settings) - set(names))
+        if unknown:
+            raise ImitateError(f"plan setting(s) {unknown} unknown; accepted: {names}")
+        return dataclasses.replace(self, **settings)

@@ -1,7 +1,8 @@
-"""Planning set-up for the robot in the pouring scene, and replay.
+"""The robot in the pouring scene: planning there, and playing a plan in physics.
 
 :func:`planning_task` builds the kinematic planning model of a scene (no particles) and its
-task map; :func:`replay` drives ``PouringEnv``'s actuators along a plan in full
+task map; :func:`reproduce` plans a learned model there; :func:`actions` are a plan's actions
+at the env's step, and :func:`replay` drives ``PouringEnv``'s actuators with them in full
 physics and measures the pour, or stops where the physics diverges.
 """
 
@@ -9,13 +10,16 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import cast
 
+import gymnasium as gym
 import numpy as np
 
 from imitate.envs import assembly
 from imitate.envs.pouring import PouringEnv
+from imitate.learning import LearnedModel
 from imitate.models import humanoid, objects
-from imitate.motion import Plan
+from imitate.motion import Plan, PlanConfig, plan_from_model
 from imitate.motion.approach import approach_path
 from imitate.motion.control import ControlConfig
 from imitate.motion.kinematics import Kinematics
@@ -49,6 +53,36 @@ def planning_task(
     return TaskMap(kin, objects.BOTTLE, objects.GLASS, gaze, control.fixed_joints)
 
 
+def reproduce(
+    model: LearnedModel,
+    *,
+    gaze: np.ndarray | None = None,
+    scene: assembly.SceneConfig | None = None,
+    q0: np.ndarray | None = None,
+    config: PlanConfig | None = None,
+    **settings,
+) -> Plan:
+    """The robot's reproduction of ``model`` in ``scene``: :func:`plan_from_model` on
+    :func:`planning_task`, nothing written.
+
+    Args:
+        model: A learned model (:func:`imitate.learn`'s) in the task space of ``gaze``.
+        gaze: ``(3, 3)`` gaze frame the model's task space is expressed in (columns right,
+            down, forward); ``None`` for the robot's left eye at the rest pose.
+        scene: Obstacles and grasps; ``None`` for ``PouringEnv``'s default scene.
+        q0: ``(n,)`` posture [rad] the movement starts from; ``None`` for the rest pose.
+        config: The planner's settings; ``None`` for the defaults.
+        **settings: Fields of :class:`PlanConfig` replaced in ``config`` (``collision_weight``,
+            ``similarity``, ``max_iter``, ...).
+
+    Raises:
+        ImitateError: a setting :class:`PlanConfig` does not have, or a bad value.
+    """
+    config = (config or PlanConfig()).replace(**settings)
+    q0 = humanoid.rest_pose() if q0 is None else q0
+    return plan_from_model(planning_task(scene, gaze), model, q0=q0, config=config)
+
+
 @dataclass(frozen=True)
 class ReplayResult:
     """Outcome of :func:`replay`.
@@ -74,6 +108,36 @@ class ReplayResult:
     diverged_at: float | None = None
 
 
+def actions(
+    plan: Plan, env: gym.Env | PouringEnv, *, approach: float = 1.0, settle: float = 1.5
+) -> np.ndarray:
+    """The env's actions that play ``plan``, one per env step: ``(N, 18)`` joint targets
+    [rad] from the env's joint positions now (call it after ``env.reset``) to the plan's start
+    in ``approach`` [s] along the plan's approach path (cosine blend), the plan interpolated at
+    the env's step ``env.dt``, then ``settle`` [s] holding the last posture; each target led by
+    its speed times ``env.servo_lag`` plus half a step (velocity feed-forward: the position
+    servos trail a moving target).
+
+    Args:
+        plan: The plan (``Plan.times`` at the planner's step, 0.08 s by default).
+        env: ``PouringEnv``, or ``gym.make("imitate:imitate/Pouring-v0")`` (its wrappers are
+            looked through).
+        approach: Time [s] from the reset posture to the plan's start.
+        settle: Time [s] holding the last posture.
+    """
+    env = cast(PouringEnv, env.unwrapped)
+    dt = env.dt
+    n_approach = int(round(approach / dt))
+    blend = 0.5 - 0.5 * np.cos(np.pi * np.arange(1, n_approach + 1) / n_approach)
+    waypoints = [
+        *approach_path(env.joint_positions(), plan.q_start, plan.approach_bend, blend),
+        *_resample(plan.times - plan.times[0], plan.q, _play_times(plan, dt)),
+        *[plan.q[-1]] * int(round(settle / dt)),
+    ]
+    targets = np.array(waypoints)
+    return targets + (env.servo_lag + dt / 2) * np.gradient(targets, dt, axis=0)
+
+
 def replay(
     plan: Plan,
     env: PouringEnv,
@@ -85,33 +149,20 @@ def replay(
     on_step: Callable[[PouringEnv], None] | None = None,
     gaze: np.ndarray | None = None,
 ) -> ReplayResult:
-    """Drives ``env`` along ``plan`` in physics: from the reset pose to the plan's start in
-    ``approach`` [s] along the plan's approach path (cosine blend), the plan interpolated at
-    the env's control rate, then
-    ``settle`` [s] holding the last posture; each target led by its speed times
-    ``env.servo_lag`` plus half a step (velocity feed-forward). ``on_step(env)``, if given,
-    is called after the reset and after every step (to record states for a video, say). The
-    task error is measured in ``gaze``, which should be the plan's (``None``:
-    :func:`planning_task`'s default).
+    """Drives ``env`` along ``plan`` in physics (its :func:`actions` after a reset from
+    ``seed`` with ``options``) and measures the pour, the clearance and the task error.
+    ``on_step(env)``, if given, is called after the reset and after every step (to record
+    states for a video, say). The task error is measured in ``gaze``, which should be the
+    plan's (``None``: :func:`planning_task`'s default).
 
     Where the physics diverges (``info["diverged"]`` of a step), the replay stops and says when
     (``diverged_at``), with the pour and the clearance measured so far.
     """
     env.reset(seed=seed, options=options)
     dt = env.dt
-    q_reset = env.joint_positions()
-    waypoints: list[np.ndarray] = []
+    targets = actions(plan, env, approach=approach, settle=settle)
     n_approach = int(round(approach / dt))
-    blend = 0.5 - 0.5 * np.cos(np.pi * np.arange(1, n_approach + 1) / n_approach)
-    waypoints.extend(approach_path(q_reset, plan.q_start, plan.approach_bend, blend))
-    t_play = np.arange(0.0, plan.times[-1] - plan.times[0] + 1e-9, dt)
-    play = _resample(plan.times - plan.times[0], plan.q, t_play)
-    waypoints.extend(play)
-    waypoints.extend([plan.q[-1]] * int(round(settle / dt)))
-    # Velocity feed-forward: each step holds its target (half a step behind on average) and the
-    # servos trail a moving target by servo_lag; both are led by the target's speed.
-    targets = np.array(waypoints)
-    targets += (env.servo_lag + dt / 2) * np.gradient(targets, dt, axis=0)
+    t_play = _play_times(plan, dt)
     task = planning_task(env.config, gaze)
     min_distance = np.inf
     reached = []
@@ -127,7 +178,7 @@ def replay(
         if on_step is not None:
             on_step(env)
         min_distance = min(min_distance, info["min_distance"])
-        if n_approach <= k < n_approach + len(play):
+        if n_approach <= k < n_approach + len(t_play):
             reached.append(_task_state(env, task, plan, (k - n_approach) * dt))
     x = np.reshape(reached, (len(reached), plan.x.shape[1]))
     ref = _resample(plan.times - plan.times[0], plan.x, t_play)
@@ -139,6 +190,11 @@ def replay(
         is_success=bool(info["is_success"]) and diverged_at is None,
         diverged_at=diverged_at,
     )
+
+
+def _play_times(plan: Plan, dt: float) -> np.ndarray:
+    """Times [s] from the plan's start of its env steps ``dt`` apart."""
+    return np.arange(0.0, plan.times[-1] - plan.times[0] + 1e-9, dt)
 
 
 def _resample(times: np.ndarray, values: np.ndarray, at: np.ndarray) -> np.ndarray:

@@ -280,6 +280,13 @@ class RunConfig:
         )
         return assembly.SceneConfig(**{**values, **overrides})
 
+    def plan_config(self) -> PlanConfig:
+        """The planner's settings of the run (the optimize stage's, at its collision weight)."""
+        return PlanConfig(
+            collision_weight=self.collision_weight, max_iter=self.max_iter,
+            similarity=self.similarity, sigma_max_scale=self.sigma_max_scale,
+        )
+
     def teacher(self) -> TeacherConfig:
         """The teacher's demonstrations."""
         return TeacherConfig(n_demos=self.n_demos, seed=self.seed)

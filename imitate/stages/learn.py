@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from imitate.demos.oracle import true_demos
-from imitate.demos.segment import load_demos, task_demo
+from imitate.demos.segment import load_demos, task_demos
 from imitate.envs.teacher_motion import script_demonstrations
 from imitate.learning import LearningConfig, learn
 from imitate.learning.bic import bic_sweep
@@ -28,10 +28,7 @@ def run(run_dir: Path, config: RunConfig) -> dict:
     else:
         segments, names, gaze = load_demos(run_dir / "demos.npz")
         bridged = sum(int(np.isnan(d.position).any(axis=-1).sum()) for d in segments)
-        rate = 1.0 / float(np.median(np.diff(segments[0].times)))
-        demos = [
-            task_demo(d, names, gaze, smoothing=config.smoothing, rate=rate) for d in segments
-        ]
+        demos, rate = task_demos(segments, names, gaze, smoothing=config.smoothing)
     k_max = min(config.k_max, *(len(d) for d in demos))
     settings = LearningConfig(k_max=k_max, bic_method=config.bic, seed=config.seed)
     start = time.perf_counter()

@@ -11,7 +11,7 @@ from tqdm import tqdm
 
 from imitate.learning import LearnedModel
 from imitate.models import humanoid
-from imitate.motion import PlanConfig, plan_from_model
+from imitate.motion import plan_from_model
 from imitate.motion.metrics import deviation, pour_phase_error
 from imitate.motion.replay import planning_task
 from imitate.rundir.artifacts import load_npz, save_npz
@@ -32,10 +32,7 @@ def run(run_dir: Path, config: RunConfig) -> dict:
         plans[w] = plan_from_model(
             task, model, q0=humanoid.rest_pose(),
             # the sweep shows the paper's optimizer, the attractors alone (Fig. 9)
-            config=PlanConfig(
-                collision_weight=w, max_iter=config.max_iter, nullspace_push=w == chosen,
-                similarity=config.similarity, sigma_max_scale=config.sigma_max_scale,
-            ),
+            config=config.plan_config().replace(collision_weight=w, nullspace_push=w == chosen),
         )
         seconds[w] = time.perf_counter() - start
     main = plans[chosen]
