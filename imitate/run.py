@@ -28,6 +28,7 @@ from imitate.motion.replay import reproduce
 from imitate.perception import Observations, load_observations
 from imitate.rundir import table
 from imitate.rundir.artifacts import load_json, load_npz
+from imitate.rundir.schema import check_schema
 from imitate.stages.config import RunConfig, load_config
 
 __all__ = ["Demos", "Recording", "Run", "load_run"]
@@ -144,7 +145,8 @@ class Run:
     @cached_property
     def report(self) -> dict:
         """``report.json``: its keys are declared in :mod:`imitate.rundir.schema`."""
-        return load_json(self.path / table.REPORT)
+        path = self.path / table.REPORT
+        return check_schema(load_json(path), path)
 
     def replan(self, *, obstacles: Sequence[Obstacle] | None = None, **settings) -> Plan:
         """The learned model planned again as the ``optimize`` stage plans it, with

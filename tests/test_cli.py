@@ -206,3 +206,47 @@ def test_interrupted_stage_leaves_no_half_written_file(quick_run, tmp_path, monk
     assert main(["learn", str(run_dir)]) == 130
     assert not (run_dir / "model.npz").exists()
     assert not [p.name for p in run_dir.iterdir() if "partial" in p.name]
+
+
+def test_a_mistyped_flag_gets_the_sub_command_usage_and_a_suggestion(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["optimize", str(tmp_path), "--colision-weight", "30"])
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and err.startswith("usage: imitate optimize")
+    assert err.splitlines()[-1] == (
+        "imitate optimize: error: unrecognized arguments: --colision-weight (did you mean "
+        "--collision-weight?) 30"
+    )
+
+
+def test_a_new_run_over_another_names_the_settings_it_replaces(tmp_path, caplog):
+    from imitate.cli import _warn_if_replaced
+    from imitate.rundir.artifacts import save_json
+
+    save_json(tmp_path / "config.json", RunConfig.quick().to_json())
+    _warn_if_replaced(tmp_path, RunConfig())
+    assert "holds a run made with other settings" in caplog.text
+    assert "n_demos 3 -> 5" in caplog.text and "width 320 -> 640" in caplog.text
+    caplog.clear()
+    _warn_if_replaced(tmp_path, RunConfig.quick())
+    _warn_if_replaced(tmp_path / "none", RunConfig())
+    assert caplog.text == ""
+
+
+def test_eval_of_a_missing_run_writes_nothing(tmp_path, capsys):
+    assert main(["eval", str(tmp_path / "nope"), "--n", "1"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.startswith("imitate eval: error: run directory") and "not found" in err
+    assert not (tmp_path / "nope").exists()
+
+
+def test_a_report_of_another_schema_is_refused_in_one_line(quick_run, tmp_path):
+    import imitate
+
+    run_dir = tmp_path / "run"
+    shutil.copytree(quick_run, run_dir)
+    report = report_of(run_dir)
+    (run_dir / "report.json").write_text(json.dumps({**report, "schema": 99}))
+    with pytest.raises(ImitateError, match="has schema 99; this imitate reads and writes schema 1"):
+        _ = imitate.load_run(run_dir).report
+    assert main(["figures", str(run_dir)]) == 1

@@ -21,6 +21,7 @@ Progress goes to stderr (``-q`` leaves warnings and errors, ``-v`` adds debug li
 from __future__ import annotations
 
 import argparse
+import difflib
 import logging
 import sys
 from collections.abc import Callable, Iterable
@@ -257,14 +258,17 @@ def config_for(args: argparse.Namespace, base: RunConfig) -> RunConfig:
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(full=[a for a in argv if a in COMMANDS][:1])
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)
+    sub = _command_parser(parser, args.command)
+    if unknown:
+        sub.error(_unrecognized(unknown, sub))
     console.log_to_stderr(args.log_level)
     if args.command == "export":
         return export_command(args)
     if args.command in ("eval", "compare"):
         return _eval(args)
     if args.run_dir and args.out and args.run_dir != args.out:
-        parser.error(f"two run directories given: {args.run_dir} and --out {args.out}; give one")
+        sub.error(f"two run directories given: {args.run_dir} and --out {args.out}; give one")
     run_dir = args.out or args.run_dir or DEFAULT_RUN
     command = " ".join(["imitate", *argv])
     stages, stage = _stages(args.command), None
@@ -282,7 +286,9 @@ def main(argv: list[str] | None = None) -> int:
             try:
                 config = config_for(args, base)
             except ImitateError as err:
-                parser.error(str(err))
+                sub.error(str(err))
+            if fresh:
+                _warn_if_replaced(run_dir, config)
             log.debug("run directory %s, settings %s", run_dir, config.to_json())
             with ExitStack() as ahead:
                 for stage in stages:
@@ -307,6 +313,46 @@ def main(argv: list[str] | None = None) -> int:
         return console.fail(args.command, stopped, 143)
     print(console.summary(report, stages, run_dir))
     return 0
+
+
+def _command_parser(parser: argparse.ArgumentParser, command: str) -> argparse.ArgumentParser:
+    """The sub-command's parser (its errors show its usage)."""
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return action.choices[command]
+
+
+def _unrecognized(unknown: list[str], sub: argparse.ArgumentParser) -> str:
+    """Argparse's message for ``unknown`` arguments, with the closest flag of ``sub`` for each
+    unknown flag (``--colision-weight``: did you mean ``--collision-weight``?)."""
+    flags = [s for a in sub._actions for s in a.option_strings]
+    guesses = [
+        f"{arg} (did you mean {close[0]}?)" if close else arg
+        for arg in unknown
+        for close in [difflib.get_close_matches(arg.split("=")[0], flags, n=1)
+                      if arg.startswith("--") else []]
+    ]
+    return f"unrecognized arguments: {' '.join(guesses)}"
+
+
+def _warn_if_replaced(run_dir: Path, config: RunConfig) -> None:
+    """A warning naming the settings that differ when a run starts anew in ``run_dir`` over one
+    made with other settings (``imitate run runs/quick`` without ``--quick``)."""
+    from imitate.stages.config import load_config
+
+    try:
+        before = load_config(run_dir).to_json()
+    except ImitateError:  # no run there yet, or one this imitate cannot read: nothing to name
+        return
+    now = config.to_json()
+    changed = [
+        f"{name} {before.get(name)} -> {value}" for name, value in now.items()
+        if value != before.get(name)
+    ]
+    if changed:
+        log.warning(
+            "%s holds a run made with other settings; this run replaces it with: %s",
+            run_dir, ", ".join(changed),
+        )
 
 
 def _starts_run(command: str) -> bool:

@@ -27,7 +27,7 @@ from imitate.errors import ImitateError
 from imitate.evaluation.evaluate import RESULTS, Draw, check_counts, draw_jobs, run_jobs
 from imitate.evaluation.report import wilson
 from imitate.evaluation.suite import Suite
-from imitate.evaluation.teachers import teachers
+from imitate.evaluation.teachers import check_run, teachers
 from imitate.figures import plots
 from imitate.motion import SIMILARITIES
 from imitate.rundir.artifacts import save_json, write_atomic
@@ -65,7 +65,7 @@ def compare(
             f"--similarity {','.join(similarities)} not accepted: two or more of "
             f"{', '.join(SIMILARITIES)}, comma-separated, each once"
         )
-    run_dir = Path(run_dir)
+    run_dir = check_run(run_dir)
     n, workers = check_counts(suite, n, workers)
     out = run_dir / "compare" / name
     out.mkdir(parents=True, exist_ok=True)

@@ -31,7 +31,7 @@ from imitate.errors import ImitateError
 from imitate.evaluation.parallel import Job, run_local, run_ray
 from imitate.evaluation.report import failure_video, plot_outcomes, summarize, summarize_teachers
 from imitate.evaluation.suite import Suite
-from imitate.evaluation.teachers import Teacher, teachers
+from imitate.evaluation.teachers import Teacher, check_run, teachers
 from imitate.evaluation.variation import Variation, draw, path_points
 from imitate.figures import plots
 from imitate.learning import LearnedModel
@@ -68,7 +68,7 @@ def evaluate(
         ImitateError: a missing or corrupt model, ``n``, ``workers`` or ``n_teachers`` out of
             range, Ray unusable.
     """
-    run_dir = Path(run_dir)
+    run_dir = check_run(run_dir)
     out = run_dir / "eval"
     n, workers = check_counts(suite, n, workers)
     out.mkdir(parents=True, exist_ok=True)

@@ -27,7 +27,7 @@ from imitate.rundir.lock import locked
 from imitate.stages import provenance
 from imitate.stages.config import RunConfig, load_config
 
-__all__ = ["MAX_TEACHERS", "Teacher", "teacher_seeds", "teachers"]
+__all__ = ["MAX_TEACHERS", "Teacher", "check_run", "teacher_seeds", "teachers"]
 
 log = logging.getLogger(__name__)
 
@@ -65,6 +65,21 @@ def teacher_seeds(run_seed: int, n: int) -> tuple[int, ...]:
     if not 1 <= n <= MAX_TEACHERS:
         raise ImitateError(f"--teachers {n} not accepted: a whole number in 1..{MAX_TEACHERS}")
     return tuple(run_seed + i for i in range(n))
+
+
+def check_run(run_dir: Path | str) -> Path:
+    """``run_dir`` as a path, if it is a directory (nothing is written into one that is not).
+
+    Raises:
+        ImitateError: it is not; the message says what is accepted.
+    """
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise ImitateError(
+            f"run directory {run_dir} not found; accepted: a directory with a model.npz, as "
+            f"`imitate run --out {run_dir}` writes"
+        )
+    return run_dir
 
 
 def teachers(run_dir: Path, out: Path, n: int) -> list[Teacher]:

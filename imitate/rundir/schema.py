@@ -9,7 +9,12 @@ item of the list ``a``; ``<stage>`` and ``<name>`` stand for any stage and any a
 
 from __future__ import annotations
 
-__all__ = ["REPORT_KEYS", "REPORT_SCHEMA", "markdown"]
+from pathlib import Path
+from typing import Any
+
+from imitate.errors import ImitateError
+
+__all__ = ["REPORT_KEYS", "REPORT_SCHEMA", "check_schema", "markdown"]
 
 REPORT_SCHEMA = 1  # report["schema"]
 
@@ -165,6 +170,23 @@ REPORT_KEYS: dict[str, tuple[str, str]] = {
         "path of each artifact present, relative to the run directory, by file stem",
     ),
 }
+
+
+def check_schema(report: Any, path: Path) -> dict:
+    """``report`` (read from ``path``) if it is a report of this layout.
+
+    Raises:
+        ImitateError: it is not an object, or of another ``schema``.
+    """
+    if not isinstance(report, dict):
+        raise ImitateError(f"{path} is not a report (an object); delete it to start a new one")
+    schema = report.get("schema", REPORT_SCHEMA)
+    if schema != REPORT_SCHEMA:
+        raise ImitateError(
+            f"{path} has schema {schema!r}; this imitate reads and writes schema "
+            f"{REPORT_SCHEMA}: run the run again with it, or delete {path.name} to start a new one"
+        )
+    return report
 
 
 def markdown() -> str:

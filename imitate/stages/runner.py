@@ -16,7 +16,7 @@ from typing import Any
 from imitate.errors import ImitateError
 from imitate.rundir import page, table
 from imitate.rundir.artifacts import load_json, save_json, staged
-from imitate.rundir.schema import REPORT_SCHEMA
+from imitate.rundir.schema import REPORT_SCHEMA, check_schema
 from imitate.stages import provenance
 from imitate.stages.config import RunConfig
 
@@ -91,9 +91,9 @@ def _previous_report(run_dir: Path) -> dict:
     path = run_dir / table.REPORT
     if not path.exists():
         return {}
-    report = load_json(path)
+    report = check_schema(load_json(path), path)
     names = ("timings", *(name for s in table.STAGES for name in s.sections))
-    if not isinstance(report, dict) or any(
+    if any(
         not isinstance(report.get(name, {}), dict) for name in names
     ):
         raise ImitateError(
