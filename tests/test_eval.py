@@ -125,6 +125,17 @@ def test_variations_are_drawn_per_id_and_round_trip():
     assert all(draw(suite, 3, i, np.empty((0, 3))).in_path is False for i in range(5))
 
 
+def test_records_that_could_name_a_file_outside_are_skipped(tmp_path):
+    good = {"digest": "d", "id": 0, "outcome": "spill"}
+    crafted = [
+        {**good, "id": 1, "outcome": "x/../../../outside"}, {**good, "id": "2"},
+        {**good, "id": -3}, {**good, "id": True}, {"digest": "d", "id": 4},
+    ]
+    path = tmp_path / RESULTS
+    path.write_text("\n".join(json.dumps(r) for r in [good, *crafted]) + "\n")
+    assert read_records(path, "d") == [good]
+
+
 def test_wilson_interval():
     assert wilson(0, 10) == pytest.approx((0.0, 0.2775), abs=1e-4)
     assert wilson(5, 10) == pytest.approx((0.2366, 0.7634), abs=1e-4)

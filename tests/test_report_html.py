@@ -72,6 +72,18 @@ def test_partial_run_has_a_page_of_what_exists(tmp_path):
     assert "Collision-weight sweep" not in text and "success" not in text
 
 
+def test_strings_of_a_crafted_report_are_escaped(tmp_path):
+    script = "<script>alert('demos')</script>"
+    report = {
+        "schema": REPORT_SCHEMA, "seed": 4, "demos": {"detected": script, "expected": 5},
+        "learning": {"n_components": "<img src=x onerror=alert(1)>", "bic": "full",
+                     "n_components_fast_bic": 3, "n_components_full_bic": 4},
+    }
+    page = (save_run_page(tmp_path, report, RunConfig.quick().to_json())).read_text()
+    assert "<script>" not in page and "<img src=x" not in page
+    assert "&lt;script&gt;" in page and "&lt;img src=x" in page
+
+
 def test_eval_page_links_its_files_and_failure_videos(tmp_path):
     out, digest = tmp_path / "eval", "0123456789abcdef"
     records = [

@@ -349,3 +349,14 @@ def test_6_sigterm_is_one_line_and_exit_143(run_dir, monkeypatch, capsys):
     line = one_error_line(capsys.readouterr().err, "learn")
     assert "terminated (SIGTERM) in stage learn" in line
     assert snapshot(run_dir) == before and not received
+
+
+def test_a_symlinked_lock_is_refused_and_its_target_untouched(tmp_path):
+    run_dir, victim = tmp_path / "run", tmp_path / "victim.txt"
+    run_dir.mkdir()
+    victim.write_text("mine")
+    (run_dir / LOCK).symlink_to(victim)
+    with pytest.raises(ImitateError, match=r"\.lock is a symbolic link; .* remove it"):
+        with locked(run_dir, "imitate learn"):
+            pass
+    assert victim.read_text() == "mine" and (run_dir / LOCK).is_symlink()

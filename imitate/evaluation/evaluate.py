@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from imitate.envs.outcome import OUTCOMES
 from imitate.errors import ImitateError
 from imitate.evaluation.parallel import Job, run_local, run_ray
 from imitate.evaluation.report import failure_video, plot_outcomes, summarize, summarize_teachers
@@ -188,7 +189,9 @@ def combined_digest(digests: Sequence[str]) -> str:
 
 def read_records(path: Path, digests: str | Collection[str]) -> list[dict]:
     """The records of ``path`` (``results.jsonl``) under ``digests`` (one or several), the last
-    one per digest and id; a line cut short by an interruption is skipped."""
+    one per digest and id; a line cut short by an interruption, or not a record (an ``id`` that
+    is no whole number >= 0, an ``outcome`` not of :data:`~imitate.envs.outcome.OUTCOMES`: file
+    names are made of them), is skipped, so its variation runs again."""
     wanted = {digests} if isinstance(digests, str) else set(digests)
     records = {}
     if not path.exists():
@@ -198,9 +201,18 @@ def read_records(path: Path, digests: str | Collection[str]) -> list[dict]:
             record = json.loads(line)
         except json.JSONDecodeError:
             continue
-        if isinstance(record, dict) and record.get("digest") in wanted:
+        if _is_record(record) and record["digest"] in wanted:
             records[(record["digest"], record["id"])] = record
     return list(records.values())
+
+
+def _is_record(record: object) -> bool:
+    """Whether ``record`` has the form of a variation's record where file names read it."""
+    return (
+        isinstance(record, dict) and isinstance(record.get("digest"), str)
+        and type(record.get("id")) is int and record["id"] >= 0
+        and record.get("outcome") in OUTCOMES
+    )
 
 
 def last_records(run_dir: Path) -> list[dict]:

@@ -13,6 +13,7 @@ import fcntl
 import json
 import os
 import socket
+import stat
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -69,14 +70,22 @@ def _directory(run_dir: Path, create: bool) -> bool:
 
 
 def _acquire(path: Path, command: str) -> int:
-    """The descriptor of ``path``, locked, with the holder written into it."""
+    """The descriptor of ``path``, locked, with the holder written into it. A symbolic link or
+    anything but a regular file there is refused, not followed or written through."""
     while True:
+        if path.is_symlink():
+            raise ImitateError(
+                f"{path} is a symbolic link; imitate follows none in a run directory: remove it"
+            )
         try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK, 0o644)
         except OSError as err:
             raise ImitateError(
                 f"cannot lock run directory {path.parent} ({err.strerror}); it must be writable"
             ) from None
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            os.close(fd)
+            raise ImitateError(f"{path} is not a regular file; remove it")
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

@@ -184,7 +184,7 @@ def _headline(report: dict) -> list[tuple[str, str]]:
             ("success", _yes_no(replay["success"], "yes", "no")),
             ("pour fraction", f"{replay['pour_fraction']:.2f} (mean "
              f"{replay['pour_fraction_mean']:.2f}, min {replay['pour_fraction_min']:.2f} over "
-             f"the replays), {replay['spilled']} spilled"),
+             f"the replays), {escape(str(replay['spilled']))} spilled"),
             ("min distance, physics", _mm(replay["min_distance_m"])),
         ]
     if opt:
@@ -195,11 +195,12 @@ def _headline(report: dict) -> list[tuple[str, str]]:
              f"{opt['pour_phase_err_deg']:.2f}°"),
         ]
     if learning:
-        rows.append(("K chosen", f"{learning['n_components']} ({escape(learning['bic'])} BIC; "
-                     f"fast {learning['n_components_fast_bic']}, "
-                     f"full {learning['n_components_full_bic']})"))
+        k, bic, fast, full = (escape(str(learning[name])) for name in (
+            "n_components", "bic", "n_components_fast_bic", "n_components_full_bic"))
+        rows.append(("K chosen", f"{k} ({bic} BIC; fast {fast}, full {full})"))
     if demos:
-        rows.append(("demonstrations found", f"{demos['detected']} of {demos['expected']}"))
+        found, shown = (escape(str(demos[name])) for name in ("detected", "expected"))
+        rows.append(("demonstrations found", f"{found} of {shown}"))
     if perception:
         rows.append(("tracking error", f"{perception['pos_err_mm_median']:.1f} mm median, "
                      f"{perception['pos_err_mm_p95']:.1f} mm p95"))
