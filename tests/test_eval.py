@@ -136,6 +136,16 @@ def test_records_that_could_name_a_file_outside_are_skipped(tmp_path):
     assert read_records(path, "d") == [good]
 
 
+def test_eval_holds_the_run_directory(tmp_path, model_arrays):
+    from imitate.rundir.lock import locked
+
+    run_dir = _run_dir(tmp_path, model_arrays)
+    with locked(run_dir, "imitate learn"):
+        with pytest.raises(ImitateError, match="is in use by .*imitate learn"):
+            evaluate(run_dir, Suite.from_dict(TINY), workers=1, videos=0)
+    assert not (run_dir / "eval").exists()
+
+
 def test_wilson_interval():
     assert wilson(0, 10) == pytest.approx((0.0, 0.2775), abs=1e-4)
     assert wilson(5, 10) == pytest.approx((0.2366, 0.7634), abs=1e-4)

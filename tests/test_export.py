@@ -268,3 +268,19 @@ def test_cli_export_and_nothing_half_written(run, tmp_path):
     assert main(["export", str(run.path), "--format", "hdf5", "--out", str(out)]) == 0
     assert sorted(p.name for p in out.iterdir()) == ["robot.hdf5", "teacher.hdf5"]
     assert [p.name for p in tmp_path.iterdir()] == ["cli"]  # no temporary left
+
+
+def test_export_refuses_a_stale_plan_and_a_held_run_directory(quick_run, tmp_path):
+    from imitate.errors import ImitateError
+    from imitate.rundir.lock import locked
+
+    run_dir = tmp_path / "run"
+    shutil.copytree(quick_run, run_dir)
+    config = json.loads((run_dir / "config.json").read_text())
+    (run_dir / "config.json").write_text(json.dumps({**config, "collision_weight": 5.0}))
+    with pytest.raises(ImitateError, match=r"optimize.*before exporting"):
+        export(run_dir, "hdf5", out=tmp_path / "out")
+    (run_dir / "config.json").write_text(json.dumps(config))
+    with locked(run_dir, "imitate replay"), pytest.raises(ImitateError, match="in use by"):
+        export(run_dir, "hdf5", out=tmp_path / "out")
+    assert not (tmp_path / "out").exists() and not list(tmp_path.glob(".out.*"))

@@ -31,6 +31,7 @@ from imitate.evaluation.teachers import check_run, teachers
 from imitate.figures import plots
 from imitate.motion import SIMILARITIES
 from imitate.rundir.artifacts import save_json, write_atomic
+from imitate.rundir.lock import locked
 from imitate.stages import provenance
 
 __all__ = ["compare", "markdown", "paired", "settings_digest"]
@@ -66,37 +67,39 @@ def compare(
             f"{', '.join(SIMILARITIES)}, comma-separated, each once"
         )
     run_dir = check_run(run_dir)
-    n, workers = check_counts(suite, n, workers)
-    out = run_dir / "compare" / name
-    out.mkdir(parents=True, exist_ok=True)
-    models = teachers(run_dir, run_dir / "eval", n_teachers)
-    base = draw_jobs(models, suite, seed, n)
-    code, model_bytes = provenance.code_digest(), {t.seed: t.model_bytes for t in models}
-    drawn = {
-        s: [
-            Draw(
-                d.teacher, suite.replace(similarity=s).digest(seed, model_bytes[d.teacher], code),
-                d.path, tuple(dataclasses.replace(v, similarity=s) for v in d.variations),
-            )
-            for d in base
-        ]
-        for s in similarities
-    }
-    everything = [d for s in similarities for d in drawn[s]]
-    records, run = run_jobs(out / RESULTS, everything, models, workers, ray, progress)
-    by_weighting = {
-        s: [records[(d.digest, v.id)] for d in drawn[s] for v in d.variations]
-        for s in similarities
-    }
-    result = {
-        "suite_name": name, "suite": suite.to_json(), "seed": seed,
-        "teachers": [t.seed for t in models], "variations_per_teacher": n,
-        **paired(by_weighting), "run": run,
-    }
-    save_json(out / "compare.json", result)
-    write_atomic(out / "compare.md", lambda tmp: tmp.write_text(markdown(result) + "\n"))
-    plots.save(plot_comparison(by_weighting, result), out / "compare.png")
-    return result
+    with locked(run_dir, f"imitate compare {run_dir}"):
+        n, workers = check_counts(suite, n, workers)
+        out = run_dir / "compare" / name
+        out.mkdir(parents=True, exist_ok=True)
+        models = teachers(run_dir, run_dir / "eval", n_teachers)
+        base = draw_jobs(models, suite, seed, n)
+        code, model_bytes = provenance.code_digest(), {t.seed: t.model_bytes for t in models}
+        drawn = {
+            s: [
+                Draw(
+                    d.teacher,
+                    suite.replace(similarity=s).digest(seed, model_bytes[d.teacher], code),
+                    d.path, tuple(dataclasses.replace(v, similarity=s) for v in d.variations),
+                )
+                for d in base
+            ]
+            for s in similarities
+        }
+        everything = [d for s in similarities for d in drawn[s]]
+        records, run = run_jobs(out / RESULTS, everything, models, workers, ray, progress)
+        by_weighting = {
+            s: [records[(d.digest, v.id)] for d in drawn[s] for v in d.variations]
+            for s in similarities
+        }
+        result = {
+            "suite_name": name, "suite": suite.to_json(), "seed": seed,
+            "teachers": [t.seed for t in models], "variations_per_teacher": n,
+            **paired(by_weighting), "run": run,
+        }
+        save_json(out / "compare.json", result)
+        write_atomic(out / "compare.md", lambda tmp: tmp.write_text(markdown(result) + "\n"))
+        plots.save(plot_comparison(by_weighting, result), out / "compare.png")
+        return result
 
 
 def settings_digest(record: dict) -> str:

@@ -38,6 +38,7 @@ from imitate.figures import plots
 from imitate.learning import LearnedModel
 from imitate.rundir import page
 from imitate.rundir.artifacts import save_json
+from imitate.rundir.lock import locked
 from imitate.stages import provenance
 
 __all__ = [
@@ -67,37 +68,41 @@ def evaluate(
 
     Raises:
         ImitateError: a missing or corrupt model, ``n``, ``workers`` or ``n_teachers`` out of
-            range, Ray unusable.
+            range, Ray unusable, or another command holds the run directory (its lock, taken
+            for the whole evaluation).
     """
     run_dir = check_run(run_dir)
-    out = run_dir / "eval"
-    n, workers = check_counts(suite, n, workers)
-    out.mkdir(parents=True, exist_ok=True)
-    models = teachers(run_dir, out, n_teachers)
-    drawn = draw_jobs(models, suite, seed, n)
-    records, run = run_jobs(out / RESULTS, drawn, models, workers, ray, progress)
-    digests = [d.digest for d in drawn]
-    ordered = [records[(d.digest, v.id)] for d in drawn for v in d.variations]
-    summary = {
-        "suite_digest": combined_digest(digests), "seed": seed, "suite": suite.to_json(),
-        "path_points": len(drawn[0].path), **summarize(ordered),
-        "teachers": summarize_teachers(
-            ordered, {d.teacher: d.digest for d in drawn}, {t.seed: t.default_run for t in models}
-        ),
-        "run": run,
-    }
-    save_json(out / "summary.json", summary)
-    plots.save(plot_outcomes(ordered, drawn[0].path), out / "outcomes.png")
-    learned = {t.seed: LearnedModel.from_arrays(t.arrays) for t in models}
-    gaze = {t.seed: t.arrays["gaze"] for t in models}
-    failures = [r for r in ordered if r["outcome"] != "success"][:videos]
-    for record in tqdm(failures, desc="failure videos", unit="video", disable=not progress):
-        video = out / "failures" / record["digest"] / f"{record['id']:04d}-{record['outcome']}.mp4"
-        if not video.exists():
-            t = record["teacher"]
-            failure_video(video, learned[t], gaze[t], record)
-    page.save_eval_page(out, summary)
-    return summary
+    with locked(run_dir, f"imitate eval {run_dir}"):
+        out = run_dir / "eval"
+        n, workers = check_counts(suite, n, workers)
+        out.mkdir(parents=True, exist_ok=True)
+        models = teachers(run_dir, out, n_teachers)
+        drawn = draw_jobs(models, suite, seed, n)
+        records, run = run_jobs(out / RESULTS, drawn, models, workers, ray, progress)
+        digests = [d.digest for d in drawn]
+        ordered = [records[(d.digest, v.id)] for d in drawn for v in d.variations]
+        summary = {
+            "suite_digest": combined_digest(digests), "seed": seed, "suite": suite.to_json(),
+            "path_points": len(drawn[0].path), **summarize(ordered),
+            "teachers": summarize_teachers(
+                ordered, {d.teacher: d.digest for d in drawn},
+                {t.seed: t.default_run for t in models},
+            ),
+            "run": run,
+        }
+        save_json(out / "summary.json", summary)
+        plots.save(plot_outcomes(ordered, drawn[0].path), out / "outcomes.png")
+        learned = {t.seed: LearnedModel.from_arrays(t.arrays) for t in models}
+        gaze = {t.seed: t.arrays["gaze"] for t in models}
+        failures = [r for r in ordered if r["outcome"] != "success"][:videos]
+        for record in tqdm(failures, desc="failure videos", unit="video", disable=not progress):
+            name = f"{record['id']:04d}-{record['outcome']}.mp4"
+            video = out / "failures" / record["digest"] / name
+            if not video.exists():
+                t = record["teacher"]
+                failure_video(video, learned[t], gaze[t], record)
+        page.save_eval_page(out, summary)
+        return summary
 
 
 @dataclass(frozen=True, eq=False)

@@ -3,8 +3,10 @@
 
     imitate export runs/latest --format minari --out datasets/    # or hdf5, lerobot; --images
 
-The formats' libraries are the optional extra ``pip install imitate[export]``. The output is
-written to a temporary directory beside ``out`` and renamed when complete.
+The formats' libraries are the optional extra ``pip install imitate[export]``. The export
+holds the run directory's lock and refuses a plan or model that no longer follows from the run
+(as the ``replay`` stage would); the output is written to a temporary directory of its own
+beside ``out`` and renamed when complete.
 """
 
 from __future__ import annotations
@@ -13,9 +15,13 @@ import importlib
 import importlib.util
 import os
 import shutil
+import tempfile
 from pathlib import Path
 
 from imitate.errors import ImitateError
+from imitate.rundir import table
+from imitate.rundir.lock import locked
+from imitate.stages import provenance
 
 __all__ = ["FORMATS", "export"]
 
@@ -38,8 +44,9 @@ def export(run_dir: str | Path, format: str, out: str | Path | None = None,
             teacher's as the robot saw them), at the run's camera size.
 
     Raises:
-        ImitateError: an unknown format, the format's library missing, ``out`` existing, or a
-            missing artifact (the message names the stage to re-run).
+        ImitateError: an unknown format, the format's library missing, ``out`` existing, a
+            missing or stale artifact (the message names the stage to re-run), or another
+            command holding the run directory.
     """
     if format not in FORMATS:
         raise ImitateError(f"format {format!r} unknown; accepted: {FORMATS}")
@@ -53,15 +60,20 @@ def export(run_dir: str | Path, format: str, out: str | Path | None = None,
 
     run = load_run(run_dir)
     out = (Path(out) if out is not None else run.path / "export" / format).absolute()
-    if out.exists():
-        raise ImitateError(f"{out} exists; accepted: a path that does not exist yet")
     write = importlib.import_module(f"imitate.export.to_{format}").write
-    tmp = out.with_name(f".{out.name}.partial")
-    shutil.rmtree(tmp, ignore_errors=True)  # left by an interrupted export
-    tmp.mkdir(parents=True)
-    try:
-        write(tmp, robot_episode(run, images), teacher_episodes(run, images))
-        os.replace(tmp, out)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+    with locked(run.path, f"imitate export {run.path}"):
+        problems = provenance.stale(
+            run.path, table.find("replay"), run.config, provenance.load(run.path)
+        )
+        if problems:
+            raise ImitateError(f"{problems[0]} before exporting")
+        if out.exists():
+            raise ImitateError(f"{out} exists; accepted: a path that does not exist yet")
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
+        try:
+            write(tmp, robot_episode(run, images), teacher_episodes(run, images))
+            os.replace(tmp, out)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
     return out
