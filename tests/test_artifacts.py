@@ -4,7 +4,15 @@ import numpy as np
 import pytest
 
 from imitate.errors import ImitateError
-from imitate.rundir.artifacts import load_json, load_npz, save_json, save_npz, staged, write_atomic
+from imitate.rundir.artifacts import (
+    load_json,
+    load_npz,
+    remove_temporary,
+    save_json,
+    save_npz,
+    staged,
+    write_atomic,
+)
 
 
 def test_npz_round_trip(tmp_path):
@@ -79,3 +87,18 @@ def test_staged_files_vanish_when_the_block_raises(tmp_path):
         raise KeyboardInterrupt
     assert load_json(tmp_path / "report.json") == {"seed": 1}
     assert [p.name for p in tmp_path.iterdir()] == ["report.json"]
+
+
+def test_nothing_is_written_through_a_symbolic_link(tmp_path):
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    (run_dir / "figures").symlink_to(outside)
+    (run_dir / "report.json").symlink_to(outside / "victim.json")
+    (outside / ".a.partial.json").write_text("a user's file")
+    for path in (run_dir / "figures" / "fig.png", run_dir / "report.json"):
+        with pytest.raises(ImitateError, match="is a symbolic link; imitate writes none"):
+            save_json(path, {"x": 1})
+    assert sorted(p.name for p in outside.iterdir()) == [".a.partial.json"]
+    assert remove_temporary(run_dir) == [] and (outside / ".a.partial.json").exists()

@@ -251,9 +251,18 @@ def test_eval_command_errors(tmp_path, model_arrays, capsys):
     err = capsys.readouterr().err.strip()
     assert err.startswith("imitate eval: error:") and "replays=0" in err and "\n" not in err
     assert main(["eval", str(tmp_path / "nowhere"), "--n", "1"]) == 1
-    assert "model.npz is missing" in capsys.readouterr().err
-    assert main(["eval", str(run_dir), "--n", "0"]) == 1
-    assert "--n 0 not accepted" in capsys.readouterr().err
+    assert "run directory" in capsys.readouterr().err and not (tmp_path / "nowhere").exists()
+    for flags, message in (
+        (["--n", "0"], "--n 0 not accepted: 1..100000"),
+        (["--n", "100000000"], "--n 100000000 not accepted: 1..100000"),
+        (["--collision-weight", "inf"], "collision_weight=inf not accepted"),
+        (["--collision-weight", "nan"], "collision_weight=nan not accepted"),
+    ):
+        assert main(["eval", str(run_dir), *flags]) == 1
+        assert message in capsys.readouterr().err, flags
+    with pytest.raises(SystemExit):
+        main(["eval", str(run_dir), "--videos", "-1"])
+    assert "-1 not accepted: a whole number >= 0" in capsys.readouterr().err
 
 
 def test_ctrl_c_stops_eval_and_its_workers_in_one_line(tmp_path, model_arrays, in_a_terminal):

@@ -153,12 +153,20 @@ def _add_eval(sub: argparse.ArgumentParser) -> None:
     _add_variations(sub, teachers=1)
     sub.add_argument("--similarity", choices=SIMILARITIES, metavar="NAME", dest="weighting",
                      help=f"replaces the suite's similarity weighting: one of {SIMILARITIES}")
-    sub.add_argument("--videos", type=int, default=3, metavar="K",
+    sub.add_argument("--videos", type=_count, default=3, metavar="K",
                      help="videos of the first K failures (default 3)")
     sub.formatter_class = argparse.RawDescriptionHelpFormatter
     sub.epilog = "suite keys (a .toml or .json file of them; the default of each):\n" + "\n".join(
         f"  {name} ({_fmt_default(key.default)}): {key.help}" for name, key in KEYS.items()
     )
+
+
+def _count(text: str) -> int:
+    """A whole number >= 0, for argparse."""
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value} not accepted: a whole number >= 0")
+    return value
 
 
 def _fmt_default(value: Any) -> str:

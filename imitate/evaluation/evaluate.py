@@ -31,13 +31,13 @@ from imitate.envs.outcome import OUTCOMES
 from imitate.errors import ImitateError
 from imitate.evaluation.parallel import Job, run_local, run_ray
 from imitate.evaluation.report import failure_video, plot_outcomes, summarize, summarize_teachers
-from imitate.evaluation.suite import Suite
+from imitate.evaluation.suite import KEYS, Suite
 from imitate.evaluation.teachers import Teacher, check_run, teachers
 from imitate.evaluation.variation import Variation, draw, path_points
 from imitate.figures import plots
 from imitate.learning import LearnedModel
 from imitate.rundir import page
-from imitate.rundir.artifacts import save_json
+from imitate.rundir.artifacts import refuse_link, save_json
 from imitate.rundir.lock import locked
 from imitate.stages import provenance
 
@@ -147,7 +147,12 @@ def run_jobs(
 ) -> tuple[dict[tuple[str, int], dict], dict]:
     """Runs the variations of ``drawn`` that have no record in ``results`` yet, appending each
     record as it finishes. Returns every record of ``drawn`` by ``(digest, id)`` and the
-    numbers of this call (``ran``, wall time, back-end, load average)."""
+    numbers of this call (``ran``, wall time, back-end, load average).
+
+    Raises:
+        ImitateError: ``results`` or its folder is a symbolic link.
+    """
+    refuse_link(results)
     wanted = {d.digest for d in drawn}
     records = {
         (r["digest"], r["id"]): r for r in read_records(results, wanted)
@@ -240,13 +245,14 @@ def check_counts(suite: Suite, n: int | None, workers: int | None) -> tuple[int,
     """``n`` and ``workers`` with their defaults (the suite's ``variations``, every core).
 
     Raises:
-        ImitateError: either below 1.
+        ImitateError: either out of its range.
     """
     n = suite["variations"] if n is None else n
     workers = (os.cpu_count() or 1) if workers is None else workers
-    for flag, value in (("--n", n), ("--workers", workers)):
-        if value < 1:
-            raise ImitateError(f"{flag} {value} not accepted: at least 1")
+    most = KEYS["variations"].high
+    for flag, value, high in (("--n", n, most), ("--workers", workers, 1024)):
+        if not 1 <= value <= high:
+            raise ImitateError(f"{flag} {value} not accepted: 1..{high:g}")
     return n, workers
 
 

@@ -24,7 +24,8 @@ from imitate.errors import ImitateError
 from imitate.rundir.table import REPORT, producer
 
 __all__ = [
-    "Arrays", "Staging", "load_json", "load_npz", "remove_temporary", "save_json", "save_npz",
+    "Arrays", "Staging", "load_json", "load_npz", "refuse_link", "remove_temporary", "save_json",
+    "save_npz",
     "staged", "write_atomic",
 ]
 
@@ -93,8 +94,13 @@ def staged(root: Path) -> Iterator[Staging]:
 
 def write_atomic(path: Path, write: Callable[[Path], object]) -> Path:
     """Call ``write(tmp)`` for a temporary file beside ``path``, then rename it to ``path``
-    (inside :func:`staged`: when the stage commits)."""
+    (inside :func:`staged`: when the stage commits).
+
+    Raises:
+        ImitateError: ``path`` or its folder is a symbolic link (it is not written through).
+    """
     path = Path(path)
+    refuse_link(path)
     staging = _STAGING.get()
     if staging is not None and staging.holds(path):
         staging.write(path, write)
@@ -109,12 +115,26 @@ def write_atomic(path: Path, write: Callable[[Path], object]) -> Path:
     return path
 
 
+def refuse_link(path: Path) -> None:
+    """Raise ``ImitateError`` if ``path`` or its folder is a symbolic link: a run directory's
+    files are written and read where they are, never through a link to elsewhere."""
+    for link in (path, path.parent):
+        if link.is_symlink():
+            raise ImitateError(
+                f"{link} is a symbolic link; imitate writes none through it: remove it"
+            )
+
+
 def remove_temporary(directory: Path) -> list[Path]:
     """Delete the temporary files that killed writers left in ``directory`` and its immediate
-    sub-directories (only safe while no one writes there); returns them."""
+    sub-directories (only safe while no one writes there; symbolic links are not followed);
+    returns them."""
     directory = Path(directory)
-    folders = [directory, *(p for p in directory.iterdir() if p.is_dir())]
-    left = [p for folder in folders for p in folder.glob(TEMPORARY) if p.is_file()]
+    folders = [directory, *(p for p in directory.iterdir() if p.is_dir() and not p.is_symlink())]
+    left = [
+        p for folder in folders for p in folder.glob(TEMPORARY)
+        if p.is_file() and not p.is_symlink()
+    ]
     for path in left:
         path.unlink(missing_ok=True)
     return left
