@@ -98,7 +98,37 @@ def test_nothing_is_written_through_a_symbolic_link(tmp_path):
     (run_dir / "report.json").symlink_to(outside / "victim.json")
     (outside / ".a.partial.json").write_text("a user's file")
     for path in (run_dir / "figures" / "fig.png", run_dir / "report.json"):
-        with pytest.raises(ImitateError, match="is a symbolic link; imitate writes none"):
-            save_json(path, {"x": 1})
+        with pytest.raises(ImitateError, match="is a symbolic link; imitate writes nothing"):
+            with staged(run_dir):
+                save_json(path, {"x": 1})
     assert sorted(p.name for p in outside.iterdir()) == [".a.partial.json"]
     assert remove_temporary(run_dir) == [] and (outside / ".a.partial.json").exists()
+    linked = tmp_path / "latest"  # the run directory itself may be a link: the user chose it
+    linked.symlink_to(run_dir)
+    with staged(linked):
+        save_json(linked / "config.json", {"x": 1})
+    assert (run_dir / "config.json").is_file()
+
+
+def test_commit_checks_every_destination_before_the_first_rename(tmp_path):
+    (tmp_path / "figures").write_text("a file where the folder goes")
+    with pytest.raises(ImitateError, match="figures is in the way of fig.png: remove it"):
+        with staged(tmp_path, last="manifest.json"):
+            save_json(tmp_path / "manifest.json", {"m": 1})
+            save_json(tmp_path / "report.json", {"r": 1})
+            save_json(tmp_path / "figures" / "fig.png", {"f": 1})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["figures"]
+
+
+def test_the_manifest_is_renamed_last(tmp_path, monkeypatch):
+    import os
+
+    renamed = []
+    replace = os.replace
+    monkeypatch.setattr(os, "replace", lambda a, b: (renamed.append(os.path.basename(b)),
+                                                     replace(a, b)))
+    with staged(tmp_path, last="manifest.json"):
+        save_json(tmp_path / "manifest.json", {"m": 1})
+        save_json(tmp_path / "model.npz", {"a": 1})
+        save_json(tmp_path / "report.json", {"r": 1})
+    assert renamed == ["model.npz", "report.json", "manifest.json"]

@@ -30,7 +30,7 @@ from imitate.evaluation.suite import Suite
 from imitate.evaluation.teachers import check_run, teachers
 from imitate.figures import plots
 from imitate.motion import SIMILARITIES
-from imitate.rundir.artifacts import save_json, write_atomic
+from imitate.rundir.artifacts import refuse_link, save_json, write_atomic
 from imitate.rundir.lock import locked
 from imitate.stages import provenance
 
@@ -70,6 +70,8 @@ def compare(
     with locked(run_dir, f"imitate compare {run_dir}"):
         n, workers = check_counts(suite, n, workers)
         out = run_dir / "compare" / name
+        for inside in (out, out / RESULTS):
+            refuse_link(inside)
         out.mkdir(parents=True, exist_ok=True)
         models = teachers(run_dir, run_dir / "eval", n_teachers)
         base = draw_jobs(models, suite, seed, n)

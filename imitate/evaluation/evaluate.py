@@ -75,6 +75,7 @@ def evaluate(
     with locked(run_dir, f"imitate eval {run_dir}"):
         out = run_dir / "eval"
         n, workers = check_counts(suite, n, workers)
+        refuse_link(out / RESULTS)
         out.mkdir(parents=True, exist_ok=True)
         models = teachers(run_dir, out, n_teachers)
         drawn = draw_jobs(models, suite, seed, n)

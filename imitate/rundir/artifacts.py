@@ -34,10 +34,12 @@ TEMPORARY = ".*.partial*"  # glob of the temporary names (also those of earlier 
 
 class Staging:
     """The files a stage writes under ``root``, kept under temporary names in ``root`` until
-    :meth:`commit` renames them into place (see :func:`staged`)."""
+    :meth:`commit` renames them into place (see :func:`staged`); the file named ``last`` (the
+    manifest, whose digests decide whether the others are the stage's) is renamed last."""
 
-    def __init__(self, root: Path):
+    def __init__(self, root: Path, last: str | None = None):
         self.root = Path(os.path.abspath(root))
+        self.last = None if last is None else self.root / last
         self._pending: dict[Path, Path] = {}  # destination -> temporary file
 
     def holds(self, path: Path) -> bool:
@@ -45,8 +47,13 @@ class Staging:
         return Path(os.path.abspath(path)).is_relative_to(self.root)
 
     def write(self, path: Path, write: Callable[[Path], object]) -> None:
-        """``write(tmp)`` a temporary file in the root that :meth:`commit` renames to ``path``."""
+        """``write(tmp)`` a temporary file in the root that :meth:`commit` renames to ``path``.
+
+        Raises:
+            ImitateError: ``path`` or a folder between it and the root is a symbolic link.
+        """
         path = Path(os.path.abspath(path))
+        self._refuse_links(path)
         tmp = _temporary(self.root / path.name)
         try:
             write(tmp)
@@ -62,11 +69,40 @@ class Staging:
         return {path.relative_to(self.root).as_posix(): tmp for path, tmp in self._pending.items()}
 
     def commit(self) -> None:
-        """Rename every staged file into place, in the order written."""
-        for path, tmp in list(self._pending.items()):
+        """Rename every staged file into place, in the order written (``last`` last), each
+        flushed to disk first and its folder after; every destination is checked before the
+        first rename.
+
+        Raises:
+            ImitateError: a destination that cannot be written (its folder a file or a link,
+                itself a folder or a link); nothing was renamed.
+        """
+        order = sorted(self._pending, key=lambda path: path == self.last)
+        for path in order:
+            self._refuse_links(path)
+            if path.is_dir() or (path.parent.exists() and not path.parent.is_dir()):
+                where = path if path.is_dir() else path.parent
+                raise ImitateError(f"{where} is in the way of {path.name}: remove it")
+        for path in order:
+            _flush(self._pending[path])
+        folders = set()
+        for path in order:
             path.parent.mkdir(parents=True, exist_ok=True)
-            os.replace(tmp, path)
-            del self._pending[path]
+            os.replace(self._pending.pop(path), path)
+            folders.add(path.parent)
+        for folder in folders:
+            _flush(folder)
+
+    def _refuse_links(self, path: Path) -> None:
+        """Raise ``ImitateError`` if ``path`` or a folder between it and the root is a symbolic
+        link (the root itself may be one: the user chose it)."""
+        for part in (path, *path.parents):
+            if part == self.root:
+                return
+            if part.is_symlink():
+                raise ImitateError(
+                    f"{part} is a symbolic link; imitate writes nothing through it: remove it"
+                )
 
     def discard(self) -> None:
         """Delete the staged files not committed."""
@@ -79,10 +115,11 @@ _STAGING: ContextVar[Staging | None] = ContextVar("staging", default=None)
 
 
 @contextmanager
-def staged(root: Path) -> Iterator[Staging]:
+def staged(root: Path, last: str | None = None) -> Iterator[Staging]:
     """Within the block, files written under ``root`` wait under temporary names; they are all
-    renamed into place when the block ends normally, and all deleted when it raises."""
-    staging = Staging(root)
+    renamed into place when the block ends normally (the one named ``last`` last), and all
+    deleted when it raises."""
+    staging = Staging(root, last)
     token = _STAGING.set(staging)
     try:
         yield staging
@@ -97,10 +134,10 @@ def write_atomic(path: Path, write: Callable[[Path], object]) -> Path:
     (inside :func:`staged`: when the stage commits).
 
     Raises:
-        ImitateError: ``path`` or its folder is a symbolic link (it is not written through).
+        ImitateError: inside :func:`staged`, ``path`` or a folder below the root is a symbolic
+            link (nothing is written through it).
     """
     path = Path(path)
-    refuse_link(path)
     staging = _STAGING.get()
     if staging is not None and staging.holds(path):
         staging.write(path, write)
@@ -121,7 +158,7 @@ def refuse_link(path: Path) -> None:
     for link in (path, path.parent):
         if link.is_symlink():
             raise ImitateError(
-                f"{link} is a symbolic link; imitate writes none through it: remove it"
+                f"{link} is a symbolic link; imitate writes nothing through it: remove it"
             )
 
 
@@ -196,6 +233,15 @@ def load_json(path: Path) -> Any:
         raise ImitateError(f"{path} is missing; {_rerun_hint(path)}") from None
     except (OSError, ValueError) as err:
         raise ImitateError(f"{path} is corrupt ({err}); {_rerun_hint(path)}") from err
+
+
+def _flush(path: Path) -> None:
+    """``fsync`` a file or a folder (its entries), so a rename after it survives a crash."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 def _temporary(path: Path) -> Path:

@@ -27,11 +27,12 @@ log = logging.getLogger(__name__)
 
 def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False) -> dict:
     """Run one stage in ``run_dir`` with ``config``, all or nothing: its artifacts,
-    ``config.json``, its record in ``manifest.json`` (see :mod:`imitate.table.provenance`),
+    ``config.json``, its record in ``manifest.json`` (see :mod:`imitate.stages.provenance`),
     ``report.json`` (its numbers, its time and the artifacts present merged in; the sections of
     later stages dropped, as they no longer follow from it) and ``report.html`` (the same as a
     page, see :mod:`imitate.rundir.page`) are renamed into place only when the stage has
-    succeeded. Returns the report.
+    succeeded, every destination checked first, the manifest last (its digests decide whether
+    the files are the stage's, should the commit be cut short). Returns the report.
 
     Raises:
         ImitateError: before the stage runs, ``report.json`` or ``manifest.json`` is unusable,
@@ -47,7 +48,7 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
         raise ImitateError(f"{problems[0]}, or add --force to go on anyway")
     for problem in problems:
         log.warning("%s; going on anyway (--force)", problem)
-    with staged(run_dir) as staging:
+    with staged(run_dir, last=provenance.MANIFEST) as staging:
         start = time.perf_counter()
         sections = current.body()(run_dir, config)
         seconds = time.perf_counter() - start
