@@ -132,3 +132,10 @@ def test_the_manifest_is_renamed_last(tmp_path, monkeypatch):
         save_json(tmp_path / "model.npz", {"a": 1})
         save_json(tmp_path / "report.json", {"r": 1})
     assert renamed == ["model.npz", "report.json", "manifest.json"]
+
+
+def test_deeply_nested_json_is_corrupt_in_one_line(tmp_path):
+    path = tmp_path / "report.json"
+    path.write_text("[" * 200_000)
+    with pytest.raises(ImitateError, match=r"report\.json is corrupt"):
+        load_json(path)

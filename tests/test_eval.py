@@ -146,6 +146,15 @@ def test_eval_holds_the_run_directory(tmp_path, model_arrays):
     assert not (run_dir / "eval").exists()
 
 
+def test_a_suite_that_is_no_text_or_too_deep_is_refused_in_one_line(tmp_path):
+    (tmp_path / "latin.toml").write_bytes("replays = 2 # \u00e9\n".encode("latin-1"))
+    with pytest.raises(ImitateError, match="it is not UTF-8 text"):
+        load_suite(tmp_path / "latin.toml")
+    (tmp_path / "deep.json").write_text("[" * 200_000)
+    with pytest.raises(ImitateError, match="is not valid JSON"):
+        load_suite(tmp_path / "deep.json")
+
+
 def test_wilson_interval():
     assert wilson(0, 10) == pytest.approx((0.0, 0.2775), abs=1e-4)
     assert wilson(5, 10) == pytest.approx((0.2366, 0.7634), abs=1e-4)

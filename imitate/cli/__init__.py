@@ -125,10 +125,14 @@ def export_command(args: argparse.Namespace) -> int:
     from imitate.export import export
 
     try:
-        out = export(args.run_dir, args.format, args.out, images=args.images)
-    except ImitateError as err:
-        print(f"imitate export: error: {err}", file=sys.stderr)
-        return 1
+        with console.terminated_as_exception():
+            out = export(args.run_dir, args.format, args.out, images=args.images)
+    except (ImitateError, OSError) as err:  # OSError: disk full, no permission
+        return console.fail("export", str(err), 1)
+    except KeyboardInterrupt:
+        return console.fail("export", "interrupted (Ctrl-C); nothing was written", 130)
+    except console.Terminated:
+        return console.fail("export", "terminated (SIGTERM); nothing was written", 143)
     print(out)
     return 0
 
@@ -397,6 +401,8 @@ def _eval(args: argparse.Namespace) -> int:
                 text = evaluation.text(summary, folder)
     except ImitateError as err:
         return console.fail(args.command, str(err), 1)
+    except OSError as err:  # disk full, no permission: the finished variations are kept
+        return console.fail(args.command, f"{err}; {kept}", 1)
     except KeyboardInterrupt:
         return console.fail(args.command, f"interrupted (Ctrl-C); {kept}", 130)
     except console.Terminated:

@@ -210,7 +210,7 @@ def read_records(path: Path, digests: str | Collection[str]) -> list[dict]:
     for line in path.read_text().splitlines():
         try:
             record = json.loads(line)
-        except json.JSONDecodeError:
+        except (json.JSONDecodeError, RecursionError):
             continue
         if _is_record(record) and record["digest"] in wanted:
             records[(record["digest"], record["id"])] = record

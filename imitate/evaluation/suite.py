@@ -245,16 +245,18 @@ def load_suite(path: Path) -> Suite:
         text = path.read_text()
     except OSError as err:
         raise ImitateError(f"suite {path} cannot be read: {err.strerror}") from None
+    except UnicodeDecodeError:
+        raise ImitateError(f"suite {path} not accepted: it is not UTF-8 text") from None
     if path.suffix == ".json":
         try:
             entries = json.loads(text) if text.strip() else {}
-        except json.JSONDecodeError as err:
+        except (json.JSONDecodeError, RecursionError) as err:
             raise ImitateError(f"suite {path} is not valid JSON: {err}") from None
     else:
         import tomllib  # Python 3.11 and later
 
         try:
             entries = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as err:
+        except (tomllib.TOMLDecodeError, RecursionError) as err:
             raise ImitateError(f"suite {path} is not valid TOML: {err}") from None
     return Suite.from_dict(entries, f"suite {path}")

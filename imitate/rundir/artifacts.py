@@ -210,7 +210,7 @@ def load_npz(path: Path, required: tuple[str, ...] = ()) -> Arrays:
             arrays = Arrays(path, {name: npz[name] for name in npz.files})
     except FileNotFoundError:
         raise ImitateError(f"{path} is missing; {_rerun_hint(path)}") from None
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError, MemoryError) as err:
         raise ImitateError(f"{path} is corrupt ({err}); {_rerun_hint(path)}") from err
     missing = [name for name in required if name not in arrays]
     if missing:
@@ -231,7 +231,7 @@ def load_json(path: Path) -> Any:
         return json.loads(path.read_text())
     except FileNotFoundError:
         raise ImitateError(f"{path} is missing; {_rerun_hint(path)}") from None
-    except (OSError, ValueError) as err:
+    except (OSError, ValueError, RecursionError) as err:  # ValueError: bad UTF-8 too
         raise ImitateError(f"{path} is corrupt ({err}); {_rerun_hint(path)}") from err
 
 
