@@ -360,3 +360,16 @@ def test_a_symlinked_lock_is_refused_and_its_target_untouched(tmp_path):
         with locked(run_dir, "imitate learn"):
             pass
     assert victim.read_text() == "mine" and (run_dir / LOCK).is_symlink()
+
+
+def test_after_a_stage_re_runs_the_page_marks_what_is_out_of_date(run_dir, caplog):
+    assert main(["optimize", str(run_dir), "--collision-weight", "5000"]) == 0
+    page = (run_dir / "report.html").read_text()
+    for command in ("replay", "figures"):
+        files = table.find(command).files  # replay.npz; video.mp4, figures/*.png
+        assert f"Out of date: {files} (made from another" in page
+        assert f"<code>imitate {command} {run_dir}</code> makes it again" in page
+        assert f"out of date: {files}" in caplog.text
+    assert main(["replay", str(run_dir)]) == 0
+    page = (run_dir / "report.html").read_text()
+    assert "Out of date: replay.npz" not in page and "Out of date: video.mp4" in page

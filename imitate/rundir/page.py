@@ -8,12 +8,12 @@ report (a run stopped before ``replay``) is left out.
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from html import escape
 from pathlib import Path
 
 from imitate.rundir.artifacts import write_atomic
-from imitate.rundir.table import PAGE
+from imitate.rundir.table import PAGE, find
 
 __all__ = ["CAPTIONS", "eval_page", "run_page", "save_eval_page", "save_run_page"]
 
@@ -65,14 +65,19 @@ STYLE = "".join((
 ))
 
 
-def run_page(report: dict, config: dict, run_dir: str) -> str:
+def run_page(
+    report: dict, config: dict, run_dir: str, outdated: Mapping[str, str] | None = None
+) -> str:
     """The page of a run: ``report`` (``report.json``), ``config`` (``config.json``), and
-    ``run_dir`` for the title; links from ``report["artifacts"]``, relative to the run directory."""
+    ``run_dir`` for the title; links from ``report["artifacts"]``, relative to the run directory.
+    ``outdated``: the stages whose files no longer follow from the run, by name, why; the page
+    says so at its top, with the command that makes them again."""
     artifacts, replay = report.get("artifacts", {}), report.get("replay", {})
     verdict = f" — {_yes_no(replay['success'], 'pours', 'does not pour')}" if replay else ""
     body = [
         f"<h1>imitate run{verdict}</h1>",
         f"<p class=sub><code>{escape(run_dir)}</code> · seed {report.get('seed', '?')}</p>",
+        *(_outdated(outdated or {}, run_dir)),
         f"<p>{CLAIM}</p>",
         "<div class=row>" + _section("Headline", _table(_headline(report)))
         + _section("Stage timings", _timings(report.get("timings", {}))) + "</div>",
@@ -149,10 +154,13 @@ def eval_page(summary: dict, failures: list[str], links: list[str], title: str) 
     return _page(f"imitate eval {title}", body)
 
 
-def save_run_page(run_dir: Path, report: dict, config: dict) -> Path:
-    """Write ``run_dir/report.html`` from the run's report and settings, atomically (inside
+def save_run_page(
+    run_dir: Path, report: dict, config: dict, outdated: Mapping[str, str] | None = None
+) -> Path:
+    """Write ``run_dir/report.html`` from the run's report and settings (and the stages whose
+    files are ``outdated``, see :func:`run_page`), atomically (inside
     :func:`imitate.rundir.artifacts.staged`: with the stage's commit)."""
-    page = run_page(report, config, str(run_dir))
+    page = run_page(report, config, str(run_dir), outdated)
     return write_atomic(Path(run_dir) / PAGE, lambda tmp: tmp.write_text(page))
 
 
@@ -172,6 +180,15 @@ def save_eval_page(out: Path, summary: dict) -> Path:
 
 
 # --- Sections ----------------------------------------------------------------------------------
+
+
+def _outdated(outdated: Mapping[str, str], run_dir: str) -> list[str]:
+    """A warning per stage whose files no longer follow from the run, with its command."""
+    return [
+        f"<p class=bad>Out of date: {escape(find(stage).files)} ({escape(why)}); <code>imitate "
+        f"{escape(stage)} {escape(run_dir)}</code> makes it again.</p>"
+        for stage, why in outdated.items()
+    ]
 
 
 def _headline(report: dict) -> list[tuple[str, str]]:

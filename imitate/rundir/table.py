@@ -49,6 +49,14 @@ class Stage:
     writes: tuple[str, ...]
     sections: tuple[str, ...]
 
+    @property
+    def files(self) -> str:
+        """What it writes, in words: ``"figures/*.png, video.mp4"`` (``config.json`` aside)."""
+        return ", ".join(dict.fromkeys(
+            "figures/*.png" if name.startswith("figures/") else name
+            for name in self.writes if name != "config.json"
+        ))
+
     def body(self) -> Callable[..., dict]:
         """The stage's function, imported now."""
         module, name = self.function.split(":")

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Mapping
 from pathlib import Path
 
 from imitate.errors import ImitateError
@@ -25,7 +26,7 @@ from imitate.rundir import table
 from imitate.rundir.artifacts import load_json
 from imitate.stages.config import RunConfig, settings
 
-__all__ = ["MANIFEST", "code_digest", "digest", "load", "recorded", "stale"]
+__all__ = ["MANIFEST", "code_digest", "digest", "load", "outdated", "recorded", "stale"]
 
 MANIFEST = "manifest.json"
 
@@ -122,6 +123,38 @@ def code_digest() -> str:
                 h.update(f"{package.__name__}/{path.relative_to(root).as_posix()}".encode())
                 h.update(hashlib.sha256(path.read_bytes()).digest())
     return h.hexdigest()
+
+
+def outdated(
+    run_dir: Path, config: RunConfig, manifest: dict[str, dict],
+    staged: Mapping[str, Path] | None = None,
+) -> dict[str, str]:
+    """The stages whose files in ``run_dir`` no longer follow from the run: made from an input
+    that changed since, or with other settings than ``config``'s. By stage name, why (``"made
+    from another plan.npz"``). ``staged``: files written but not yet in place (relative path ->
+    where they are now)."""
+    run_dir, staged = Path(run_dir), staged or {}
+    digests: dict[str, str | None] = {}
+
+    def current(name: str) -> str | None:
+        if name not in digests:
+            path = staged.get(name, run_dir / name)
+            digests[name] = digest(path) if path.is_file() else None
+        return digests[name]
+
+    found = {}
+    for s in table.STAGES:
+        rec = manifest.get(s.name)
+        if rec is None or not any(current(f) for f in rec["outputs"]):
+            continue
+        now = _settings(s, config)
+        changed = [f for f, sha in rec["inputs"].items() if current(f) not in (None, sha)]
+        other = [k for k, v in rec["settings"].items() if k in now and now[k] != v]
+        if changed:
+            found[s.name] = f"made from another {changed[0]}"
+        elif other:
+            found[s.name] = f"made with {other[0]}={rec['settings'][other[0]]!r}"
+    return found
 
 
 def _fault(stage: table.Stage, files: list[str], rec: dict | None, now: dict, current) -> str:

@@ -59,7 +59,11 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
         save_json(run_dir / "config.json", config.to_json())
         save_json(run_dir / provenance.MANIFEST, manifest)
         save_json(run_dir / table.REPORT, report)
-        page.save_run_page(run_dir, report, config.to_json())
+        later = provenance.outdated(run_dir, config, manifest, outputs)
+        for name, why in later.items():
+            log.warning("out of date: %s (%s); `imitate %s %s` makes it again",
+                        table.find(name).files, why, name, run_dir)
+        page.save_run_page(run_dir, report, config.to_json(), later)
     log.debug("%s wrote %s in %.1f s", stage, ", ".join(sorted(outputs)), seconds)
     return report
 
