@@ -155,6 +155,18 @@ def test_a_suite_that_is_no_text_or_too_deep_is_refused_in_one_line(tmp_path):
         load_suite(tmp_path / "deep.json")
 
 
+def test_an_evaluation_with_out_keeps_the_other(tmp_path, model_arrays):
+    run_dir = _run_dir(tmp_path, model_arrays)
+    suite = Suite.from_dict(TINY)
+    first = evaluate(run_dir, suite, n=1, workers=1, videos=0)
+    control = evaluate(run_dir, suite.replace(collision_weight=0.0), n=1, workers=1, videos=0,
+                       out=tmp_path / "control")
+    saved = json.loads((run_dir / "eval" / "summary.json").read_text())
+    assert saved["suite_digest"] == first["suite_digest"] != control["suite_digest"]
+    assert (tmp_path / "control" / "report.html").is_file()
+    assert read_records(tmp_path / "control" / RESULTS, control["suite_digest"])
+
+
 def test_wilson_interval():
     assert wilson(0, 10) == pytest.approx((0.0, 0.2775), abs=1e-4)
     assert wilson(5, 10) == pytest.approx((0.2366, 0.7634), abs=1e-4)

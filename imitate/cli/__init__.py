@@ -155,6 +155,9 @@ def _add_eval(sub: argparse.ArgumentParser) -> None:
     from imitate.motion import SIMILARITIES
 
     _add_variations(sub, teachers=1)
+    sub.add_argument("--out", type=Path, metavar="DIR",
+                     help="folder of the results, summary and page (default RUN_DIR/eval); "
+                     "another for another suite, weight or weighting keeps both")
     sub.add_argument("--similarity", choices=SIMILARITIES, metavar="NAME", dest="weighting",
                      help=f"replaces the suite's similarity weighting: one of {SIMILARITIES}")
     sub.add_argument("--videos", type=_count, default=3, metavar="K",
@@ -378,6 +381,8 @@ def _eval(args: argparse.Namespace) -> int:
     from imitate.evaluation import compare
 
     folder = args.run_dir / ("eval" if args.command == "eval" else "compare")
+    if args.command == "eval" and args.out is not None:
+        folder = args.out
     kept = f"the finished variations are kept in {folder}; run it again to go on"
     try:
         name, suite = evaluation.named_suite(args.suite)
@@ -396,7 +401,7 @@ def _eval(args: argparse.Namespace) -> int:
                     suite = suite.replace(similarity=args.weighting)
                 summary = evaluation.evaluate(
                     args.run_dir, suite, n=args.n, seed=args.seed, n_teachers=args.teachers,
-                    workers=args.workers, ray=args.ray, videos=args.videos,
+                    workers=args.workers, ray=args.ray, videos=args.videos, out=args.out,
                 )
                 text = evaluation.text(summary, folder)
     except ImitateError as err:

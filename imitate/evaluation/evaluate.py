@@ -4,13 +4,13 @@ The models are the run's and, with ``teachers``, those of more teacher seeds
 (:mod:`~imitate.evaluation.teachers`); each teacher reproduces every variation, drawn once per
 teacher (its obstacles in the path are placed on that teacher's path).
 
-Writes under ``RUN_DIR/eval/``: ``results.jsonl`` (one record per teacher and variation, appended
-and synced as each finishes, with its digest, the teacher's seed and the exact settings),
-``summary.json``, ``outcomes.png`` and ``report.html`` (of the last evaluation),
-``failures/<digest>/<id>-<outcome>.mp4`` for the first failures and ``teachers/`` (the learned
-models of the other teachers). An interrupted evaluation continues where it stopped: a variation
-whose id already has a record under the same digest (suite, seed, the teacher's learned model,
-the code) is not run again.
+Writes under ``RUN_DIR/eval/`` (or the folder ``out``): ``results.jsonl`` (one record per
+teacher and variation, appended and synced as each finishes, with its digest, the teacher's seed
+and the exact settings), ``summary.json``, ``outcomes.png`` and ``report.html`` (of the last
+evaluation), ``failures/<digest>/<id>-<outcome>.mp4`` for the first failures; the learned models
+of the other teachers go to ``RUN_DIR/eval/teachers/``, whatever ``out``. An interrupted
+evaluation continues where it stopped: a variation whose id already has a record under the same
+digest (suite, seed, the teacher's learned model, the code) is not run again.
 """
 
 from __future__ import annotations
@@ -59,11 +59,14 @@ def evaluate(
     ray: str | None = None,
     videos: int = 3,
     progress: bool | None = None,
+    out: Path | str | None = None,
 ) -> dict:
     """Evaluate the learned models of ``n_teachers`` teachers of ``run_dir`` (the run's own
     first) on ``n`` variations of ``suite`` (default: its ``variations``) drawn with ``seed``, on
     ``workers`` local processes (default: every core) or on Ray (``ray``: an address or
-    ``"auto"``); videos of the first ``videos`` failures. ``progress``: tqdm's ``disable``
+    ``"auto"``); videos of the first ``videos`` failures; into ``out`` (default
+    ``run_dir/eval``: an evaluation with other settings elsewhere keeps both summaries and
+    pages). ``progress``: tqdm's ``disable``
     inverted (``None``: on a terminal). Returns the summary.
 
     Raises:
@@ -73,11 +76,11 @@ def evaluate(
     """
     run_dir = check_run(run_dir)
     with locked(run_dir, f"imitate eval {run_dir}"):
-        out = run_dir / "eval"
+        out = run_dir / "eval" if out is None else Path(out)
         n, workers = check_counts(suite, n, workers)
         refuse_link(out / RESULTS)
         out.mkdir(parents=True, exist_ok=True)
-        models = teachers(run_dir, out, n_teachers)
+        models = teachers(run_dir, run_dir / "eval", n_teachers)
         drawn = draw_jobs(models, suite, seed, n)
         records, run = run_jobs(out / RESULTS, drawn, models, workers, ray, progress)
         digests = [d.digest for d in drawn]
