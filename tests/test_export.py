@@ -284,3 +284,17 @@ def test_export_refuses_a_stale_plan_and_a_held_run_directory(quick_run, tmp_pat
     with locked(run_dir, "imitate replay"), pytest.raises(ImitateError, match="in use by"):
         export(run_dir, "hdf5", out=tmp_path / "out")
     assert not (tmp_path / "out").exists() and not list(tmp_path.glob(".out.*"))
+
+
+def test_minari_without_out_goes_into_minaris_datasets_root(quick_run, tmp_path, monkeypatch):
+    root = tmp_path / "datasets"
+    (root / "someone" / "else-v0").mkdir(parents=True)  # a root with other datasets
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(root))
+    assert export(quick_run, "minari") == root.absolute()
+    for dataset_id in (to_minari.ROBOT_ID, to_minari.TEACHER_ID):
+        assert minari.load_dataset(dataset_id).total_episodes >= 1
+    assert (root / "someone" / "else-v0").is_dir() and not list(root.glob(".*partial"))
+    from imitate.errors import ImitateError
+
+    with pytest.raises(ImitateError, match="robot-v0 exists; .*minari.delete_dataset"):
+        export(quick_run, "minari")

@@ -115,7 +115,8 @@ def _add_export(sub: argparse.ArgumentParser) -> None:
                      help="minari: a Minari datasets root; hdf5: robomimic-style files; "
                      "lerobot: LeRobot v2.1 datasets")
     sub.add_argument("--out", type=Path, metavar="PATH",
-                     help="output directory, must not exist (default RUN_DIR/export/FORMAT)")
+                     help="output directory, must not exist (default RUN_DIR/export/FORMAT; "
+                     "minari: Minari's datasets root, MINARI_DATASETS_PATH or ~/.minari/datasets)")
     sub.add_argument("--images", action="store_true",
                      help="also store both head-camera images at every step")
 

@@ -39,7 +39,9 @@ def export(run_dir: str | Path, format: str, out: str | Path | None = None,
         format: One of :data:`FORMATS`: ``"minari"`` (a Minari datasets root: ``out`` is its
             ``MINARI_DATASETS_PATH``), ``"hdf5"`` (robomimic-style ``robot.hdf5`` and
             ``teacher.hdf5``) or ``"lerobot"`` (LeRobot v2.1 datasets ``robot/``, ``teacher/``).
-        out: A directory that does not exist yet; ``None``: ``run_dir/export/<format>``.
+        out: A directory that does not exist yet; ``None``: ``run_dir/export/<format>``, but
+            for ``"minari"`` Minari's datasets root (``MINARI_DATASETS_PATH``, else
+            ``~/.minari/datasets``), where the two datasets must not exist yet.
         images: Also store both head-camera images at every step (the robot's in the replay, the
             teacher's as the robot saw them), at the run's camera size.
 
@@ -59,7 +61,17 @@ def export(run_dir: str | Path, format: str, out: str | Path | None = None,
     from imitate.run import load_run
 
     run = load_run(run_dir)
-    out = (Path(out) if out is not None else run.path / "export" / format).absolute()
+    into_root = out is None and format == "minari"
+    moved: tuple[str, ...]
+    if into_root:
+        from imitate.export.to_minari import ROBOT_ID, TEACHER_ID
+
+        root = Path(os.environ.get("MINARI_DATASETS_PATH") or "~/.minari/datasets")
+        out = root.expanduser().absolute()
+        moved = (ROBOT_ID, TEACHER_ID)  # the datasets' folders, moved into the root
+    else:
+        out = (Path(out) if out is not None else run.path / "export" / format).absolute()
+        moved = ("",)  # the whole folder
     write = importlib.import_module(f"imitate.export.to_{format}").write
     with locked(run.path, f"imitate export {run.path}"):
         problems = provenance.stale(
@@ -67,13 +79,19 @@ def export(run_dir: str | Path, format: str, out: str | Path | None = None,
         )
         if problems:
             raise ImitateError(f"{problems[0]} before exporting")
-        if out.exists():
-            raise ImitateError(f"{out} exists; accepted: a path that does not exist yet")
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
+        taken = [out / name for name in moved if (out / name).exists()]
+        if taken:
+            raise ImitateError(f"{taken[0]} exists; accepted: a path that does not exist yet" + (
+                " (minari.delete_dataset removes a dataset, or give --out)" if into_root else ""
+            ))
+        parent = out if into_root else out.parent
+        parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=parent))
         try:
             write(tmp, robot_episode(run, images), teacher_episodes(run, images))
-            os.replace(tmp, out)
+            for name in moved:
+                (out / name).parent.mkdir(parents=True, exist_ok=True)
+                os.replace(tmp / name, out / name)
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
     return out
