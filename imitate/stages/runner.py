@@ -61,7 +61,7 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
         save_json(run_dir / table.REPORT, report)
         later = provenance.outdated(run_dir, config, manifest, outputs)
         for name, why in later.items():
-            log.warning("out of date: %s (%s); `imitate %s %s` makes it again",
+            log.info("out of date: %s (%s); `imitate %s %s` makes it again",
                         table.find(name).files, why, name, run_dir)
         page.save_run_page(run_dir, report, config.to_json(), later)
     log.debug("%s wrote %s in %.1f s", stage, ", ".join(sorted(outputs)), seconds)
