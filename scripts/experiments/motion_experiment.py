@@ -24,6 +24,7 @@ from imitate.models.scene import TABLE_HEIGHT
 from imitate.motion import PlanConfig, plan_from_model
 from imitate.motion.metrics import deviation, pour_phase_error
 from imitate.motion.replay import planning_task, replay
+from imitate.stages.optimize import _clearance
 
 
 def run_plan(task, learned, weight: float, max_iter: int):
@@ -67,7 +68,7 @@ def main() -> None:
             f"from w_coll={args.weights[0]}: {d['change_from_first_m2']:.4f} m^2 "
             f"({d['change_high_variance_share']:.0%} above the median variance)"
         )
-    _figures(plans, args.out)
+    _figures(plans, task, args.out)
 
     if args.physics:
         weight = PlanConfig().collision_weight
@@ -104,11 +105,14 @@ def main() -> None:
         print(f"success rate {successes}/{args.variations}")
 
 
-def _figures(plans, out: Path) -> None:
+def _figures(plans, task, out: Path) -> None:
     base = next(iter(plans.values()))
     sweep = {weight: p.x for weight, p in plans.items()}
-    plots.save(plots.plot_collision_sweep(base.times, base.mean, base.variance, sweep),
-               out / "fig9.png")
+    clearance = {weight: _clearance(task, p.q) for weight, p in plans.items()}
+    plots.save(
+        plots.plot_collision_sweep(base.times, base.mean, base.variance, sweep, clearance),
+        out / "fig9.png",
+    )
     plots.save(plots.plot_costs({weight: p.costs["total"] for weight, p in plans.items()}),
                out / "costs.png")
 
