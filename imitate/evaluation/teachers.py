@@ -21,6 +21,7 @@ import numpy as np
 
 from imitate.errors import ImitateError
 from imitate.learning import LearnedModel
+from imitate.run import load_run
 from imitate.rundir import table
 from imitate.rundir.artifacts import load_json, load_npz, save_json
 from imitate.rundir.lock import locked
@@ -71,15 +72,9 @@ def check_run(run_dir: Path | str) -> Path:
     """``run_dir`` as a path, if it is a directory (nothing is written into one that is not).
 
     Raises:
-        ImitateError: it is not; the message says what is accepted.
+        ImitateError: it is not (:func:`imitate.run.load_run`'s message).
     """
-    run_dir = Path(run_dir)
-    if not run_dir.is_dir():
-        raise ImitateError(
-            f"run directory {run_dir} not found; accepted: a directory with a model.npz, as "
-            f"`imitate run --out {run_dir}` writes"
-        )
-    return run_dir
+    return load_run(run_dir).path
 
 
 def teachers(run_dir: Path, out: Path, n: int) -> list[Teacher]:

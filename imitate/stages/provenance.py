@@ -16,9 +16,10 @@ one made under another seed is named, with the stage to re-run.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 from imitate.errors import ImitateError
@@ -83,14 +84,7 @@ def stale(
     run_dir = Path(run_dir)
     upstream = _upstream(stage)
     needed = {f for s in (stage, *upstream) for f in s.reads}
-    digests: dict[str, str | None] = {}
-
-    def current(name: str) -> str | None:
-        if name not in digests:
-            path = run_dir / name
-            digests[name] = digest(path) if path.is_file() else None
-        return digests[name]
-
+    current = _current(run_dir)
     problems = []
     for s in upstream:
         files = [f for f in s.writes if f in needed and (run_dir / f).is_file()]
@@ -133,28 +127,45 @@ def outdated(
     that changed since, or with other settings than ``config``'s. By stage name, why (``"made
     from another plan.npz"``). ``staged``: files written but not yet in place (relative path ->
     where they are now)."""
-    run_dir, staged = Path(run_dir), staged or {}
-    digests: dict[str, str | None] = {}
-
-    def current(name: str) -> str | None:
-        if name not in digests:
-            path = staged.get(name, run_dir / name)
-            digests[name] = digest(path) if path.is_file() else None
-        return digests[name]
-
+    current = _current(Path(run_dir), staged)
     found = {}
     for s in table.STAGES:
         rec = manifest.get(s.name)
         if rec is None or not any(current(f) for f in rec["outputs"]):
             continue
-        now = _settings(s, config)
-        changed = [f for f, sha in rec["inputs"].items() if current(f) not in (None, sha)]
-        other = [k for k, v in rec["settings"].items() if k in now and now[k] != v]
-        if changed:
-            found[s.name] = f"made from another {changed[0]}"
-        elif other:
-            found[s.name] = f"made with {other[0]}={rec['settings'][other[0]]!r}"
+        why = _drift(s, rec, _settings(s, config), current)
+        if why:
+            found[s.name] = why
     return found
+
+
+def _current(
+    run_dir: Path, staged: Mapping[str, Path] | None = None
+) -> Callable[[str], str | None]:
+    """``current(name)``: the digest of the run's file ``name`` now (``staged``: files written
+    but not yet in place, relative path -> where they are), ``None`` if absent; each hashed
+    once."""
+    staged = staged or {}
+
+    @functools.cache
+    def current(name: str) -> str | None:
+        path = staged.get(name, run_dir / name)
+        return digest(path) if path.is_file() else None
+
+    return current
+
+
+def _drift(stage: table.Stage, rec: dict, now: dict, current) -> str:
+    """How what ``stage`` wrote (its record ``rec``) no longer follows from the files and the
+    settings ``now`` in force: ``"made from another plan.npz, changed since"``, ``"made with
+    seed=0, not 5"``; ``""`` if it does."""
+    for f, sha in rec["inputs"].items():
+        if f in stage.reads and current(f) not in (None, sha):
+            return f"made from another {f}, changed since"
+    for name, value in rec["settings"].items():
+        if name in now and now[name] != value:
+            return f"made with {name}={value!r}, not {now[name]!r}"
+    return ""
 
 
 def _fault(stage: table.Stage, files: list[str], rec: dict | None, now: dict, current) -> str:
@@ -171,13 +182,8 @@ def _fault(stage: table.Stage, files: list[str], rec: dict | None, now: dict, cu
                 f"{f} is not the file `imitate {stage.name}` wrote (changed since, or copied "
                 f"from another run)"
             )
-    for f, sha in rec["inputs"].items():
-        if f in stage.reads and current(f) not in (None, sha):
-            return f"{named} {were} made from another {f} (it changed since)"
-    for name, value in rec["settings"].items():
-        if name in now and now[name] != value:
-            return f"{named} {were} made with {name}={value!r}, not {now[name]!r}"
-    return ""
+    why = _drift(stage, rec, now, current)
+    return f"{named} {were} {why}" if why else ""
 
 
 def _settings(stage: table.Stage, config: RunConfig) -> dict:
