@@ -11,7 +11,7 @@ from imitate.demos.oracle import oracle_model
 from imitate.errors import ImitateError
 from imitate.evaluation import Suite, evaluate, named_suite
 from imitate.evaluation.compare import compare, paired, settings_digest
-from imitate.evaluation.evaluate import RESULTS, last_records
+from imitate.evaluation.evaluate import RESULTS, default_out, last_records
 from imitate.evaluation.teachers import teachers
 from imitate.learning import LearningConfig
 from imitate.motion.replay import planning_task
@@ -76,7 +76,7 @@ def test_eval_reports_each_teacher_and_resumes_without_learning(quick_run, monke
     assert [t["seed"] for t in summary["teachers"]] == [0, 1]
     assert summary["variations"] == 4 and all(t["variations"] == 2 for t in summary["teachers"])
     assert sum(t["success"] for t in summary["teachers"]) == summary["outcomes"]["success"]
-    records = last_records(quick_run)
+    records = last_records(default_out(quick_run, "default", suite))
     assert [(r["teacher"], r["id"]) for r in records] == [(0, 0), (0, 1), (1, 0), (1, 1)]
     assert len({r["digest"] for r in records}) == 2  # one per teacher's model
     monkeypatch.setattr(runner, "run_stage", lambda *a, **k: pytest.fail("learned again"))

@@ -18,7 +18,7 @@ from imitate.demos.oracle import oracle_model
 from imitate.envs.outcome import outcome
 from imitate.errors import ImitateError
 from imitate.evaluation import Suite, evaluate, load_suite
-from imitate.evaluation.evaluate import RESULTS, last_records, read_records
+from imitate.evaluation.evaluate import RESULTS, default_out, last_records, read_records
 from imitate.evaluation.report import summarize, text, wilson
 from imitate.evaluation.suite import KEYS
 from imitate.evaluation.variation import Variation, draw
@@ -45,6 +45,11 @@ def model_arrays():
 def _run_dir(tmp_path: Path, arrays: dict) -> Path:
     save_npz(tmp_path / "model.npz", arrays)
     return tmp_path
+
+
+def _out(run_dir: Path) -> Path:
+    """Where an evaluation of the tiny suite goes by default."""
+    return default_out(run_dir, "default", Suite.from_dict(TINY))
 
 
 def _without_timings(records: list[dict]) -> list[dict]:
@@ -155,16 +160,25 @@ def test_a_suite_that_is_no_text_or_too_deep_is_refused_in_one_line(tmp_path):
         load_suite(tmp_path / "deep.json")
 
 
-def test_an_evaluation_with_out_keeps_the_other(tmp_path, model_arrays):
+def test_evaluations_of_another_weight_or_weighting_keep_the_others(tmp_path, model_arrays):
     run_dir = _run_dir(tmp_path, model_arrays)
     suite = Suite.from_dict(TINY)
-    first = evaluate(run_dir, suite, n=1, workers=1, videos=0)
-    control = evaluate(run_dir, suite.replace(collision_weight=0.0), n=1, workers=1, videos=0,
-                       out=tmp_path / "control")
-    saved = json.loads((run_dir / "eval" / "summary.json").read_text())
-    assert saved["suite_digest"] == first["suite_digest"] != control["suite_digest"]
+    control = suite.replace(collision_weight=0.0)
+    summaries = [
+        evaluate(run_dir, s, n=1, workers=1, videos=0)
+        for s in (suite, control, suite.replace(similarity="uniform"))
+    ]
+    outs = [run_dir / "eval" / f for f in
+            ("default-w10000-variance", "default-w0-variance", "default-w10000-uniform")]
+    assert outs == [default_out(run_dir, "default", s) for s in
+                    (suite, control, suite.replace(similarity="uniform"))]
+    for out, summary in zip(outs, summaries, strict=True):
+        assert json.loads((out / "summary.json").read_text()) == summary
+        assert (out / "report.html").is_file()
+        assert read_records(out / RESULTS, summary["suite_digest"])
+    elsewhere = evaluate(run_dir, control, n=1, workers=1, videos=0, out=tmp_path / "control")
+    assert elsewhere["suite_digest"] == summaries[1]["suite_digest"]
     assert (tmp_path / "control" / "report.html").is_file()
-    assert read_records(tmp_path / "control" / RESULTS, control["suite_digest"])
 
 
 def test_wilson_interval():
@@ -223,7 +237,7 @@ def two_workers(tmp_path_factory, model_arrays):
     """The tiny suite's records on two local workers, and its summary."""
     run_dir = _run_dir(tmp_path_factory.mktemp("two"), model_arrays)
     summary = evaluate(run_dir, Suite.from_dict(TINY), workers=2, videos=0)
-    return read_records(run_dir / "eval" / RESULTS, summary["suite_digest"]), summary
+    return read_records(_out(run_dir) / RESULTS, summary["suite_digest"]), summary
 
 
 def test_tiny_evaluation_same_on_one_worker_after_a_resume(
@@ -232,23 +246,23 @@ def test_tiny_evaluation_same_on_one_worker_after_a_resume(
     suite = Suite.from_dict(TINY)
     run_dir = _run_dir(tmp_path, model_arrays)
     evaluate(run_dir, suite, n=2, workers=1, videos=0)
-    with open(run_dir / "eval" / RESULTS, "a") as f:
+    with open(_out(run_dir) / RESULTS, "a") as f:
         f.write('{"digest": "cut sh')  # an interrupted write
     summary = evaluate(run_dir, suite, workers=1, videos=1)
     assert summary["run"]["ran"] == 1 and summary["variations"] == 3
-    records = read_records(run_dir / "eval" / RESULTS, summary["suite_digest"])
+    records = read_records(_out(run_dir) / RESULTS, summary["suite_digest"])
     assert len(records) == 3
     assert _without_timings(records) == _without_timings(two_workers[0])
-    failures = sorted((run_dir / "eval" / "failures" / summary["suite_digest"]).glob("*"))
+    failures = sorted((_out(run_dir) / "failures" / summary["suite_digest"]).glob("*"))
     assert len(failures) == min(1, 3 - summary["outcomes"]["success"])
     assert all(p.suffix == ".mp4" and p.stat().st_size > 0 for p in failures)
-    assert (run_dir / "eval" / "outcomes.png").stat().st_size > 0
-    saved = json.loads((run_dir / "eval" / "summary.json").read_text())
+    assert (_out(run_dir) / "outcomes.png").stat().st_size > 0
+    saved = json.loads((_out(run_dir) / "summary.json").read_text())
     assert sum(saved["outcomes"].values()) == 3
     assert saved["suite_digest"] == summary["suite_digest"] == two_workers[1]["suite_digest"]
     monkeypatch.setattr(provenance, "code_digest", lambda: "other code")
     assert evaluate(run_dir, suite, n=1, workers=1, videos=0)["run"]["ran"] == 1  # not reused
-    assert [r["id"] for r in last_records(run_dir)] == [0]  # the last evaluation's only
+    assert [r["id"] for r in last_records(_out(run_dir))] == [0]  # the last evaluation's only
     with pytest.raises(ImitateError, match="summary.json is missing"):
         last_records(tmp_path / "elsewhere")
 
@@ -261,7 +275,7 @@ def test_tiny_evaluation_same_on_ray(tmp_path, model_arrays, two_workers):
         summary = evaluate(run_dir, Suite.from_dict(TINY), ray="auto", videos=0)
     finally:
         ray.shutdown()
-    records = read_records(run_dir / "eval" / RESULTS, summary["suite_digest"])
+    records = read_records(_out(run_dir) / RESULTS, summary["suite_digest"])
     assert _without_timings(records) == _without_timings(two_workers[0])
 
 
@@ -294,7 +308,7 @@ def test_ctrl_c_stops_eval_and_its_workers_in_one_line(tmp_path, model_arrays, i
     command = [sys.executable, "-m", "imitate", "eval", str(run_dir), "--suite",
                str(tmp_path / "suite.json"), "--workers", "2", "--videos", "0"]
     process = in_a_terminal(command, stderr=subprocess.PIPE, text=True)
-    results = run_dir / "eval" / RESULTS
+    results = _out(run_dir) / RESULTS
     deadline = time.monotonic() + 300
     while not (results.exists() and results.stat().st_size) and time.monotonic() < deadline:
         time.sleep(0.5)

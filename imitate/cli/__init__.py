@@ -157,8 +157,9 @@ def _add_eval(sub: argparse.ArgumentParser) -> None:
 
     _add_variations(sub, teachers=1)
     sub.add_argument("--out", type=Path, metavar="DIR",
-                     help="folder of the results, summary and page (default RUN_DIR/eval); "
-                     "another for another suite, weight or weighting keeps both")
+                     help="folder of the results, summary and page (default "
+                     "RUN_DIR/eval/SUITE-wWEIGHT-SIMILARITY, e.g. eval/default-w10000-variance: "
+                     "one per suite, weight and weighting)")
     sub.add_argument("--similarity", choices=SIMILARITIES, metavar="NAME", dest="weighting",
                      help=f"replaces the suite's similarity weighting: one of {SIMILARITIES}")
     sub.add_argument("--videos", type=_count, default=3, metavar="K",
@@ -381,14 +382,19 @@ def _eval(args: argparse.Namespace) -> int:
     from imitate import evaluation  # MuJoCo and the planner: once the arguments are fine
     from imitate.evaluation import compare
 
-    folder = args.run_dir / ("eval" if args.command == "eval" else "compare")
-    if args.command == "eval" and args.out is not None:
-        folder = args.out
-    kept = f"the finished variations are kept in {folder}; run it again to go on"
+    folder = args.run_dir / "compare"
+    kept = "the finished variations are kept; run it again to go on"
     try:
         name, suite = evaluation.named_suite(args.suite)
         if args.weight is not None:
             suite = suite.replace(collision_weight=args.weight)
+        if args.command == "eval" and args.weighting is not None:
+            suite = suite.replace(similarity=args.weighting)
+        if args.command == "eval":
+            folder = args.out or evaluation.default_out(args.run_dir, name, suite)
+        else:
+            folder = folder / name
+        kept = f"the finished variations are kept in {folder}; run it again to go on"
         with console.terminated_as_exception():
             if args.command == "compare":
                 result = compare.compare(

@@ -8,8 +8,8 @@ drawn variation), :mod:`~imitate.evaluation.trial` (plan, replays, outcome),
 :mod:`~imitate.evaluation.compare` (similarity weightings on the same variations, paired).
 """
 
-from imitate.evaluation.evaluate import evaluate
+from imitate.evaluation.evaluate import default_out, evaluate
 from imitate.evaluation.report import text
 from imitate.evaluation.suite import SUITE_NAMES, Suite, load_suite, named_suite
 
-__all__ = ["SUITE_NAMES", "Suite", "evaluate", "load_suite", "named_suite", "text"]
+__all__ = ["SUITE_NAMES", "Suite", "default_out", "evaluate", "load_suite", "named_suite", "text"]

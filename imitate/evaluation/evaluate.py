@@ -4,7 +4,9 @@ The models are the run's and, with ``teachers``, those of more teacher seeds
 (:mod:`~imitate.evaluation.teachers`); each teacher reproduces every variation, drawn once per
 teacher (its obstacles in the path are placed on that teacher's path).
 
-Writes under ``RUN_DIR/eval/`` (or the folder ``out``): ``results.jsonl`` (one record per
+Writes under ``RUN_DIR/eval/<suite>-w<collision weight>-<similarity>/`` (:func:`default_out`;
+or the folder ``out``), so that evaluations of another suite, weight or weighting keep theirs:
+``results.jsonl`` (one record per
 teacher and variation, appended and synced as each finishes, with its digest, the teacher's seed
 and the exact settings), ``summary.json``, ``outcomes.png`` and ``report.html`` (of the last
 evaluation), ``failures/<digest>/<id>-<outcome>.mp4`` for the first failures; the learned models
@@ -37,12 +39,13 @@ from imitate.evaluation.variation import Variation, draw, path_points
 from imitate.figures import plots
 from imitate.learning import LearnedModel
 from imitate.rundir import page
-from imitate.rundir.artifacts import refuse_link, save_json
+from imitate.rundir.artifacts import load_json, refuse_link, save_json
 from imitate.rundir.lock import locked
 from imitate.stages import provenance
 
 __all__ = [
-    "Draw", "check_counts", "draw_jobs", "evaluate", "last_records", "read_records", "run_jobs",
+    "Draw", "check_counts", "default_out", "draw_jobs", "evaluate", "last_records",
+    "read_records", "run_jobs",
 ]
 
 RESULTS = "results.jsonl"
@@ -60,14 +63,14 @@ def evaluate(
     videos: int = 3,
     progress: bool | None = None,
     out: Path | str | None = None,
+    name: str = "default",
 ) -> dict:
     """Evaluate the learned models of ``n_teachers`` teachers of ``run_dir`` (the run's own
     first) on ``n`` variations of ``suite`` (default: its ``variations``) drawn with ``seed``, on
     ``workers`` local processes (default: every core) or on Ray (``ray``: an address or
     ``"auto"``); videos of the first ``videos`` failures; into ``out`` (default
-    ``run_dir/eval``: an evaluation with other settings elsewhere keeps both summaries and
-    pages). ``progress``: tqdm's ``disable``
-    inverted (``None``: on a terminal). Returns the summary.
+    :func:`default_out` of ``run_dir``, the suite's ``name`` and its settings). ``progress``:
+    tqdm's ``disable`` inverted (``None``: on a terminal). Returns the summary.
 
     Raises:
         ImitateError: a missing or corrupt model, ``n``, ``workers`` or ``n_teachers`` out of
@@ -76,7 +79,7 @@ def evaluate(
     """
     run_dir = check_run(run_dir)
     with locked(run_dir, f"imitate eval {run_dir}"):
-        out = run_dir / "eval" if out is None else Path(out)
+        out = default_out(run_dir, name, suite) if out is None else Path(out)
         n, workers = check_counts(suite, n, workers)
         refuse_link(out / RESULTS)
         out.mkdir(parents=True, exist_ok=True)
@@ -107,6 +110,12 @@ def evaluate(
                 failure_video(video, learned[t], gaze[t], record)
         page.save_eval_page(out, summary)
         return summary
+
+
+def default_out(run_dir: Path, name: str, suite: Suite) -> Path:
+    """The evaluation's folder unless told: ``run_dir/eval/<name>-w<collision_weight>-<similarity>``
+    (e.g. ``eval/default-w10000-variance``), one per suite, weight and weighting."""
+    return Path(run_dir) / "eval" / f"{name}-w{suite['collision_weight']:g}-{suite['similarity']}"
 
 
 @dataclass(frozen=True, eq=False)
@@ -229,17 +238,21 @@ def _is_record(record: object) -> bool:
     )
 
 
-def last_records(run_dir: Path) -> list[dict]:
-    """The records of the last evaluation of ``run_dir`` (the digests in its
-    ``eval/summary.json``), sorted by teacher and id.
+def last_records(out: Path) -> list[dict]:
+    """The records of the last evaluation into ``out`` (an evaluation's folder, e.g.
+    ``RUN_DIR/eval/default-w10000-variance``; the digests of its ``summary.json``), sorted by
+    teacher and id.
 
     Raises:
-        ImitateError: ``run_dir`` has no evaluation.
+        ImitateError: ``out`` holds no evaluation.
     """
-    out = Path(run_dir) / "eval"
+    out = Path(out)
     if not (out / "summary.json").is_file():
-        raise ImitateError(f"{out / 'summary.json'} is missing: run `imitate eval {run_dir}` first")
-    summary = json.loads((out / "summary.json").read_text())
+        raise ImitateError(
+            f"{out / 'summary.json'} is missing: give the folder `imitate eval` printed "
+            "(RUN_DIR/eval/<suite>-w<weight>-<similarity>, or its --out)"
+        )
+    summary = load_json(out / "summary.json")
     digests = [t["digest"] for t in summary.get("teachers", ())] or [summary["suite_digest"]]
     order = {d: i for i, d in enumerate(digests)}
     return sorted(read_records(out / RESULTS, digests), key=lambda r: (order[r["digest"]], r["id"]))

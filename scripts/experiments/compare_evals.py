@@ -1,9 +1,9 @@
 """Two evaluations of the same suite side by side (before and after a change), from their records.
 
-Usage: ``python scripts/experiments/compare_evals.py BEFORE_RUN_DIR AFTER_RUN_DIR``: the last
-``imitate eval``
-of each (``eval/summary.json``'s digest; run the same suite, ``--n`` and ``--seed`` in both, for
-instance on copies of one ``model.npz`` with the code before and after). Nothing is re-run.
+Usage: ``python scripts/experiments/compare_evals.py BEFORE_EVAL_DIR AFTER_EVAL_DIR`` (folders
+``imitate eval`` printed): the last evaluation into each (its ``summary.json``'s digests; run the
+same suite, ``--n`` and ``--seed`` in both, for instance on copies of one ``model.npz`` with the
+code before and after). Nothing is re-run.
 
 Prints the successes of each, one line per variation whose outcome changed (plan and physics
 clearance [mm], smallest pour fraction), and the plan-minus-physics clearance [mm] of the

@@ -1,8 +1,8 @@
 """The failed variations of an evaluation, one line each, from its records (nothing is re-run).
 
-Usage: ``python scripts/experiments/eval_failures.py RUN_DIR``: the records of the last
-``imitate eval RUN_DIR``
-(the suite digest in ``RUN_DIR/eval/summary.json``) whose outcome is not ``success``.
+Usage: ``python scripts/experiments/eval_failures.py EVAL_DIR`` (the folder ``imitate eval``
+printed, e.g. ``runs/latest/eval/default-w10000-variance``): the records of its last evaluation (the
+digests in its ``summary.json``) whose outcome is not ``success``.
 
 Columns: ``id``, ``outcome``, where the obstacle was placed (``path`` or ``rand``) and its shape,
 its centre ``x y`` [m], the plan's smallest clearance [mm] and its closest pair, the plan's
@@ -22,9 +22,9 @@ from imitate.evaluation.report import place
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("run_dir", type=Path)
+    parser.add_argument("eval_dir", type=Path)
     try:
-        records = last_records(parser.parse_args().run_dir)
+        records = last_records(parser.parse_args().eval_dir)
     except ImitateError as err:
         sys.exit(f"eval_failures.py: {err}")
     failed = [r for r in records if r["outcome"] != "success"]

@@ -1,9 +1,9 @@
 """Why a pour falls short: where the stream met the glass, against the pour, over the replays of
-an evaluation (``imitate eval``'s last one of RUN_DIR).
+an evaluation (the last one into EVAL_DIR, the folder ``imitate eval`` printed).
 
-Usage: ``python scripts/experiments/pour_margin.py RUN_DIR``. Nothing is re-run: every replay's
-record holds
-its pour fraction, its spilled particles and where the stream met the glass
+Usage: ``python scripts/experiments/pour_margin.py EVAL_DIR`` (e.g.
+``runs/latest/eval/default-w10000-variance``). Nothing is re-run: every replay's record holds its
+pour fraction, its spilled particles and where the stream met the glass
 (:mod:`imitate.envs.pour_geometry`).
 
 Prints, per teacher, its default run (the three pours and the geometry of the first) and over
@@ -35,13 +35,13 @@ GEOMETRY = (
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("run_dir", type=Path)
+    parser.add_argument("eval_dir", type=Path)
     args = parser.parse_args()
     try:
-        records = last_records(args.run_dir)
+        records = last_records(args.eval_dir)
     except ImitateError as err:
         sys.exit(f"pour_margin: {err}")
-    summary = json.loads((args.run_dir / "eval" / "summary.json").read_text())
+    summary = json.loads((args.eval_dir / "summary.json").read_text())
     replays = [(r, p) for r in records for p in r["replays"] if p.get("geometry")]
     print(f"{len(records)} variations, {len(replays)} replays with their geometry\n")
     print("teacher  default run: pours        inside  stream [mm]  mouth off/above [mm]  "
