@@ -20,7 +20,7 @@ from imitate.cli import main
 from imitate.envs import pouring
 from imitate.envs.rendering import make_renderer
 from imitate.export import export, to_hdf5, to_lerobot, to_minari
-from imitate.export.episodes import OBJECTS, robot_episode, teacher_episodes
+from imitate.export.episodes import OBJECTS, TASK, robot_episode, teacher_episodes
 from imitate.models import humanoid
 from imitate.motion.replay import replay
 from imitate.run import load_run
@@ -141,54 +141,66 @@ def test_hdf5(run, tmp_path):
 
 
 def read_lerobot(root):
-    """Checks a LeRobot v2.1 dataset's files against its ``meta/``; returns ``info`` and each
-    episode's columns as arrays."""
+    """Checks a LeRobot v3.0 dataset's files against its ``meta/`` (as the spec lays them out,
+    read with pyarrow); returns ``info``, each episode's columns as arrays and the episodes'
+    table."""
     meta = root / "meta"
     info = json.loads((meta / "info.json").read_text())
-    episodes = [json.loads(line) for line in (meta / "episodes.jsonl").read_text().splitlines()]
-    stats = [json.loads(line) for line in (meta / "episodes_stats.jsonl").read_text().splitlines()]
-    tasks = [json.loads(line) for line in (meta / "tasks.jsonl").read_text().splitlines()]
-    assert info["codebase_version"] == "v2.1" and info["total_tasks"] == len(tasks) == 1
-    assert info["total_episodes"] == len(episodes) == len(stats)
+    episodes = pq.read_table(meta / "episodes/chunk-000/file-000.parquet").to_pylist()
+    tasks = pq.read_table(meta / "tasks.parquet")
+    assert b"pandas" in tasks.schema.metadata  # the task string is the frame's index
+    assert tasks.to_pylist() == [{"task_index": 0, "__index_level_0__": TASK}]
+    assert info["codebase_version"] == "v3.0" and info["total_tasks"] == 1
+    assert info["total_episodes"] == len(episodes)
     assert info["total_frames"] == sum(e["length"] for e in episodes)
     features = info["features"]
     columns = {k for k, f in features.items() if f["dtype"] != "video"}
-    tables, index = [], 0
+    table = pq.read_table(root / info["data_path"].format(chunk_index=0, file_index=0))
+    assert set(table.column_names) == columns and table.num_rows == info["total_frames"]
+    data = {}
+    for key in columns:  # a (1,) feature is a column of values, a (k,) one of k-lists
+        column, shape = table[key].combine_chunks(), features[key]["shape"]
+        value_type = pa.from_numpy_dtype(np.dtype(features[key]["dtype"]))
+        if shape == [1]:
+            assert column.type == value_type, key
+            data[key] = column.to_numpy(zero_copy_only=False)
+        else:
+            assert column.type == pa.list_(value_type, shape[0]), key
+            data[key] = column.flatten().to_numpy().reshape(-1, shape[0])
+    np.testing.assert_array_equal(data["index"], np.arange(table.num_rows))
+    stats = json.loads((meta / "stats.json").read_text())
+    assert set(stats) == set(features)
+    videos = {k: iio.imread(root / info["video_path"].format(
+        video_key=k, chunk_index=0, file_index=0
+    )) for k, f in features.items() if f["dtype"] == "video"}
+    tables = []
     for i, episode in enumerate(episodes):
-        assert episode["episode_index"] == stats[i]["episode_index"] == i
-        assert set(stats[i]["stats"]) == set(features)
-        assert episode["tasks"] == [tasks[0]["task"]]
-        table = pq.read_table(root / info["data_path"].format(episode_chunk=0, episode_index=i))
-        assert set(table.column_names) == columns and table.num_rows == episode["length"]
-        arrays = {}
-        for key in columns:  # a (1,) feature is a column of values, a (k,) one of k-lists
-            column, shape = table[key].combine_chunks(), features[key]["shape"]
-            value_type = pa.from_numpy_dtype(np.dtype(features[key]["dtype"]))
-            if shape == [1]:
-                assert column.type == value_type, key
-                arrays[key] = column.to_numpy(zero_copy_only=False)
-            else:
-                assert column.type == pa.list_(value_type, shape[0]), key
-                arrays[key] = column.flatten().to_numpy().reshape(-1, shape[0])
+        start, stop = episode["dataset_from_index"], episode["dataset_to_index"]
         n = episode["length"]
+        assert episode["episode_index"] == i and stop - start == n and episode["tasks"] == [TASK]
+        arrays = {k: v[start:stop] for k, v in data.items()}
         np.testing.assert_array_equal(arrays["frame_index"], np.arange(n))
-        np.testing.assert_array_equal(arrays["index"], index + np.arange(n))
         np.testing.assert_array_equal(arrays["episode_index"], i)
-        np.testing.assert_allclose(np.diff(arrays["timestamp"]), 1 / info["fps"], atol=1e-4)
-        for key, feature in features.items():
-            if feature["dtype"] == "video":
-                path = root / info["video_path"].format(
-                    episode_chunk=0, video_key=key, episode_index=i
-                )
-                assert iio.imread(path).shape == (n, *feature["shape"])
+        np.testing.assert_allclose(arrays["timestamp"], np.arange(n) / info["fps"], atol=1e-5)
+        for key in columns:
+            assert episode[f"stats/{key}/count"] == [n]
+            np.testing.assert_allclose(
+                episode[f"stats/{key}/mean"], arrays[key].reshape(n, -1).astype(float).mean(0)
+            )
+        for key, frames in videos.items():
+            first = episode[f"videos/{key}/from_timestamp"] * info["fps"]
+            assert round(first) == start and episode[f"videos/{key}/to_timestamp"] * info[
+                "fps"] == pytest.approx(stop)
+            arrays[key] = frames[start:stop]
+            assert arrays[key].shape == (n, *features[key]["shape"])
         tables.append(arrays)
-        index += n
-    return info, tables
+    assert all(len(frames) == info["total_frames"] for frames in videos.values())
+    return info, tables, episodes
 
 
 def test_lerobot(run, tmp_path):
     out = export(run.path, "lerobot", tmp_path / "lerobot")
-    info, (robot,) = read_lerobot(out / "robot")
+    info, (robot,), _ = read_lerobot(out / "robot")
     assert info["fps"] == 50 and info["video_path"] is None
     assert info["features"]["action"]["names"] == list(humanoid.JOINTS)
     check_robot(
@@ -196,7 +208,7 @@ def test_lerobot(run, tmp_path):
         run.replay.pour_fraction, robot["next.success"][-1], 1 / info["fps"], atol=1e-6,
     )
     assert robot["next.done"][-1] and not robot["next.done"][:-1].any()
-    info, teacher = read_lerobot(out / "teacher")
+    info, teacher, _ = read_lerobot(out / "teacher")
     assert info["fps"] == run.config.fps
     segments = run.demos.segments
     assert [len(t["action"]) for t in teacher] == [len(d.times) - 1 for d in segments]
@@ -228,7 +240,7 @@ def test_images_in_every_format(quick_run, tmp_path, monkeypatch):
             assert images.std() > 5.0  # a scene, not a blank
     for name, module in (("minari", to_minari), ("hdf5", to_hdf5), ("lerobot", to_lerobot)):
         (tmp_path / name).mkdir()
-        module.write(tmp_path / name, robot, teacher)
+        module.write(tmp_path / name, [robot], teacher)
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
     for dataset_id, episodes in ((to_minari.ROBOT_ID, [robot]), (to_minari.TEACHER_ID, teacher)):
         for read, episode in zip(minari.load_dataset(dataset_id), episodes, strict=True):
@@ -239,9 +251,12 @@ def test_images_in_every_format(quick_run, tmp_path, monkeypatch):
     with h5py.File(tmp_path / "hdf5" / "robot.hdf5", "r") as f:
         stored = f["data/demo_0/obs/left_eye"][()]
     np.testing.assert_array_equal(stored, robot.observations["left_eye"][:-1])
-    for name in ("robot", "teacher"):
-        info, _ = read_lerobot(tmp_path / "lerobot" / name)
-        assert info["total_videos"] == 2 * info["total_episodes"]
+    for name, episodes in (("robot", [robot]), ("teacher", teacher)):
+        _, read, _ = read_lerobot(tmp_path / "lerobot" / name)
+        for arrays, episode in zip(read, episodes, strict=True):
+            for eye in eyes:  # H.264: near the images, not equal
+                video = arrays[f"observation.images.{eye}"].astype(float)
+                assert np.abs(video - episode.observations[eye][:-1]).mean() < 8.0
 
 
 def test_errors(run, tmp_path, monkeypatch):
@@ -298,3 +313,78 @@ def test_minari_without_out_goes_into_minaris_datasets_root(quick_run, tmp_path,
 
     with pytest.raises(ImitateError, match="robot-v0 exists; .*minari.delete_dataset"):
         export(quick_run, "minari")
+
+
+@pytest.fixture(scope="module")
+def evaluated_run(quick_run, tmp_path_factory):
+    """A copy of the quick run and the folder of its evaluation in two variations."""
+    from imitate.evaluation import Suite, evaluate
+
+    run_dir = tmp_path_factory.mktemp("evaluated") / "run"
+    shutil.copytree(quick_run, run_dir, ignore=shutil.ignore_patterns("eval", "export"))
+    suite = Suite.from_dict({"variations": 2, "max_iter": 5, "replays": 1, "particles": [4, 6]})
+    evaluate(run_dir, suite, workers=1, videos=0, out=run_dir / "eval" / "tiny")
+    return run_dir, run_dir / "eval" / "tiny"
+
+
+def test_from_eval_one_episode_per_variation_whose_actions_replay_to_its_outcome(
+    evaluated_run, tmp_path
+):
+    from imitate.evaluation.evaluate import last_records
+    from imitate.export.from_eval import replayed
+
+    run_dir, eval_dir = evaluated_run
+    records = last_records(eval_dir)
+    out = export(run_dir, "hdf5", tmp_path / "hdf5", from_eval=eval_dir)
+    with h5py.File(out / "robot.hdf5", "r") as f:
+        demos = [f["data"][f"demo_{i}"] for i in range(len(f["data"]))]
+        assert len(demos) == len(records) == 2
+        for demo, record in zip(demos, records, strict=True):
+            metadata = json.loads(demo.attrs["metadata"])
+            assert metadata["settings"] == record["settings"]
+            assert (metadata["variation"], metadata["outcome"]) == (record["id"], record["outcome"])
+            assert metadata["pour_fraction"] == record["replays"][0]["pour_fraction"]
+            actions = demo["actions"][()]
+            assert replayed(metadata, actions)["pour_fraction"] == metadata["pour_fraction"]
+            assert demo["infos/pour_fraction"][-1] == metadata["pour_fraction"]
+        hdf5_actions = [d["actions"][()] for d in demos]
+    assert main(["export", str(run_dir), "--format", "lerobot", "--from-eval", str(eval_dir),
+                 "--out", str(tmp_path / "lerobot")]) == 0
+    _, tables, episodes = read_lerobot(tmp_path / "lerobot" / "robot")
+    for arrays, episode, actions in zip(tables, episodes, hdf5_actions, strict=True):
+        assert json.loads(episode["metadata"])["variation"] == episode["episode_index"]
+        np.testing.assert_array_equal(arrays["action"], actions.astype(np.float32))
+
+
+def test_from_eval_refuses_minari_and_an_evaluation_of_other_code(
+    evaluated_run, tmp_path, monkeypatch
+):
+    from imitate.stages import provenance
+
+    run_dir, eval_dir = evaluated_run
+    with pytest.raises(imitate.ImitateError, match="--from-eval with --format minari"):
+        export(run_dir, "minari", tmp_path / "m", from_eval=eval_dir)
+    with pytest.raises(imitate.ImitateError, match="summary.json is missing"):
+        export(run_dir, "hdf5", tmp_path / "h", from_eval=run_dir / "eval")
+    monkeypatch.setattr(provenance, "code_digest", lambda: "other code")
+    with pytest.raises(imitate.ImitateError, match="evaluated with another model .* or other code"):
+        export(run_dir, "hdf5", tmp_path / "h", from_eval=eval_dir)
+    assert not list(tmp_path.iterdir())
+
+
+def test_lerobot_reads_the_export_offline(evaluated_run, tmp_path, monkeypatch):
+    """LeRobot's own reader, where it is installed (not by this project: it needs torch)."""
+    lerobot_dataset = pytest.importorskip("lerobot.datasets.lerobot_dataset")
+    monkeypatch.setenv("HF_HUB_OFFLINE", "1")
+    run_dir, eval_dir = evaluated_run
+    out = export(run_dir, "lerobot", tmp_path / "lerobot", from_eval=eval_dir)
+    for name in ("robot", "teacher"):
+        _, tables, _ = read_lerobot(out / name)
+        dataset = lerobot_dataset.LeRobotDataset(f"local/{name}", root=out / name)
+        assert dataset.num_episodes == len(tables)
+        rows = np.vstack([t["action"] for t in tables])
+        assert len(dataset) == len(rows)
+        for i in (0, len(rows) // 2, len(rows) - 1):
+            item = dataset[i]
+            np.testing.assert_array_equal(item["action"].numpy(), rows[i])
+            assert item["task"] == TASK

@@ -26,7 +26,8 @@ LAYERS = (
     ("imitate.demos", "imitate.figures"),
     ("imitate.stages",),
     ("imitate.run",),
-    ("imitate.evaluation", "imitate.export"),
+    ("imitate.evaluation",),
+    ("imitate.export",),
     ("imitate.cli", "imitate.warmup"),
     ("imitate.__main__",),
 )

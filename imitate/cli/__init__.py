@@ -113,12 +113,16 @@ def _add_export(sub: argparse.ArgumentParser) -> None:
                      help=f"run directory (default {DEFAULT_RUN})")
     sub.add_argument("--format", required=True, choices=FORMATS,
                      help="minari: a Minari datasets root; hdf5: robomimic-style files; "
-                     "lerobot: LeRobot v2.1 datasets")
+                     "lerobot: LeRobot v3.0 datasets")
     sub.add_argument("--out", type=Path, metavar="PATH",
                      help="output directory, must not exist (default RUN_DIR/export/FORMAT; "
                      "minari: Minari's datasets root, MINARI_DATASETS_PATH or ~/.minari/datasets)")
     sub.add_argument("--images", action="store_true",
                      help="also store both head-camera images at every step")
+    sub.add_argument("--from-eval", type=Path, metavar="EVAL_DIR",
+                     help="the robot's episodes: one per variation of the evaluation in EVAL_DIR "
+                     "(the folder imitate eval printed), its settings and outcome in each "
+                     "episode's metadata, instead of the run's plan (hdf5, lerobot)")
 
 
 def export_command(args: argparse.Namespace) -> int:
@@ -127,7 +131,9 @@ def export_command(args: argparse.Namespace) -> int:
 
     try:
         with console.terminated_as_exception():
-            out = export(args.run_dir, args.format, args.out, images=args.images)
+            out = export(
+                args.run_dir, args.format, args.out, images=args.images, from_eval=args.from_eval
+            )
     except (ImitateError, OSError) as err:  # OSError: disk full, no permission
         return console.fail("export", str(err), 1)
     except KeyboardInterrupt:

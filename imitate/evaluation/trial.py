@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -37,12 +38,13 @@ def plan_variation(learned: LearnedModel, gaze: np.ndarray, variation: Variation
     )
 
 
-def physics(variation: Variation) -> PouringEnv:
+def physics(variation: Variation, **kwargs: Any) -> PouringEnv:
     """``PouringEnv`` of the variation's scene, its model perturbed: every geom's sliding
     friction times ``friction_scale``, the robot's joint damping times ``damping_scale``, the
-    masses and inertias of the bottle, the glass and the particles times ``mass_scale``."""
+    masses and inertias of the bottle, the glass and the particles times ``mass_scale``.
+    ``kwargs``: more of the env's (e.g. ``obs_type``, ``width``, ``height``)."""
     scene = variation.scene()
-    env = PouringEnv(particles=scene.particles, obstacles=scene.obstacles)
+    env = PouringEnv(particles=scene.particles, obstacles=scene.obstacles, **kwargs)
     m = env.model
     m.geom_friction[:, 0] *= variation.friction_scale
     dofs = [m.joint(j).dofadr[0] for j in humanoid.JOINTS]

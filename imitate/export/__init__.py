@@ -2,6 +2,7 @@
 (:mod:`imitate.export.episodes`), in one of :data:`FORMATS`.
 
     imitate export runs/latest --format minari --out datasets/    # or hdf5, lerobot; --images
+    imitate export runs/latest --format lerobot --from-eval runs/latest/eval/default-w10000-variance
 
 The formats' libraries are the optional extra ``pip install imitate[export]``. The export
 holds the run directory's lock and refuses a plan or model that no longer follows from the run
@@ -16,6 +17,7 @@ import importlib.util
 import os
 import shutil
 import tempfile
+from collections.abc import Iterable
 from pathlib import Path
 
 from imitate.errors import ImitateError
@@ -30,7 +32,7 @@ _NEEDS = {"minari": ("minari", "h5py"), "hdf5": ("h5py",), "lerobot": ("pyarrow"
 
 
 def export(run_dir: str | Path, format: str, out: str | Path | None = None,
-           images: bool = False) -> Path:
+           images: bool = False, from_eval: str | Path | None = None) -> Path:
     """Write the run's episodes in ``format``; returns the output directory, absolute.
 
     Args:
@@ -38,26 +40,36 @@ def export(run_dir: str | Path, format: str, out: str | Path | None = None,
             ``plan.npz``.
         format: One of :data:`FORMATS`: ``"minari"`` (a Minari datasets root: ``out`` is its
             ``MINARI_DATASETS_PATH``), ``"hdf5"`` (robomimic-style ``robot.hdf5`` and
-            ``teacher.hdf5``) or ``"lerobot"`` (LeRobot v2.1 datasets ``robot/``, ``teacher/``).
+            ``teacher.hdf5``) or ``"lerobot"`` (LeRobot v3.0 datasets ``robot/``, ``teacher/``).
         out: A directory that does not exist yet; ``None``: ``run_dir/export/<format>``, but
             for ``"minari"`` Minari's datasets root (``MINARI_DATASETS_PATH``, else
             ``~/.minari/datasets``), where the two datasets must not exist yet.
         images: Also store both head-camera images at every step (the robot's in the replay, the
             teacher's as the robot saw them), at the run's camera size.
+        from_eval: An evaluation's folder (``RUN_DIR/eval/...``, of this run): the robot's
+            episodes are then one per evaluated variation (:mod:`imitate.export.from_eval`),
+            not the run's plan; ``"hdf5"`` or ``"lerobot"`` only (a Minari dataset has one env).
 
     Raises:
         ImitateError: an unknown format, the format's library missing, ``out`` existing, a
-            missing or stale artifact (the message names the stage to re-run), or another
-            command holding the run directory.
+            missing or stale artifact (the message names the stage to re-run), an evaluation
+            that no longer follows from its models, or another command holding the run
+            directory.
     """
     if format not in FORMATS:
         raise ImitateError(f"format {format!r} unknown; accepted: {FORMATS}")
+    if from_eval is not None and format == "minari":
+        raise ImitateError(
+            "--from-eval with --format minari not accepted: a Minari dataset has one env and "
+            "the variations' scenes differ; accepted: --format hdf5 or lerobot"
+        )
     missing = [name for name in _NEEDS[format] if importlib.util.find_spec(name) is None]
     if missing:
         raise ImitateError(
             f"the {format} format needs {', '.join(missing)}: pip install 'imitate[export]'"
         )
-    from imitate.export.episodes import robot_episode, teacher_episodes
+    from imitate.export.episodes import Episode, robot_episode, teacher_episodes
+    from imitate.export.from_eval import evaluated, evaluated_episodes
     from imitate.run import load_run
 
     run = load_run(run_dir)
@@ -84,11 +96,14 @@ def export(run_dir: str | Path, format: str, out: str | Path | None = None,
             raise ImitateError(f"{taken[0]} exists; accepted: a path that does not exist yet" + (
                 " (minari.delete_dataset removes a dataset, or give --out)" if into_root else ""
             ))
+        robot: Iterable[Episode] = [robot_episode(run, images)] if from_eval is None else (
+            evaluated_episodes(run, evaluated(run, Path(from_eval)), images)
+        )
         parent = out if into_root else out.parent
         parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=parent))
         try:
-            write(tmp, robot_episode(run, images), teacher_episodes(run, images))
+            write(tmp, robot, teacher_episodes(run, images))
             for name in moved:
                 (out / name).parent.mkdir(parents=True, exist_ok=True)
                 os.replace(tmp / name, out / name)

@@ -28,12 +28,15 @@ from imitate.envs.observation import EYES, ObservationConfig, frames, session
 from imitate.envs.pouring import PouringEnv
 from imitate.envs.teacher_motion import script_demonstrations
 from imitate.models import humanoid, objects
+from imitate.motion import Plan
 from imitate.motion.replay import replay
 from imitate.motion.taskspace import TASK_DIMS
 from imitate.run import Run
 from imitate.rundir.artifacts import load_npz
 
-__all__ = ["Episode", "Recorder", "robot_episode", "teacher_episodes"]
+__all__ = [
+    "Episode", "Recorder", "image_kwargs", "recorded", "robot_episode", "teacher_episodes",
+]
 
 POSE = ("x", "y", "z", "qw", "qx", "qy", "qz")  # an object frame: position [m], quaternion wxyz
 OBJECTS = (objects.BOTTLE, objects.GLASS)
@@ -56,6 +59,7 @@ class Episode:
         dt: Time between observations [s].
         env: The Gymnasium spec that recreates the env (``None``: not from an env).
         seed, options: The reset's seed and options (``None``: no reset).
+        metadata: What the episode is beyond its env (``None``: nothing more); JSON-ready.
     """
 
     observations: dict[str, np.ndarray]
@@ -69,6 +73,7 @@ class Episode:
     env: gym.envs.registration.EnvSpec | None = None
     seed: int | None = None
     options: dict | None = None
+    metadata: dict | None = None
 
     def __len__(self) -> int:
         return len(self.actions)
@@ -125,39 +130,65 @@ def robot_episode(run: Run, images: bool = False) -> Episode:
     kwargs: dict[str, Any] = {
         "particles": config.particles,
         "obstacles": [dataclasses.asdict(o) for o in config.scene().obstacles],
+        **image_kwargs(run, images),
     }
-    if images:
-        kwargs.update(obs_type="state_pixels", width=config.width, height=config.height)
     gaze = load_npz(run.path / "model.npz", required=("gaze",))["gaze"]
-    env = Recorder(PouringEnv(**kwargs))
     options = {"bottle_grasp": config.bottle_grasp, "glass_grasp": config.glass_grasp}
+    return recorded(run.plan, PouringEnv(**kwargs), kwargs, config.seed, options, gaze)
+
+
+def image_kwargs(run: Run, images: bool) -> dict[str, Any]:
+    """``PouringEnv``'s kwargs for both head-camera images at the run's size, if ``images``."""
+    if not images:
+        return {}
+    return {"obs_type": "state_pixels", "width": run.config.width, "height": run.config.height}
+
+
+def recorded(
+    plan: Plan,
+    env: PouringEnv,
+    kwargs: dict[str, Any],
+    seed: int,
+    options: dict,
+    gaze: np.ndarray,
+    metadata: dict | None = None,
+) -> Episode:
+    """``plan`` replayed in ``env`` (made with ``kwargs``, closed here) from ``seed`` and the
+    reset ``options``, recorded as an :class:`Episode`; its last step truncated (see
+    :func:`robot_episode`)."""
+    recorder = Recorder(env)
     try:
         # The Recorder stands in for the env it wraps (its attributes are read through).
-        replay(run.plan, cast(PouringEnv, env), seed=config.seed, options=options, gaze=gaze)
+        replay(plan, cast(PouringEnv, recorder), seed=seed, options=options, gaze=gaze)
     finally:
-        env.close()
-    rewards, terminated, truncated = (np.array(v) for v in zip(*env.steps, strict=True))
+        recorder.close()
+    rewards, terminated, truncated = (np.array(v) for v in zip(*recorder.steps, strict=True))
     truncated[-1] = True  # the spec's TimeLimit ends the episode here
-    structure = env.observation_structure
-    states = np.array([o if isinstance(o, np.ndarray) else o["state"] for o in env.observations])
+    structure = recorder.observation_structure
+    states = np.array(
+        [o if isinstance(o, np.ndarray) else o["state"] for o in recorder.observations]
+    )
     bounds = np.cumsum([0, *structure.values()])
     observations = {
         name: states[:, start:stop]
         for name, start, stop in zip(structure, bounds[:-1], bounds[1:], strict=True)
     }
-    if images:
+    if kwargs.get("obs_type") == "state_pixels":
         observations.update(
-            {eye: np.array([o["pixels"][eye] for o in env.observations]) for eye in EYES}
+            {eye: np.array([o["pixels"][eye] for o in recorder.observations]) for eye in EYES}
         )
     names = {
         "qpos": humanoid.JOINTS, "qvel": humanoid.JOINTS,
         **{obj: POSE for obj in OBJECTS}, "action": humanoid.JOINTS,
     }
-    spec = dataclasses.replace(gym.spec(ENV_ID), kwargs=kwargs, max_episode_steps=len(env.actions))
+    spec = dataclasses.replace(
+        gym.spec(ENV_ID), kwargs=kwargs, max_episode_steps=len(recorder.actions)
+    )
     return Episode(
-        observations=observations, actions=np.array(env.actions), rewards=rewards,
-        terminations=terminated, truncations=truncated, infos=_stacked(env.infos),
-        names=names, dt=env.dt, env=spec, seed=env.seed, options=env.options,
+        observations=observations, actions=np.array(recorder.actions), rewards=rewards,
+        terminations=terminated, truncations=truncated, infos=_stacked(recorder.infos),
+        names=names, dt=recorder.dt, env=spec, seed=recorder.seed, options=recorder.options,
+        metadata=metadata,
     )
 
 

@@ -4,9 +4,11 @@ demonstration).
 Each file: ``data/demo_N/obs/<key>`` and ``next_obs/<key>`` ``(num_samples, ...)``, ``actions``,
 ``rewards``, ``dones`` (1 on the last step), ``infos/<key>`` (after each step); the attributes
 ``data/demo_N.attrs["num_samples"]`` (and ``seed``, ``options`` as JSON where the episode has a
-reset), ``data.attrs["total"]`` and ``data.attrs["env_args"]``: JSON ``{"env_name", "type",
-"env_kwargs"}`` with robomimic's gym type (2) and ``gym.make``'s arguments, or
-``"env_name": null`` for the teacher. Images are gzip-compressed.
+reset, ``metadata`` as JSON where it has any, e.g. an evaluated variation's settings and
+outcome), ``data.attrs["total"]`` and ``data.attrs["env_args"]``: JSON ``{"env_name", "type",
+"env_kwargs"}`` with robomimic's gym type (2) and the ``gym.make`` arguments every demonstration
+shares (those of one variation are in its ``metadata``), or ``"env_name": null`` for the
+teacher. Images are gzip-compressed.
 """
 
 from __future__ import annotations
@@ -26,26 +28,26 @@ __all__ = ["GYM_TYPE", "write"]
 GYM_TYPE = 2  # robomimic's EnvType.GYM_TYPE
 
 
-def write(out: Path, robot: Episode, teacher: Iterable[Episode]) -> None:
-    """Write ``out/robot.hdf5`` and ``out/teacher.hdf5``."""
-    _write(out / "robot.hdf5", [robot])
+def write(out: Path, robot: Iterable[Episode], teacher: Iterable[Episode]) -> None:
+    """Write ``out/robot.hdf5`` and ``out/teacher.hdf5``, a demonstration at a time."""
+    _write(out / "robot.hdf5", robot)
     _write(out / "teacher.hdf5", teacher)
 
 
 def _write(path: Path, episodes: Iterable[Episode]) -> None:
     with h5py.File(path, "w") as f:
         data = f.create_group("data")
-        total, env = 0, None
+        total, kwargs, env = 0, [], None
         for i, episode in enumerate(episodes):
             _write_demo(data.create_group(f"demo_{i}"), episode)
             total += len(episode)
-            env = episode.env
+            if episode.env is not None:
+                env = episode.env
+                kwargs.append({**env.kwargs, "max_episode_steps": env.max_episode_steps})
         env_args: dict[str, Any] = {"env_name": None, "type": None, "env_kwargs": {}}
         if env is not None:
-            env_args = {
-                "env_name": env.id, "type": GYM_TYPE,
-                "env_kwargs": {**env.kwargs, "max_episode_steps": env.max_episode_steps},
-            }
+            shared = {k: v for k, v in kwargs[0].items() if all(o.get(k) == v for o in kwargs)}
+            env_args = {"env_name": env.id, "type": GYM_TYPE, "env_kwargs": shared}
         data.attrs["total"] = total
         data.attrs["env_args"] = json.dumps(env_args)
 
@@ -64,3 +66,5 @@ def _write_demo(demo: h5py.Group, episode: Episode) -> None:
     if episode.seed is not None:
         demo.attrs["seed"] = episode.seed
         demo.attrs["options"] = json.dumps(episode.options)
+    if episode.metadata is not None:
+        demo.attrs["metadata"] = json.dumps(episode.metadata)

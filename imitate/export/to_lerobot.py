@@ -1,86 +1,116 @@
-"""LeRobot datasets (format v2.1), written with pyarrow alone: ``robot/`` and ``teacher/``.
+"""LeRobot datasets (format v3.0, what ``lerobot`` >= 0.4 reads), written with pyarrow alone:
+``robot/`` and ``teacher/``.
 
-Each dataset: ``data/chunk-000/episode_NNNNNN.parquet`` (one row per step: ``observation.state``,
-``observation.environment_state`` (the bottle's and glass's frames), ``action``, ``next.reward``,
-``next.done``, ``next.success`` (robot), ``timestamp``, ``frame_index``, ``episode_index``,
-``index``, ``task_index``), with ``--images`` ``videos/chunk-000/observation.images.<eye>/
-episode_NNNNNN.mp4`` (H.264), and ``meta/info.json``, ``meta/episodes.jsonl``,
-``meta/tasks.jsonl``, ``meta/episodes_stats.jsonl``. A row holds the observation before the step,
-so an episode's last observation is not stored.
+Each dataset holds its episodes back to back in one file per kind:
+
+- ``data/chunk-000/file-000.parquet``: one row per step: ``observation.state``,
+  ``observation.environment_state`` (the bottle's and glass's frames), ``action``,
+  ``next.reward``, ``next.done``, ``next.success`` (robot), ``timestamp`` (from the episode's
+  start), ``frame_index``, ``episode_index``, ``index`` (over the dataset), ``task_index``;
+- with ``--images``, ``videos/observation.images.<eye>/chunk-000/file-000.mp4`` (H.264), the
+  episodes' frames back to back;
+- ``meta/info.json`` (features, fps, totals), ``meta/tasks.parquet`` (the task by its index,
+  as pandas writes it), ``meta/episodes/chunk-000/file-000.parquet`` (one row per episode: its
+  rows ``dataset_from_index..dataset_to_index``, its span of each video
+  ``from_timestamp..to_timestamp`` [s], its statistics ``stats/<feature>/<stat>`` and, where the
+  episode has any, ``metadata``: JSON of what it is, e.g. an evaluated variation's settings and
+  outcome), ``meta/stats.json`` (the statistics over all episodes).
+
+A row holds the observation before the step, so an episode's last observation is not stored.
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Iterable
+from contextlib import ExitStack, closing
 from pathlib import Path
 from typing import Any
 
+import imageio.v2 as imageio
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
 from imitate.envs.observation import EYES
-from imitate.envs.video import write_video
+from imitate.envs.video import ENCODER
 from imitate.errors import ImitateError
 from imitate.export.episodes import OBJECTS, TASK, Episode
 
-__all__ = ["CODEBASE_VERSION", "DATA_PATH", "VIDEO_PATH", "write"]
+__all__ = ["CODEBASE_VERSION", "DATA_PATH", "EPISODES_PATH", "VIDEO_PATH", "write"]
 
-CODEBASE_VERSION = "v2.1"
-CHUNKS_SIZE = 1000  # episodes per chunk
-DATA_PATH = "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet"
-VIDEO_PATH = "videos/chunk-{episode_chunk:03d}/{video_key}/episode_{episode_index:06d}.mp4"
+CODEBASE_VERSION = "v3.0"
+DATA_PATH = "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
+VIDEO_PATH = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"
+EPISODES_PATH = "meta/episodes/chunk-000/file-000.parquet"
+QUANTILES = (0.01, 0.10, 0.50, 0.90, 0.99)  # LeRobot's q01 .. q99
+_FIRST = {"chunk_index": 0, "file_index": 0}  # every file here is its kind's first
 _VIDEO_INFO = {
     "video.codec": "h264", "video.pix_fmt": "yuv420p", "video.is_depth_map": False,
     "has_audio": False,
 }
 
 
-def write(out: Path, robot: Episode, teacher: Iterable[Episode]) -> None:
-    """Write the datasets ``out/robot`` and ``out/teacher``."""
-    _write_dataset(out / "robot", [robot], robot_type="imitate_humanoid")
+def write(out: Path, robot: Iterable[Episode], teacher: Iterable[Episode]) -> None:
+    """Write the datasets ``out/robot`` and ``out/teacher``, an episode at a time."""
+    _write_dataset(out / "robot", robot, robot_type="imitate_humanoid")
     _write_dataset(out / "teacher", teacher, robot_type=None)
 
 
 def _write_dataset(root: Path, episodes: Iterable[Episode], robot_type: str | None) -> None:
-    info, frames = None, 0
-    for i, episode in enumerate(episodes):
-        fps = _fps(episode)
-        columns, videos = _frames(episode, i, frames, fps)
-        if info is None:
-            info = _info(columns, videos, episode, fps, robot_type)
-        chunk = i // CHUNKS_SIZE
-        path = root / DATA_PATH.format(episode_chunk=chunk, episode_index=i)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        pq.write_table(pa.table({k: _arrow(v) for k, v in columns.items()}), path)
-        for key, images in videos.items():
-            video = root / VIDEO_PATH.format(episode_chunk=chunk, video_key=key, episode_index=i)
-            write_video(video, images, fps)
-        stats = {k: _stats(v) for k, v in columns.items()}
-        stats.update({k: _image_stats(v) for k, v in videos.items()})
-        _append(root / "meta/episodes.jsonl", {"episode_index": i, "tasks": [TASK],
-                                                "length": len(episode)})
-        _append(root / "meta/episodes_stats.jsonl", {"episode_index": i, "stats": stats})
-        frames += len(episode)
-    n = i + 1
-    assert info is not None  # set at the first episode, and there was one (i is bound)
-    info.update(
-        total_episodes=n, total_frames=frames, total_videos=n * len(videos),
-        total_chunks=-(-n // CHUNKS_SIZE), splits={"train": f"0:{n}"},
-    )
-    _append(root / "meta/tasks.jsonl", {"task_index": 0, "task": TASK})
-    (root / "meta/info.json").write_text(json.dumps(info, indent=4) + "\n")
+    info: dict[str, Any] = {}
+    rows: list[dict[str, Any]] = []
+    stats: list[dict[str, dict]] = []
+    frames = 0
+    with ExitStack() as files:
+        data, videos = None, {}
+        for i, episode in enumerate(episodes):
+            fps = _fps(episode, info.get("fps"))
+            columns, images = _frames(episode, i, frames, fps)
+            table = _table(columns)
+            if data is None:
+                info = _info(columns, images, episode, fps, robot_type)
+                data = files.enter_context(pq.ParquetWriter(_path(root, DATA_PATH), table.schema))
+                videos = {key: files.enter_context(closing(imageio.get_writer(
+                    _path(root, VIDEO_PATH, video_key=key), fps=fps, macro_block_size=8,
+                    **ENCODER,
+                ))) for key in images}
+            data.write_table(table)
+            for key, frames_of_key in images.items():
+                for image in frames_of_key:
+                    videos[key].append_data(image)
+            episode_stats = {k: _stats(v) for k, v in columns.items()}
+            episode_stats.update({k: _image_stats(v) for k, v in images.items()})
+            stats.append(episode_stats)
+            rows.append(_row(i, episode, frames, fps, images, episode_stats))
+            frames += len(episode)
+    if not rows:
+        raise ImitateError(f"{root.name}: no episode to write")
+    n = len(rows)
+    info.update(total_episodes=n, total_frames=frames, splits={"train": f"0:{n}"})
+    pq.write_table(pa.Table.from_pylist(rows), _path(root, EPISODES_PATH))
+    _write_tasks(root / "meta" / "tasks.parquet")
+    aggregated = {key: _aggregate([s[key] for s in stats]) for key in stats[0]}
+    (root / "meta" / "stats.json").write_text(json.dumps(aggregated, indent=4) + "\n")
+    (root / "meta" / "info.json").write_text(json.dumps(info, indent=4) + "\n")
 
 
-def _fps(episode: Episode) -> int:
-    """The episode's frame rate [Hz]; LeRobot takes whole numbers only."""
+def _path(root: Path, template: str, **keys: str) -> Path:
+    path = root / template.format(**_FIRST, **keys)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _fps(episode: Episode, dataset_fps: int | None) -> int:
+    """The episode's frame rate [Hz]; LeRobot takes whole numbers only, one per dataset."""
     fps = round(1.0 / episode.dt)
     if abs(fps * episode.dt - 1.0) > 1e-9:
         raise ImitateError(
             f"LeRobot needs a whole frame rate; this episode has {1.0 / episode.dt:g} Hz (the "
             f"run's --fps for the teacher); accepted: an integer rate"
         )
+    if dataset_fps is not None and fps != dataset_fps:
+        raise ImitateError(f"an episode at {fps} Hz in a dataset at {dataset_fps} Hz")
     return fps
 
 
@@ -142,27 +172,67 @@ def _info(columns, videos, episode: Episode, fps: int, robot_type: str | None) -
         }
     return {
         "codebase_version": CODEBASE_VERSION, "robot_type": robot_type, "total_episodes": 0,
-        "total_frames": 0, "total_tasks": 1, "total_videos": 0, "total_chunks": 0,
-        "chunks_size": CHUNKS_SIZE, "fps": fps, "splits": {}, "data_path": DATA_PATH,
+        "total_frames": 0, "total_tasks": 1, "chunks_size": 1000, "data_files_size_in_mb": 100,
+        "video_files_size_in_mb": 500, "fps": fps, "splits": {}, "data_path": DATA_PATH,
         "video_path": VIDEO_PATH if videos else None, "features": features,
     }
 
 
-def _arrow(values: np.ndarray) -> pa.Array:
-    """A parquet column: scalars as values, vectors ``(n, k)`` as fixed-size lists."""
-    if values.ndim == 1:
-        return pa.array(values)
-    return pa.FixedSizeListArray.from_arrays(pa.array(values.reshape(-1)), values.shape[1])
+def _table(columns: dict[str, np.ndarray]) -> pa.Table:
+    """A parquet table: scalars as values, vectors ``(n, k)`` as fixed-size lists."""
+    return pa.table({
+        k: pa.array(v) if v.ndim == 1
+        else pa.FixedSizeListArray.from_arrays(pa.array(v.reshape(-1)), v.shape[1])
+        for k, v in columns.items()
+    })
+
+
+def _row(
+    index: int, episode: Episode, start: int, fps: int, videos: dict, stats: dict
+) -> dict[str, Any]:
+    """The episode's row of ``meta/episodes``: where its rows and frames are, its statistics."""
+    n = len(episode)
+    row: dict[str, Any] = {
+        "episode_index": index, "tasks": [TASK], "length": n,
+        "data/chunk_index": 0, "data/file_index": 0,
+        "dataset_from_index": start, "dataset_to_index": start + n,
+        "meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0,
+    }
+    for key in videos:
+        row.update({
+            f"videos/{key}/chunk_index": 0, f"videos/{key}/file_index": 0,
+            f"videos/{key}/from_timestamp": start / fps,
+            f"videos/{key}/to_timestamp": (start + n) / fps,
+        })
+    if episode.metadata is not None:
+        row["metadata"] = json.dumps(episode.metadata)
+    row.update({
+        f"stats/{key}/{name}": value for key, s in stats.items() for name, value in s.items()
+    })
+    return row
+
+
+def _write_tasks(path: Path) -> None:
+    """``meta/tasks.parquet`` as pandas writes a frame indexed by the task (LeRobot reads it
+    with pandas; without the index metadata a task would read as its number)."""
+    index = "__index_level_0__"
+    pandas = {
+        "index_columns": [index], "column_indexes": [], "pandas_version": "2.2.0",
+        "columns": [
+            {"name": "task_index", "field_name": "task_index", "pandas_type": "int64",
+             "numpy_type": "int64", "metadata": None},
+            {"name": None, "field_name": index, "pandas_type": "unicode",
+             "numpy_type": "object", "metadata": None},
+        ],
+    }
+    table = pa.table({"task_index": pa.array([0], pa.int64()), index: pa.array([TASK])})
+    pq.write_table(table.replace_schema_metadata({b"pandas": json.dumps(pandas).encode()}), path)
 
 
 def _stats(values: np.ndarray) -> dict:
-    """LeRobot's per-episode statistics of a column: min, max, mean, std ``(k,)``, count."""
-    axis_values = values.reshape(len(values), -1)
-    return {
-        "min": axis_values.min(axis=0).tolist(), "max": axis_values.max(axis=0).tolist(),
-        "mean": axis_values.mean(axis=0).tolist(), "std": axis_values.std(axis=0).tolist(),
-        "count": [len(values)],
-    }
+    """LeRobot's statistics of a column: min, max, mean, std, q01..q99 ``(k,)``, count."""
+    axis_values = values.reshape(len(values), -1).astype(np.float64)
+    return _summary(axis_values, len(values), lambda v: v.tolist())
 
 
 def _image_stats(images: np.ndarray) -> dict:
@@ -172,18 +242,37 @@ def _image_stats(images: np.ndarray) -> dict:
     side = max(images.shape[1:3])
     step = side // 150 if side >= 300 else 1
     pixels = frames[:, ::step, ::step].reshape(-1, images.shape[-1]) / 255.0
+    return _summary(pixels, len(images), lambda v: v.reshape(-1, 1, 1).tolist())
 
-    def channels(v: np.ndarray) -> list:
-        return v.reshape(-1, 1, 1).tolist()
 
-    return {
-        "min": channels(pixels.min(axis=0)), "max": channels(pixels.max(axis=0)),
-        "mean": channels(pixels.mean(axis=0)), "std": channels(pixels.std(axis=0)),
-        "count": [len(images)],
+def _summary(values: np.ndarray, count: int, shaped) -> dict:
+    """min, max, mean, std and the quantiles of ``values`` ``(samples, k)`` over the samples,
+    each as ``shaped`` lays it out, and ``count``."""
+    summary = {
+        "min": values.min(axis=0), "max": values.max(axis=0),
+        "mean": values.mean(axis=0), "std": values.std(axis=0),
+        **{f"q{round(q * 100):02d}": np.quantile(values, q, axis=0) for q in QUANTILES},
     }
+    return {**{k: shaped(v) for k, v in summary.items()}, "count": [count]}
 
 
-def _append(path: Path, record: dict) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("a") as f:
-        f.write(json.dumps(record) + "\n")
+def _aggregate(stats: list[dict]) -> dict:
+    """One feature's statistics over episodes, as LeRobot aggregates them: extremes of the
+    extremes, means weighted by count, pooled std, quantiles weighted by count."""
+    counts = np.array([s["count"][0] for s in stats], dtype=float)
+    weights = (counts / counts.sum()).reshape(-1, *[1] * np.ndim(stats[0]["mean"]))
+
+    def stacked(name: str) -> np.ndarray:
+        return np.array([s[name] for s in stats])
+
+    mean = (stacked("mean") * weights).sum(axis=0)
+    variance = ((stacked("std") ** 2 + (stacked("mean") - mean) ** 2) * weights).sum(axis=0)
+    quantiles = {
+        f"q{round(q * 100):02d}": (stacked(f"q{round(q * 100):02d}") * weights).sum(axis=0)
+        for q in QUANTILES
+    }
+    aggregated = {
+        "min": stacked("min").min(axis=0), "max": stacked("max").max(axis=0), "mean": mean,
+        "std": np.sqrt(variance), **quantiles,
+    }
+    return {**{k: v.tolist() for k, v in aggregated.items()}, "count": [int(counts.sum())]}

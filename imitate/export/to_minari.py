@@ -29,14 +29,16 @@ TEACHER_ID = "imitate/pouring/teacher-v0"
 _METADATA = {"author": "imitate", "algorithm_name": "imitate (Muehlig et al., ICRA 2009)"}
 
 
-def write(root: Path, robot: Episode, teacher: Iterable[Episode]) -> None:
-    """Write both datasets under ``root``."""
+def write(root: Path, robot: Iterable[Episode], teacher: Iterable[Episode]) -> None:
+    """Write both datasets under ``root``; the robot's episode is one (its env spec the
+    dataset's)."""
+    (episode,) = robot
     with _datasets_path(root), warnings.catch_warnings():
         # Metadata this project has no value for (an e-mail address, a code link, an eval env).
         warnings.filterwarnings("ignore", message=r"`(author_email|code_permalink|eval_env)`")
         warnings.filterwarnings("ignore", message="env_spec is None")  # the teacher has no env
         minari.create_dataset_from_buffers(
-            ROBOT_ID, [_buffer(robot)], env=robot.env, **_METADATA,
+            ROBOT_ID, [_buffer(episode)], env=episode.env, **_METADATA,
             description="The robot pours from the bottle into the glass: the optimized plan "
             "replayed in imitate/Pouring-v0. Actions: joint position targets [rad] (float64, as "
             "given to env.step); the last step is truncated by the spec's time limit.",

@@ -1,0 +1,139 @@
+"""Robot episodes from an evaluation: one per evaluated variation, for policies that need many.
+
+An evaluation's records hold each variation's settings, not its plan or its steps, and both
+follow from the settings and the teacher's learned model: the variation is planned again with
+that model (checked against the record: the same clearance and iterations) and replayed in its
+perturbed physics from its first replay seed, recorded (:func:`imitate.export.episodes.recorded`).
+The episode's ``metadata`` says what it is: ``teacher``, ``variation`` (the id), ``settings``
+(the record's, :class:`~imitate.evaluation.variation.Variation`), ``outcome`` and ``pour_min``
+(the evaluation's, over all its replays), ``pour_fraction`` (this replay's).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from imitate.errors import ImitateError
+from imitate.evaluation.evaluate import last_records
+from imitate.evaluation.suite import Suite
+from imitate.evaluation.trial import physics, plan_variation
+from imitate.evaluation.variation import Variation
+from imitate.export.episodes import Episode, image_kwargs, recorded
+from imitate.learning import LearnedModel
+from imitate.run import Run
+from imitate.rundir.artifacts import load_json, load_npz
+from imitate.stages import provenance
+
+__all__ = ["Evaluated", "evaluated", "evaluated_episodes", "replayed"]
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Evaluated:
+    """An evaluation's records with the teachers' models they were made with.
+
+    Attributes:
+        records: The last evaluation's records, by teacher and id.
+        models: Teacher seed -> its ``model.npz`` arrays (the learned model and ``gaze``).
+    """
+
+    records: list[dict]
+    models: dict[int, dict[str, np.ndarray]]
+
+
+def evaluated(run: Run, eval_dir: Path) -> Evaluated:
+    """The last evaluation into ``eval_dir`` of ``run``'s teachers, checked to follow from the
+    teachers' models as they are now and this code (the records' digests).
+
+    Raises:
+        ImitateError: no evaluation there, a teacher's model missing, or a digest that does not
+            match (the message says to evaluate again).
+    """
+    eval_dir = Path(eval_dir)
+    records = last_records(eval_dir)
+    summary = load_json(eval_dir / "summary.json")
+    suite, code = Suite.from_dict(summary["suite"], source=str(eval_dir)), provenance.code_digest()
+    models = {}
+    for teacher in summary["teachers"]:
+        seed = teacher["seed"]
+        path = run.path / "model.npz" if seed == run.config.seed else (
+            run.path / "eval" / "teachers" / f"seed-{seed}" / "model.npz"
+        )
+        arrays = load_npz(path, required=(*LearnedModel.array_names(), "gaze"))
+        if suite.digest(summary["seed"], path.read_bytes(), code) != teacher["digest"]:
+            raise ImitateError(
+                f"{eval_dir} was evaluated with another model of teacher {seed} ({path}) or "
+                f"other code; run the evaluation again (imitate eval {run.path} ...) to export it"
+            )
+        models[seed] = dict(arrays)
+    if not records:
+        raise ImitateError(f"{eval_dir} holds no finished variation; run the evaluation first")
+    return Evaluated(records, models)
+
+
+def evaluated_episodes(
+    run: Run, evaluation: Evaluated, images: bool = False, progress: bool | None = None
+) -> Iterator[Episode]:
+    """One robot episode per record of ``evaluation`` (see the module), in its order; with
+    ``images`` both head-camera images at the run's size. ``progress``: tqdm's ``disable``
+    inverted (``None``: on a terminal).
+
+    Raises:
+        ImitateError: a variation's plan differs from the evaluated one.
+    """
+    learned = {seed: LearnedModel.from_arrays(a) for seed, a in evaluation.models.items()}
+    for record in tqdm(evaluation.records, desc="export", unit="episode",
+                       disable=None if progress is None else not progress):
+        variation = Variation.from_json(record["settings"])
+        teacher = record["teacher"]
+        gaze = evaluation.models[teacher]["gaze"]
+        plan = plan_variation(learned[teacher], gaze, variation)
+        evaluated_plan = record["plan"]
+        if (plan.min_distance, plan.n_iter) != (
+            evaluated_plan["min_distance_m"], evaluated_plan["iterations"]
+        ):
+            raise ImitateError(
+                f"variation {variation.id} of teacher {teacher} plans otherwise than it was "
+                f"evaluated (clearance {plan.min_distance} m, {plan.n_iter} iterations against "
+                f"{evaluated_plan['min_distance_m']} m, {evaluated_plan['iterations']})"
+            )
+        scene = variation.scene()
+        kwargs: dict[str, Any] = {
+            "particles": scene.particles,
+            "obstacles": [dataclasses.asdict(o) for o in scene.obstacles],
+            **image_kwargs(run, images),
+        }
+        options = {"bottle_grasp": variation.bottle_grasp, "glass_grasp": variation.glass_grasp}
+        metadata = {
+            "teacher": teacher, "variation": variation.id, "settings": record["settings"],
+            "outcome": record["outcome"], "pour_min": record["pour_min"],
+        }
+        episode = recorded(
+            plan, physics(variation, **image_kwargs(run, images)), kwargs,
+            variation.replay_seeds[0], options, gaze, metadata,
+        )
+        pour = float(episode.infos["pour_fraction"][-1])
+        yield dataclasses.replace(episode, metadata={**metadata, "pour_fraction": pour})
+
+
+def replayed(metadata: dict, actions: np.ndarray) -> dict:
+    """An exported episode's ``actions`` ``(n, 18)`` [rad] stepped in its variation's physics
+    from its reset (the ``metadata`` of :func:`evaluated_episodes`): ``{"pour_fraction",
+    "spilled", "is_success"}`` after the last step, to check against the metadata."""
+    variation = Variation.from_json(metadata["settings"])
+    env = physics(variation)
+    try:
+        env.reset(seed=variation.replay_seeds[0], options={
+            "bottle_grasp": variation.bottle_grasp, "glass_grasp": variation.glass_grasp,
+        })
+        info: dict[str, Any] = {}
+        for action in np.asarray(actions, dtype=np.float64):
+            _, _, _, _, info = env.step(action)
+    finally:
+        env.close()
+    return {key: info[key] for key in ("pour_fraction", "spilled", "is_success")}

@@ -1,0 +1,70 @@
+"""An exported ``--from-eval`` robot dataset read back and every episode's actions replayed in its
+variation's physics: do they pour as the dataset says?
+
+Usage: ``python scripts/experiments/replay_dataset.py PATH`` where PATH is the ``robot.hdf5`` of
+``imitate export RUN_DIR --format hdf5 --from-eval EVAL_DIR`` (read with h5py) or the ``robot/``
+folder of ``--format lerobot`` (read with pyarrow as LeRobot v3.0 lays it out; its actions are
+float32, the env's float64).
+
+Prints one line per episode (teacher, variation, the evaluation's outcome, the recorded pour and
+the replayed one, the success flags) and how many replay to the recorded pour exactly and to the
+same success.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from imitate.export.from_eval import replayed
+
+
+def hdf5_episodes(path: Path) -> list[tuple[dict, np.ndarray]]:
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        demos = [f["data"][f"demo_{i}"] for i in range(len(f["data"]))]
+        return [(json.loads(d.attrs["metadata"]), d["actions"][()]) for d in demos]
+
+
+def lerobot_episodes(root: Path) -> list[tuple[dict, np.ndarray]]:
+    import pyarrow.parquet as pq
+
+    info = json.loads((root / "meta" / "info.json").read_text())
+    episodes = pq.read_table(root / "meta/episodes/chunk-000/file-000.parquet").to_pylist()
+    data = pq.read_table(root / info["data_path"].format(chunk_index=0, file_index=0))
+    actions = np.array(data["action"].to_pylist(), dtype=np.float32)
+    return [
+        (json.loads(e["metadata"]), actions[e["dataset_from_index"]:e["dataset_to_index"]])
+        for e in episodes
+    ]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("path", type=Path)
+    path = parser.parse_args().path
+    if not path.exists():
+        sys.exit(f"replay_dataset.py: {path} does not exist")
+    episodes = hdf5_episodes(path) if path.suffix == ".hdf5" else lerobot_episodes(path)
+    print(f"{len(episodes)} episodes in {path}")
+    print(f"{'teacher':>7} {'id':>4}  {'outcome':<15}{'pour':>7}{'replayed':>10}  poured")
+    same_pour = same_success = 0
+    for metadata, actions in episodes:
+        again = replayed(metadata, actions)
+        same_pour += again["pour_fraction"] == metadata["pour_fraction"]
+        same_success += bool(again["is_success"]) == (metadata["outcome"] == "success")
+        print(f"{metadata['teacher']:>7} {metadata['variation']:>4}  {metadata['outcome']:<15}"
+              f"{metadata['pour_fraction']:7.3f}{again['pour_fraction']:10.3f}  "
+              f"{bool(again['is_success'])}")
+    print(f"replayed to the recorded pour exactly: {same_pour}/{len(episodes)}; "
+          f"poured (is_success) where the evaluation's outcome is success, and only there: "
+          f"{same_success}/{len(episodes)}")
+
+
+if __name__ == "__main__":
+    main()
