@@ -1,5 +1,10 @@
 """Artifacts are written atomically and read back with errors that say what to re-run."""
 
+import errno
+import os
+import signal
+import threading
+
 import numpy as np
 import pytest
 
@@ -132,6 +137,85 @@ def test_the_manifest_is_renamed_last(tmp_path, monkeypatch):
         save_json(tmp_path / "model.npz", {"a": 1})
         save_json(tmp_path / "report.json", {"r": 1})
     assert renamed == ["model.npz", "report.json", "manifest.json"]
+
+
+COMMITTED = ("model.npz", "config.json", "report.json", "manifest.json")  # in commit order
+
+
+def commit_over_old_files(run_dir, replace):
+    """Stage and commit new versions of :data:`COMMITTED` over old ones in ``run_dir``, with
+    ``replace(src, dst)`` doing its renames."""
+    for name in COMMITTED:
+        save_json(run_dir / name, {"old": name})
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(os, "replace", replace)
+        with staged(run_dir, last="manifest.json"):
+            for name in COMMITTED:
+                save_json(run_dir / name, {"new": name})
+
+
+class Stop(Exception):
+    """What the tests' signal handler raises."""
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+@pytest.mark.parametrize("sender", ["process", "thread"])
+def test_a_signal_during_the_commit_waits_for_its_last_rename(tmp_path, signum, sender):
+    idle = threading.Event()
+    other = threading.Thread(target=idle.wait)  # "thread": the kernel hands the signal to it
+    other.start()
+    replace, renamed = os.replace, []
+
+    def replace_and_signal(src, dst):
+        renamed.append(os.path.basename(dst))
+        if len(renamed) == 2:
+            if sender == "process":
+                os.kill(os.getpid(), signum)
+            else:
+                signal.pthread_kill(other.ident, signum)
+        replace(src, dst)
+
+    seen = {}
+
+    def handler(n, frame):
+        seen.update({name: load_json(tmp_path / name) for name in COMMITTED})
+        raise Stop
+
+    previous = signal.signal(signum, handler)
+    try:
+        with pytest.raises(Stop):
+            commit_over_old_files(tmp_path, replace_and_signal)
+        assert signal.getsignal(signum) is handler
+    finally:
+        signal.signal(signum, previous)
+        idle.set()
+        other.join()
+    assert renamed == list(COMMITTED)
+    assert seen == {name: {"new": name} for name in COMMITTED}  # when the handler ran
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(COMMITTED)  # no temporary
+
+
+def test_a_rename_failing_midway_names_what_it_replaced(tmp_path):
+    replace, renamed = os.replace, []
+
+    def replace_or_fail(src, dst):
+        renamed.append(os.path.basename(dst))
+        if len(renamed) == 3:
+            raise OSError(errno.EIO, os.strerror(errno.EIO), dst)
+        replace(src, dst)
+
+    with pytest.raises(ImitateError) as error:
+        commit_over_old_files(tmp_path, replace_or_fail)
+    assert str(error.value) == (
+        f"cannot rename report.json into place in {tmp_path} (Input/output error); replaced: "
+        "model.npz, config.json; not replaced, kept as they were: report.json, manifest.json; "
+        "run the command again"
+    )
+    assert {name: load_json(tmp_path / name) for name in COMMITTED} == {
+        "model.npz": {"new": "model.npz"}, "config.json": {"new": "config.json"},
+        "report.json": {"old": "report.json"}, "manifest.json": {"old": "manifest.json"},
+    }
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(COMMITTED)  # no temporary
 
 
 def test_deeply_nested_json_is_corrupt_in_one_line(tmp_path):

@@ -373,3 +373,32 @@ def test_after_a_stage_re_runs_the_page_marks_what_is_out_of_date(run_dir, caplo
     assert main(["replay", str(run_dir)]) == 0
     page = (run_dir / "report.html").read_text()
     assert "Out of date: replay.npz" not in page and "Out of date: video.mp4" in page
+
+
+# --- a commit waits for no signal ---------------------------------------------------------------
+
+
+def test_sigterm_during_the_commit_comes_after_it_and_says_the_stage_was_saved(
+    run_dir, monkeypatch, capsys
+):
+    replace, renamed = os.replace, []
+
+    def replace_and_terminate(src, dst):
+        if Path(dst).parent == run_dir:
+            renamed.append(Path(dst).name)
+            if len(renamed) == 2:
+                os.kill(os.getpid(), signal.SIGTERM)
+        replace(src, dst)
+
+    monkeypatch.setattr(os, "replace", replace_and_terminate)
+    assert main(["-q", "learn", "--k-max", "5", str(run_dir)]) == 143
+    monkeypatch.undo()
+    line = one_error_line(capsys.readouterr().err, "learn")
+    assert line.endswith(f"terminated (SIGTERM) just after stage learn was saved in {run_dir}")
+    assert renamed[-1] == provenance.MANIFEST
+    report = json.loads((run_dir / "report.json").read_text())
+    weights = np.load(run_dir / "model.npz")["weights"]
+    assert report["learning"]["n_components"] == len(weights) <= 5
+    config, manifest = load_config(run_dir), provenance.load(run_dir)
+    assert config.k_max == 5 and provenance.stale(run_dir, table.find("optimize"), config,
+                                                  manifest) == []

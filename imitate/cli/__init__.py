@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import difflib
 import logging
+import os
 import sys
 from collections.abc import Callable, Iterable
 from contextlib import ExitStack
@@ -300,6 +301,7 @@ def main(argv: list[str] | None = None) -> int:
     from imitate.rundir.lock import locked
     from imitate.stages.config import RunConfig, load_config
 
+    manifest = _manifest_id(run_dir)  # as the last stage that finished left it
     try:
         with console.terminated_as_exception(), locked(run_dir, command, create=fresh):
             from imitate.figures import drawing  # the stages: once the directory is ours
@@ -324,15 +326,20 @@ def main(argv: list[str] | None = None) -> int:
                     if notice:
                         log.info(notice)
                     report = runner.run_stage(stage, run_dir, config, force=args.force)
+                    manifest = _manifest_id(run_dir)
     except ImitateError as err:
         return console.fail(args.command, str(err), 1)
     except OSError as err:
         return console.fail(args.command, str(err), 1)
     except KeyboardInterrupt:
-        stopped = console.stopped("interrupted (Ctrl-C)", stage, run_dir)
+        stopped = console.stopped(
+            "interrupted (Ctrl-C)", stage, run_dir, _manifest_id(run_dir) != manifest
+        )
         return console.fail(args.command, stopped, 130)
     except console.Terminated:
-        stopped = console.stopped("terminated (SIGTERM)", stage, run_dir)
+        stopped = console.stopped(
+            "terminated (SIGTERM)", stage, run_dir, _manifest_id(run_dir) != manifest
+        )
         return console.fail(args.command, stopped, 143)
     print(console.summary(report, stages, run_dir))
     return 0
@@ -376,6 +383,18 @@ def _warn_if_replaced(run_dir: Path, config: RunConfig) -> None:
             "%s holds a run made with other settings; this run replaces it with: %s",
             run_dir, ", ".join(changed),
         )
+
+
+def _manifest_id(run_dir: Path) -> tuple[int, int] | None:
+    """Device and inode of ``run_dir``'s ``manifest.json`` (a stage's commit renames a new one
+    into place, last), or None if there is none."""
+    from imitate.stages.provenance import MANIFEST
+
+    try:
+        found = os.stat(run_dir / MANIFEST)
+    except OSError:
+        return None
+    return found.st_dev, found.st_ino
 
 
 def _starts_run(command: str) -> bool:

@@ -123,9 +123,14 @@ def terminated_as_exception() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
-def stopped(how: str, stage: str | None, run_dir: Path) -> str:
+def stopped(how: str, stage: str | None, run_dir: Path, saved: bool = False) -> str:
+    """What a command stopped by ``how`` in ``stage`` left in ``run_dir``: nothing of the
+    stage, or all of it if ``saved`` (the signal came during or after its commit, which it
+    waited for)."""
     if stage is None:
         return f"{how} before any stage ran"
+    if saved:
+        return f"{how} just after stage {stage} was saved in {run_dir}"
     return f"{how} in stage {stage}, which changed nothing in {run_dir}"
 
 

@@ -3,7 +3,8 @@
 Every file is first written to a hidden temporary name unique to the writer
 (``.NAME.PID-RANDOM.partial.SUFFIX``) and then renamed, so an interrupted write never leaves a
 half-written artifact behind. Inside :func:`staged` the renames wait until the whole stage has
-succeeded: a stage that fails, or is interrupted, leaves the run directory as it was.
+succeeded: a stage that fails, or is interrupted, leaves the run directory as it was (Ctrl-C and
+SIGTERM wait for the renames to end; a rename that fails midway names what it replaced).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from imitate.errors import ImitateError
+from imitate.rundir import signals
 from imitate.rundir.table import REPORT, producer
 
 __all__ = [
@@ -71,11 +73,13 @@ class Staging:
     def commit(self) -> None:
         """Rename every staged file into place, in the order written (``last`` last), each
         flushed to disk first and its folder after; every destination is checked before the
-        first rename.
+        first rename, and Ctrl-C and SIGTERM wait until the last (see
+        :func:`imitate.rundir.signals.held`).
 
         Raises:
             ImitateError: a destination that cannot be written (its folder a file or a link,
-                itself a folder or a link); nothing was renamed.
+                itself a folder or a link), and nothing was renamed; or a rename failed, and the
+                message names the files replaced and those not.
         """
         order = sorted(self._pending, key=lambda path: path == self.last)
         for path in order:
@@ -85,13 +89,25 @@ class Staging:
                 raise ImitateError(f"{where} is in the way of {path.name}: remove it")
         for path in order:
             _flush(self._pending[path])
-        folders = set()
-        for path in order:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            os.replace(self._pending.pop(path), path)
-            folders.add(path.parent)
-        for folder in folders:
-            _flush(folder)
+        with signals.held():
+            for i, path in enumerate(order):
+                try:
+                    path.parent.mkdir(parents=True, exist_ok=True)
+                    os.replace(self._pending[path], path)
+                except OSError as err:
+                    raise ImitateError(self._cut_short(order, i, err)) from err
+                del self._pending[path]
+            for folder in dict.fromkeys(path.parent for path in order):
+                _flush(folder)
+
+    def _cut_short(self, order: list[Path], failed: int, err: OSError) -> str:
+        """The error of a commit whose rename of ``order[failed]`` raised ``err``."""
+        names = [path.relative_to(self.root).as_posix() for path in order]
+        return (
+            f"cannot rename {names[failed]} into place in {self.root} ({err.strerror or err}); "
+            f"replaced: {', '.join(names[:failed]) or 'none'}; not replaced, kept as they were: "
+            f"{', '.join(names[failed:])}; run the command again"
+        )
 
     def _refuse_links(self, path: Path) -> None:
         """Raise ``ImitateError`` if ``path`` or a folder between it and the root is a symbolic

@@ -6,8 +6,10 @@ Without ``--base`` it first makes one (``imitate run --quick``). Every case work
 copy of it and prints one row: the exit status, what changed in the directory (against the copy
 as it was just before the command), the temporary files and the lock left in it, the ffmpeg
 children still running when the command had exited, and a verdict against what the README
-promises (a stage that does not finish changes nothing; one line on stderr). The error lines
-follow the table. Takes about two minutes on two cores.
+promises (a stage that does not finish changes nothing; one line on stderr). One case is
+instrumented: a wrapper around ``imitate.cli.main`` sends SIGTERM just before each rename of a
+stage's commit in turn, which must wait for the whole commit. The error lines follow the table.
+Takes about three minutes on two cores.
 """
 
 from __future__ import annotations
@@ -27,6 +29,21 @@ from pathlib import Path
 
 IMITATE = (sys.executable, "-m", "imitate")
 TEMPORARY = ".*.partial*"
+# imitate -q ARGS RUN_DIR, sending itself SIGTERM just before the Nth rename into RUN_DIR
+SIGTERM_AT_RENAME = """
+import os, signal, sys
+from imitate.cli import main
+n, run_dir, renames = int(sys.argv[1]), os.path.abspath(sys.argv[2]), []
+replace = os.replace
+def replace_and_terminate(src, dst):
+    if os.path.dirname(os.path.abspath(dst)) == run_dir:
+        renames.append(dst)
+        if len(renames) == n:
+            os.kill(os.getpid(), signal.SIGTERM)
+    replace(src, dst)
+os.replace = replace_and_terminate
+sys.exit(main(["-q", *sys.argv[3:], run_dir]))
+"""
 
 
 @dataclass
@@ -164,6 +181,44 @@ def killed(case: str, base: Path, work: Path, args: list[str], wait: str, sig: i
     return finish(case, process, run_dir, before, seen)
 
 
+def commit_interrupted(base: Path, work: Path, args: list[str], renames: int) -> Outcome:
+    """``imitate ARGS`` on a copy of ``base`` for each of its ``renames`` renames into the run
+    directory, sent SIGTERM just before that rename; each against ``imitate ARGS`` run
+    untouched. One row: the status of each, what the last changed, and whether every one left
+    what the untouched command did (the report and its page aside: they hold timings)."""
+    reference = copy(base, work, "commit-reference")
+    before = snapshot(reference)
+    made = run(*args, str(reference))
+    expected = snapshot(reference)
+    written = changes(before, expected)
+    statuses, equal, saved, last = [], True, True, None
+    for n in range(1, renames + 1):
+        run_dir = copy(base, work, "commit-sigterm")
+        before = snapshot(run_dir)
+        process = subprocess.Popen(
+            [sys.executable, "-c", SIGTERM_AT_RENAME, str(n), str(run_dir), *args],
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        )
+        last = finish("commit-sigterm", process, run_dir, before, [])
+        after = snapshot(run_dir)
+        statuses.append(last.status)
+        equal &= last.changed == written and all(
+            after[name] == expected[name] for name in written
+            if name not in ("report.json", "report.html")
+        )
+        saved &= len(last.errors) == 1 and "just after stage" in last.errors[0]
+    last.case = f"commit-sigterm (SIGTERM before each of `{' '.join(args)}`'s {renames} renames)"
+    last.status = "/".join(map(str, statuses))
+    last.checks = {
+        "untouched run exit 0": made.returncode == 0,
+        f"exit 143 x{renames}": statuses == [143] * renames,
+        "one line: the stage was saved": saved,
+        "files as the untouched run's": equal,
+        "no lock held": last.lock != "HELD", "no temporary files": not last.temporary,
+    }
+    return last
+
+
 def copy(base: Path, work: Path, case: str) -> Path:
     run_dir = work / case.split()[0]
     shutil.rmtree(run_dir, ignore_errors=True)
@@ -218,6 +273,8 @@ def cases(base: Path, work: Path) -> list[Outcome]:
     o.checks = {**one_line(o, 143), "no temporary files": not o.temporary,
                 "no ffmpeg": o.ffmpeg == 0}
     outcomes.append(o)
+
+    outcomes.append(commit_interrupted(base, work, ["learn", "--k-max", "5"], renames=5))
 
     run_dir = copy(base, work, "concurrent")
     before = snapshot(run_dir)
