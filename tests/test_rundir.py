@@ -375,7 +375,7 @@ def test_after_a_stage_re_runs_the_page_marks_what_is_out_of_date(run_dir, caplo
     assert "Out of date: replay.npz" not in page and "Out of date: video.mp4" in page
 
 
-# --- a commit waits for no signal ---------------------------------------------------------------
+# --- a commit waits for no signal; a folder of something else is not taken for a run ------------
 
 
 def test_sigterm_during_the_commit_comes_after_it_and_says_the_stage_was_saved(
@@ -402,3 +402,69 @@ def test_sigterm_during_the_commit_comes_after_it_and_says_the_stage_was_saved(
     config, manifest = load_config(run_dir), provenance.load(run_dir)
     assert config.k_max == 5 and provenance.stale(run_dir, table.find("optimize"), config,
                                                   manifest) == []
+
+
+def pretend_stages(monkeypatch) -> list[str]:
+    """The stages a command would run, recorded instead of run."""
+    from imitate.stages import runner
+
+    ran = []
+
+    def run_stage(stage, run_dir, config, force=False):
+        ran.append(stage)
+        return {"timings": dict.fromkeys(table.NAMES, 0.0)}
+
+    monkeypatch.setattr(runner, "run_stage", run_stage)
+    return ran
+
+
+@pytest.mark.parametrize("command", ["observe", "run"])
+def test_a_folder_of_another_tool_is_refused_unless_into_existing(
+    tmp_path, command, monkeypatch, capsys
+):
+    ran = pretend_stages(monkeypatch)
+    folder = tmp_path / "theirs"
+    folder.mkdir()
+    (folder / "config.json").write_text('{"lr": 0.1}\n')
+    for name in ("a.txt", "b.txt", "notes"):
+        (folder / name).write_text(name)
+    before = snapshot(folder)
+    assert main([command, "--quick", str(folder)]) == 1
+    line = one_error_line(capsys.readouterr().err, command)
+    assert line == (
+        f"imitate {command}: error: {folder} holds a.txt, b.txt, config.json and 1 more and is "
+        "not a run directory (no manifest.json); give another folder, or add --into-existing "
+        "to start a run in it anyway (its files of the names a run writes, such as config.json, "
+        "are replaced)"
+    )
+    assert snapshot(folder) == before and ran == []  # no lock either: nothing written
+    assert main([command, "--quick", "--into-existing", str(folder)]) == 0
+    assert ran == list(table.NAMES if command == "run" else ["observe"])
+
+
+KILLED = json.dumps({"pid": 2**22 + 1, "host": "h", "command": "imitate run x", "since": "then"})
+
+
+@pytest.mark.parametrize(("holds", "taken"), [
+    (None, True),
+    ({}, True),
+    ({"manifest.json": "{}", "config.json": "{}"}, True),
+    ({LOCK: KILLED, "config.json": "{}", ".demos.npz.12-ab.partial.npz": "half"}, True),
+    ({LOCK: "held by their editor"}, False),
+], ids=["missing", "empty", "run", "killed-run", "their-lock"])
+def test_what_observe_takes_for_a_run_directory(tmp_path, holds, taken, monkeypatch, capsys):
+    """Taken: a missing or empty folder, a run directory, a folder holding the ``.lock`` of an
+    ``imitate`` command (a run killed before its first stage finished). Refused: another's."""
+    ran = pretend_stages(monkeypatch)
+    folder = tmp_path / "run"
+    if holds is not None:
+        folder.mkdir()
+        for name, text in holds.items():
+            (folder / name).write_text(text)
+        before = snapshot(folder)
+    assert main(["observe", "--quick", str(folder)]) == (0 if taken else 1)
+    if taken:
+        assert ran == ["observe"]
+    else:
+        assert "is not a run directory" in one_error_line(capsys.readouterr().err, "observe")
+        assert snapshot(folder) == before and ran == []

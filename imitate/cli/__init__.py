@@ -9,9 +9,10 @@ Each stage reads the previous stage's artifacts in the run directory (see
 :mod:`imitate.rundir.table`); settings given on the command line replace those in its
 ``config.json``, the rest are kept. One command at a time holds a run directory (see
 :mod:`imitate.rundir`); a stage refuses inputs that are stale or from another run unless
-``--force`` (see :mod:`imitate.stages.provenance`). Errors are one line on stderr: exit status 1, 2
-for a bad flag, 130 for Ctrl-C and 143 for SIGTERM; a stage that does not finish changes
-nothing.
+``--force`` (see :mod:`imitate.stages.provenance`); ``run`` and ``observe`` start a run only in a
+new or empty folder or a run directory (``--into-existing``: in another folder). Errors are one
+line on stderr: exit status 1, 2 for a bad flag, 130 for Ctrl-C and 143 for SIGTERM; a stage that
+does not finish changes nothing.
 
 Progress goes to stderr (``-q`` leaves warnings and errors, ``-v`` adds debug lines; see
 :mod:`imitate.cli.console`). The command line is built for the sub-command given only, so that
@@ -102,6 +103,11 @@ def _add_run(sub: argparse.ArgumentParser, command: str) -> None:
     sub.add_argument("--force", action="store_true",
                      help="use input artifacts that are stale or from another run (see "
                      "manifest.json) instead of refusing them")
+    if _starts_run(command):
+        sub.add_argument("--into-existing", action="store_true",
+                         help="start the run in a non-empty folder that is not a run directory "
+                         "(no manifest.json) instead of refusing it; files of the names a run "
+                         "writes are replaced")
     for stage in _stages(command):
         _add_settings(sub.add_argument_group(f"{stage} settings"), settings([stage]))
 
@@ -303,6 +309,8 @@ def main(argv: list[str] | None = None) -> int:
 
     manifest = _manifest_id(run_dir)  # as the last stage that finished left it
     try:
+        if fresh and not args.into_existing:
+            _refuse_foreign(run_dir)
         with console.terminated_as_exception(), locked(run_dir, command, create=fresh):
             from imitate.figures import drawing  # the stages: once the directory is ours
             from imitate.stages import runner
@@ -383,6 +391,26 @@ def _warn_if_replaced(run_dir: Path, config: RunConfig) -> None:
             "%s holds a run made with other settings; this run replaces it with: %s",
             run_dir, ", ".join(changed),
         )
+
+
+def _refuse_foreign(run_dir: Path) -> None:
+    """Raise ``ImitateError`` if ``run_dir`` is a folder holding files but no run: neither
+    ``manifest.json`` nor the lock of an ``imitate`` command killed before its first stage
+    finished."""
+    from imitate.rundir.lock import left_by_imitate
+    from imitate.stages.provenance import MANIFEST
+
+    if not run_dir.is_dir() or (run_dir / MANIFEST).exists() or left_by_imitate(run_dir):
+        return
+    names = sorted(entry.name for entry in run_dir.iterdir())
+    if not names:
+        return
+    more = f" and {len(names) - 3} more" if len(names) > 3 else ""
+    raise ImitateError(
+        f"{run_dir} holds {', '.join(names[:3])}{more} and is not a run directory (no "
+        f"{MANIFEST}); give another folder, or add --into-existing to start a run in it anyway "
+        f"(its files of the names a run writes, such as config.json, are replaced)"
+    )
 
 
 def _manifest_id(run_dir: Path) -> tuple[int, int] | None:

@@ -22,7 +22,7 @@ from pathlib import Path
 from imitate.errors import ImitateError
 from imitate.rundir.artifacts import remove_temporary
 
-__all__ = ["LOCK", "locked"]
+__all__ = ["LOCK", "left_by_imitate", "locked"]
 
 LOCK = ".lock"
 
@@ -49,6 +49,20 @@ def locked(run_dir: Path, command: str, create: bool = False) -> Iterator[Path]:
     finally:
         if made and not any(run_dir.iterdir()):
             run_dir.rmdir()
+
+
+def left_by_imitate(run_dir: Path) -> bool:
+    """Whether ``run_dir`` holds a lock file with the record of an ``imitate`` command: one
+    that a killed command left behind, or that a running one holds."""
+    path = Path(run_dir) / LOCK
+    if path.is_symlink() or not path.is_file():
+        return False
+    try:
+        with open(path, "rb") as file:
+            record = json.loads(file.read(4096))
+    except (OSError, ValueError):
+        return False
+    return isinstance(record, dict) and str(record.get("command", "")).startswith("imitate ")
 
 
 def _directory(run_dir: Path, create: bool) -> bool:

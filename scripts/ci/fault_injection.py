@@ -314,6 +314,18 @@ def cases(base: Path, work: Path) -> list[Outcome]:
     o.checks = one_line(o, 1)
     outcomes.append(o)
 
+    folder = work / "foreign"
+    shutil.rmtree(folder, ignore_errors=True)
+    folder.mkdir()
+    (folder / "config.json").write_text('{"lr": 0.1}\n')
+    before = snapshot(folder)
+    o = finish("foreign (observe --quick into a folder holding another tool's config.json)",
+               start("observe", "--quick", str(folder)), folder, before, [])
+    o.checks = {**one_line(o, 1), "no lock written": o.lock == "none",
+                "names the folder and --into-existing": f"{folder} holds config.json"
+                in "".join(o.errors) and "--into-existing" in "".join(o.errors)}
+    outcomes.append(o)
+
     run_dir = copy(base, work, "corrupt-report")
     (run_dir / "report.json").write_text("garbage{")
     before = snapshot(run_dir)
