@@ -119,6 +119,17 @@ def test_corrupt_artifact_names_file_and_stage(quick_run, tmp_path, capsys):
     assert "plan.npz is corrupt" in err and "imitate optimize" in err
 
 
+def test_recorded_states_that_do_not_fit_the_scene_are_one_line(quick_run, tmp_path, capsys):
+    run_dir = tmp_path / "cut"
+    shutil.copytree(quick_run, run_dir)
+    arrays = dict(np.load(run_dir / "replay.npz"))
+    np.savez(run_dir / "replay.npz", **{**arrays, "qpos": arrays["qpos"][:, :5]})
+    assert main(["figures", str(run_dir), "--force"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.startswith("imitate figures: error:") and "holds qpos of shape" in err
+    assert "re-run imitate replay" in err
+
+
 @pytest.mark.parametrize(
     ("argv", "expected"),
     [

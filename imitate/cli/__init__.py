@@ -455,13 +455,11 @@ def _eval(args: argparse.Namespace) -> int:
                     seed=args.seed, n_teachers=args.teachers, workers=args.workers,
                     ray=args.ray,
                 )
-                text = compare.markdown(result) + f"\nresults: {folder / name}"
+                text = compare.markdown(result) + f"\nresults: {folder}"
             else:
-                if args.weighting is not None:
-                    suite = suite.replace(similarity=args.weighting)
                 summary = evaluation.evaluate(
                     args.run_dir, suite, n=args.n, seed=args.seed, n_teachers=args.teachers,
-                    workers=args.workers, ray=args.ray, videos=args.videos, out=args.out,
+                    workers=args.workers, ray=args.ray, videos=args.videos, out=folder,
                 )
                 text = evaluation.text(summary, folder)
     except ImitateError as err:

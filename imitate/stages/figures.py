@@ -10,8 +10,10 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from imitate.envs.assembly import build_model
 from imitate.envs.teacher_motion import script_demonstrations
 from imitate.envs.video import captioned, penetrations, replay_frames, teacher_frames, write_video
+from imitate.errors import ImitateError
 from imitate.figures import drawing, plots
 from imitate.learning import LearnedModel
 from imitate.models import objects
@@ -51,6 +53,7 @@ def run(run_dir: Path, config: RunConfig) -> dict:
     states = load_npz(run_dir / "replay.npz", required=(
         *STATE_NAMES, *(f"sweep0_{name}" for name in STATE_NAMES), "state_dt", "plan_start",
     ))
+    _check_states(states, config, run_dir / "replay.npz")
     weights = plan["sweep_weights"]
     sweep = dict(zip(weights, plan["sweep_x"], strict=True))
     clearance = dict(zip(weights, plan["sweep_clearance"], strict=True))
@@ -86,6 +89,20 @@ def run(run_dir: Path, config: RunConfig) -> dict:
             for future in pngs.values():
                 future.cancel()
     return {"video": {"frames": n_frames, "seconds": n_frames / config.video_fps}}
+
+
+def _check_states(states: dict[str, np.ndarray], config: RunConfig, path: Path) -> None:
+    """Raise ``ImitateError`` unless the recorded states fit the run's scene (``(n, nq)``
+    joint positions, ``(n, nmocap, 3)`` and ``(n, nmocap, 4)`` mocap poses)."""
+    model = build_model(config.scene())
+    shapes = {"qpos": (model.nq,), "mocap_pos": (model.nmocap, 3), "mocap_quat": (model.nmocap, 4)}
+    for name in (*STATE_NAMES, *(f"sweep0_{name}" for name in STATE_NAMES)):
+        found, wanted = states[name].shape, shapes[name.removeprefix("sweep0_")]
+        if found[1:] != wanted:
+            raise ImitateError(
+                f"{path} holds {name} of shape {found}, not (n, {', '.join(map(str, wanted))}) "
+                f"as the run's scene needs; re-run imitate replay"
+            )
 
 
 def _snapshots(config: RunConfig, states: dict[str, np.ndarray], plan: dict, n: int = 5):
