@@ -149,7 +149,7 @@ def test_the_check_sees_an_upward_import_and_a_cycle():
     }
     assert upward(graph) == [
         "imitate.learning.gmm (layer 3) imports imitate.motion.plan (layer 4)",
-        "imitate.stages.config (layer 6) imports imitate.cli (layer 9)",
+        "imitate.stages.config (layer 6) imports imitate.cli (layer 10)",
     ]
     cycle = ["imitate.learning.gmm", "imitate.motion.plan", "imitate.learning.gmm"]
     assert cycles(graph) == [cycle]
