@@ -4,6 +4,7 @@ import errno
 import os
 import signal
 import threading
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -223,3 +224,17 @@ def test_deeply_nested_json_is_corrupt_in_one_line(tmp_path):
     path.write_text("[" * 200_000)
     with pytest.raises(ImitateError, match=r"report\.json is corrupt"):
         load_json(path)
+
+
+def test_a_file_this_user_may_not_read_is_not_called_corrupt(tmp_path, monkeypatch):
+    save_npz(tmp_path / "model.npz", {"x": np.zeros(2)})
+    save_json(tmp_path / "report.json", {})
+
+    def denied(*args, **kwargs):  # as open() of a file of mode 600 that another user owns
+        raise PermissionError(errno.EACCES, os.strerror(errno.EACCES))
+
+    monkeypatch.setattr(np, "load", denied)
+    monkeypatch.setattr(Path, "read_text", denied)
+    for path, load in ((tmp_path / "model.npz", load_npz), (tmp_path / "report.json", load_json)):
+        with pytest.raises(ImitateError, match=r"cannot be read by this user .*chmod u\+r"):
+            load(path)

@@ -226,6 +226,8 @@ def load_npz(path: Path, required: tuple[str, ...] = ()) -> Arrays:
             arrays = Arrays(path, {name: npz[name] for name in npz.files})
     except FileNotFoundError:
         raise ImitateError(f"{path} is missing; {_rerun_hint(path)}") from None
+    except PermissionError as err:
+        raise _unreadable(path, err) from err
     except (OSError, ValueError, zipfile.BadZipFile, EOFError, MemoryError) as err:
         raise ImitateError(f"{path} is corrupt ({err}); {_rerun_hint(path)}") from err
     missing = [name for name in required if name not in arrays]
@@ -247,8 +249,18 @@ def load_json(path: Path) -> Any:
         return json.loads(path.read_text())
     except FileNotFoundError:
         raise ImitateError(f"{path} is missing; {_rerun_hint(path)}") from None
+    except PermissionError as err:
+        raise _unreadable(path, err) from err
     except (OSError, ValueError, RecursionError) as err:  # ValueError: bad UTF-8 too
         raise ImitateError(f"{path} is corrupt ({err}); {_rerun_hint(path)}") from err
+
+
+def _unreadable(path: Path, err: PermissionError) -> ImitateError:
+    """A file this user may not read: not corrupt, nothing to re-run."""
+    return ImitateError(
+        f"{path} cannot be read by this user ({err.strerror}); give it read permission "
+        f"(e.g. chmod u+r {path}) or run as its owner"
+    )
 
 
 def _flush(path: Path) -> None:
