@@ -308,7 +308,7 @@ def test_ctrl_c_stops_eval_and_its_workers_in_one_line(tmp_path, model_arrays, i
     command = [sys.executable, "-m", "imitate", "eval", str(run_dir), "--suite",
                str(tmp_path / "suite.json"), "--workers", "2", "--videos", "0"]
     process = in_a_terminal(command, stderr=subprocess.PIPE, text=True)
-    results = _out(run_dir) / RESULTS
+    results = default_out(run_dir, "suite", Suite.from_dict({**TINY, "variations": 40})) / RESULTS
     deadline = time.monotonic() + 300
     while not (results.exists() and results.stat().st_size) and time.monotonic() < deadline:
         time.sleep(0.5)

@@ -366,6 +366,12 @@ def test_from_eval_refuses_minari_and_an_evaluation_of_other_code(
         export(run_dir, "minari", tmp_path / "m", from_eval=eval_dir)
     with pytest.raises(imitate.ImitateError, match="summary.json is missing"):
         export(run_dir, "hdf5", tmp_path / "h", from_eval=run_dir / "eval")
+    crafted = tmp_path / "crafted"
+    shutil.copytree(eval_dir, crafted)
+    (crafted / "summary.json").write_text(json.dumps({"teachers": []}))
+    with pytest.raises(imitate.ImitateError, match="is not an evaluation's summary"):
+        export(run_dir, "hdf5", tmp_path / "h", from_eval=crafted)
+    shutil.rmtree(crafted)
     monkeypatch.setattr(provenance, "code_digest", lambda: "other code")
     with pytest.raises(imitate.ImitateError, match="evaluated with another model .* or other code"):
         export(run_dir, "hdf5", tmp_path / "h", from_eval=eval_dir)

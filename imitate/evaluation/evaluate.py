@@ -244,7 +244,7 @@ def last_records(out: Path) -> list[dict]:
     teacher and id.
 
     Raises:
-        ImitateError: ``out`` holds no evaluation.
+        ImitateError: ``out`` holds no evaluation, or a ``summary.json`` of another form.
     """
     out = Path(out)
     if not (out / "summary.json").is_file():
@@ -253,7 +253,13 @@ def last_records(out: Path) -> list[dict]:
             "(RUN_DIR/eval/<suite>-w<weight>-<similarity>, or its --out)"
         )
     summary = load_json(out / "summary.json")
-    digests = [t["digest"] for t in summary.get("teachers", ())] or [summary["suite_digest"]]
+    try:
+        digests = [t["digest"] for t in summary.get("teachers", ())] or [summary["suite_digest"]]
+    except (KeyError, TypeError, AttributeError) as err:
+        raise ImitateError(
+            f"{out / 'summary.json'} is not an evaluation's summary ({type(err).__name__}: "
+            f"{err}); run the evaluation again"
+        ) from err
     order = {d: i for i, d in enumerate(digests)}
     return sorted(read_records(out / RESULTS, digests), key=lambda r: (order[r["digest"]], r["id"]))
 

@@ -151,7 +151,6 @@ def recorded(
     seed: int,
     options: dict,
     gaze: np.ndarray,
-    metadata: dict | None = None,
 ) -> Episode:
     """``plan`` replayed in ``env`` (made with ``kwargs``, closed here) from ``seed`` and the
     reset ``options``, recorded as an :class:`Episode`; its last step truncated (see
@@ -188,7 +187,6 @@ def recorded(
         observations=observations, actions=np.array(recorder.actions), rewards=rewards,
         terminations=terminated, truncations=truncated, infos=_stacked(recorder.infos),
         names=names, dt=recorder.dt, env=spec, seed=recorder.seed, options=recorder.options,
-        metadata=metadata,
     )
 
 

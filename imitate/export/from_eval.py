@@ -57,15 +57,21 @@ def evaluated(run: Run, eval_dir: Path) -> Evaluated:
     eval_dir = Path(eval_dir)
     records = last_records(eval_dir)
     summary = load_json(eval_dir / "summary.json")
-    suite, code = Suite.from_dict(summary["suite"], source=str(eval_dir)), provenance.code_digest()
-    models = {}
-    for teacher in summary["teachers"]:
-        seed = teacher["seed"]
+    try:
+        suite = Suite.from_dict(summary["suite"], source=str(eval_dir / "summary.json"))
+        draw_seed, digests = summary["seed"], {t["seed"]: t["digest"] for t in summary["teachers"]}
+    except (KeyError, TypeError) as err:
+        raise ImitateError(
+            f"{eval_dir / 'summary.json'} is not an evaluation's summary ({type(err).__name__}: "
+            f"{err}); run the evaluation again"
+        ) from err
+    models, code = {}, provenance.code_digest()
+    for seed, digest in digests.items():
         path = run.path / "model.npz" if seed == run.config.seed else (
             run.path / "eval" / "teachers" / f"seed-{seed}" / "model.npz"
         )
         arrays = load_npz(path, required=(*LearnedModel.array_names(), "gaze"))
-        if suite.digest(summary["seed"], path.read_bytes(), code) != teacher["digest"]:
+        if suite.digest(draw_seed, path.read_bytes(), code) != digest:
             raise ImitateError(
                 f"{eval_dir} was evaluated with another model of teacher {seed} ({path}) or "
                 f"other code; run the evaluation again (imitate eval {run.path} ...) to export it"
@@ -102,23 +108,21 @@ def evaluated_episodes(
                 f"evaluated (clearance {plan.min_distance} m, {plan.n_iter} iterations against "
                 f"{evaluated_plan['min_distance_m']} m, {evaluated_plan['iterations']})"
             )
-        scene = variation.scene()
+        scene, pixels = variation.scene(), image_kwargs(run, images)
         kwargs: dict[str, Any] = {
             "particles": scene.particles,
             "obstacles": [dataclasses.asdict(o) for o in scene.obstacles],
-            **image_kwargs(run, images),
+            **pixels,
         }
         options = {"bottle_grasp": variation.bottle_grasp, "glass_grasp": variation.glass_grasp}
-        metadata = {
+        episode = recorded(
+            plan, physics(variation, **pixels), kwargs, variation.replay_seeds[0], options, gaze
+        )
+        yield dataclasses.replace(episode, metadata={
             "teacher": teacher, "variation": variation.id, "settings": record["settings"],
             "outcome": record["outcome"], "pour_min": record["pour_min"],
-        }
-        episode = recorded(
-            plan, physics(variation, **image_kwargs(run, images)), kwargs,
-            variation.replay_seeds[0], options, gaze, metadata,
-        )
-        pour = float(episode.infos["pour_fraction"][-1])
-        yield dataclasses.replace(episode, metadata={**metadata, "pour_fraction": pour})
+            "pour_fraction": float(episode.infos["pour_fraction"][-1]),
+        })
 
 
 def replayed(metadata: dict, actions: np.ndarray) -> dict:
