@@ -1,15 +1,20 @@
 """Kill, interrupt and race ``imitate`` on copies of one quick run; print what each leaves behind.
 
     MUJOCO_GL=egl python scripts/ci/fault_injection.py [--base runs/quick] [--work /tmp/faults]
+        [--only NAME,NAME | --fast]
 
-Without ``--base`` it first makes one (``imitate run --quick``). Every case works on a fresh
-copy of it and prints one row: the exit status, what changed in the directory (against the copy
-as it was just before the command), the temporary files and the lock left in it, the ffmpeg
-children still running when the command had exited, and a verdict against what the README
-promises (a stage that does not finish changes nothing; one line on stderr). One case is
+Without ``--base`` it first makes one (``imitate run --quick``). Every case (:data:`CASES`, in
+order; ``--only`` picks some by name, ``--fast`` those of :data:`FAST`, a few seconds each, which
+``tests/test_fault_injection.py`` runs) works on a fresh copy of it and prints one row: the exit
+status, what changed in the directory (against the copy as it was just before the command), the
+temporary files and the lock left in it, the ffmpeg children still running when the command had
+exited, and a verdict against what the README promises (a stage that does not finish changes
+nothing; one line on stderr; nothing outside the run directory is written or deleted; one command
+at a time in a run directory, ``eval`` included). A kill checks that it landed mid-stage: the
+command had printed its ``== stage`` line (or begun its video) and was still running. One case is
 instrumented: a wrapper around ``imitate.cli.main`` sends SIGTERM just before each rename of a
 stage's commit in turn, which must wait for the whole commit. The error lines follow the table.
-Takes about three minutes on two cores.
+Takes about four minutes on two cores (``--fast``: about twenty seconds).
 """
 
 from __future__ import annotations
@@ -17,18 +22,25 @@ from __future__ import annotations
 import argparse
 import fcntl
 import hashlib
+import json
 import os
+import re
 import shutil
 import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 IMITATE = (sys.executable, "-m", "imitate")
 TEMPORARY = ".*.partial*"
+VIDEO = ".video.mp4.*.partial.mp4"  # the video while ffmpeg encodes it
+# the eval suite of the eval cases: one variation of a 3-iteration plan, one replay, few particles
+TINY_SUITE = "variations = 1\nmax_iter = 3\nreplays = 1\nparticles = [4, 6]\n"
 # imitate -q ARGS RUN_DIR, sending itself SIGTERM just before the Nth rename into RUN_DIR
 SIGTERM_AT_RENAME = """
 import os, signal, sys
@@ -51,7 +63,7 @@ class Outcome:
     """What one case did: the command's exit status and stderr, and its directory afterwards."""
 
     case: str
-    status: int | None
+    status: int | str | None
     errors: list[str]
     changed: list[str]
     temporary: list[str]
@@ -65,13 +77,45 @@ class Outcome:
         return "OK" if not failed else "FAIL: " + ", ".join(failed)
 
 
+Case = Callable[[Path, Path], list[Outcome]]
+CASES: dict[str, Case] = {}  # by name, in the order they run
+FAST: set[str] = set()  # the names of those that take a few seconds each
+
+
+def case(name: str, fast: bool = False) -> Callable[[Case], Case]:
+    """Registers a case ``f(base, work) -> [Outcome, ...]`` in :data:`CASES` (and :data:`FAST`)."""
+
+    def register(function: Case) -> Case:
+        CASES[name] = function
+        if fast:
+            FAST.add(name)
+        return function
+
+    return register
+
+
+# ---------------------------------------------------------------------------------------------
+# What a directory holds, and the commands
+
+
 def snapshot(run_dir: Path) -> dict[str, str]:
     """sha256 of every file under ``run_dir`` by relative path (temporary files and the lock
-    aside)."""
+    aside; symbolic links to folders are not followed)."""
     return {
         p.relative_to(run_dir).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
         for p in sorted(run_dir.rglob("*"))
         if p.is_file() and not p.match(TEMPORARY) and p.name != ".lock"
+    }
+
+
+def listing(folder: Path) -> dict[str, str]:
+    """sha256 of every file under ``folder``, temporary and hidden ones included (a folder
+    outside the run directory, which no command may touch)."""
+    if not folder.exists():
+        return {}
+    return {
+        p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*")) if p.is_file()
     }
 
 
@@ -84,7 +128,8 @@ def changes(before: dict[str, str], after: dict[str, str]) -> list[str]:
 
 
 def lock_state(run_dir: Path) -> str:
-    """``"none"``, ``"stale"`` (a file nobody holds) or ``"HELD"``."""
+    """``"none"``, ``"stale"`` (a file nobody holds) or ``"HELD"``. Takes the lock for a moment:
+    only for a directory where no command is starting."""
     path = run_dir / ".lock"
     if not path.exists():
         return "none"
@@ -94,6 +139,28 @@ def lock_state(run_dir: Path) -> str:
         except BlockingIOError:
             return "HELD"
     return "stale"
+
+
+def holds_lock(run_dir: Path, process: subprocess.Popen) -> bool:
+    """Whether ``process`` holds the lock of ``run_dir`` (its pid in the lock's record). Reads
+    the record without taking the lock, which would make ``process`` fail to take it."""
+    try:
+        holder = json.loads((run_dir / ".lock").read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(holder, dict) and holder.get("pid") == process.pid
+
+
+def wait_for_eval(run_dir: Path, process: subprocess.Popen, timeout: float = 120.0) -> bool:
+    """Wait until the ``imitate eval`` ``process`` holds the lock of ``run_dir``, or has made
+    ``run_dir/eval`` (an eval that takes no lock), for at most ``timeout`` [s] and while it
+    runs; whether it holds the lock then."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and process.poll() is None:
+        if holds_lock(run_dir, process) or (run_dir / "eval").exists():
+            break
+        time.sleep(0.02)
+    return holds_lock(run_dir, process)
 
 
 def ffmpeg_children(run_dir: Path) -> int:
@@ -110,11 +177,24 @@ def ffmpeg_children(run_dir: Path) -> int:
 
 
 def start(*args: str) -> subprocess.Popen:
-    """``imitate ARGS`` in its own process group (a terminal's Ctrl-C goes to the group)."""
-    return subprocess.Popen(
-        [*IMITATE, *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-        start_new_session=True,
-    )
+    """``imitate ARGS`` in its own process group (a terminal's Ctrl-C goes to the group), acting
+    on SIGINT as in a terminal even where this script runs with it ignored (a non-interactive
+    shell ignores it in what it starts in the background, and an ignored signal stays ignored
+    across exec; a caught one does not)."""
+    main = threading.current_thread() is threading.main_thread()  # (only it sets handlers)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler) if main else None
+    try:
+        return subprocess.Popen(
+            [*IMITATE, *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+            start_new_session=True,
+        )
+    finally:
+        if main:
+            signal.signal(signal.SIGINT, previous)
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([*IMITATE, *args], check=False, capture_output=True, text=True)
 
 
 def wait_for_line(process: subprocess.Popen, text: str) -> list[str]:
@@ -127,10 +207,12 @@ def wait_for_line(process: subprocess.Popen, text: str) -> list[str]:
     return lines
 
 
-def wait_for_file(run_dir: Path, pattern: str, timeout: float = 120.0) -> bool:
-    """Whether a file matching ``pattern`` appeared in ``run_dir`` within ``timeout`` [s]."""
+def wait_for_file(run_dir: Path, pattern: str, process: subprocess.Popen,
+                  timeout: float = 120.0) -> bool:
+    """Whether a file matching ``pattern`` appeared in ``run_dir`` within ``timeout`` [s],
+    before ``process`` ended."""
     end = time.monotonic() + timeout
-    while time.monotonic() < end:
+    while time.monotonic() < end and process.poll() is None:
         if any(run_dir.glob(pattern)):
             return True
         time.sleep(0.02)
@@ -143,7 +225,7 @@ def finish(case: str, process: subprocess.Popen, run_dir: Path, before: dict[str
     rest = process.stderr.read().splitlines()
     status = process.wait()
     lines = [line for line in [*seen, *rest] if line.strip() and not line.startswith("== ")]
-    folders = [run_dir, *(p for p in run_dir.iterdir() if p.is_dir())]
+    folders = [run_dir, *(p for p in run_dir.iterdir() if p.is_dir() and not p.is_symlink())]
     return Outcome(
         case, status, lines, changes(before, snapshot(run_dir)),
         [p.name for folder in folders for p in folder.glob(TEMPORARY)],
@@ -151,10 +233,15 @@ def finish(case: str, process: subprocess.Popen, run_dir: Path, before: dict[str
     )
 
 
+def errors_of(outcome: Outcome) -> list[str]:
+    """The error lines of ``outcome``, its warnings aside."""
+    return [line for line in outcome.errors if not line.startswith("warning: ")]
+
+
 def one_line(outcome: Outcome, status: int) -> dict[str, bool]:
     """The checks of a command that must fail with ``status`` and one line (warnings aside),
     changing nothing."""
-    errors = [line for line in outcome.errors if not line.startswith("warning: ")]
+    errors = errors_of(outcome)
     return {
         f"exit {status}": outcome.status == status,
         "one line": len(errors) == 1 and errors[0].startswith("imitate "),
@@ -163,22 +250,36 @@ def one_line(outcome: Outcome, status: int) -> dict[str, bool]:
     }
 
 
+def refused_by(lines: list[str], holder: subprocess.Popen, command: str) -> bool:
+    """Whether ``lines`` (warnings aside) are one error line naming ``holder`` (its pid and
+    ``imitate COMMAND``) as the lock's holder."""
+    errors = [line for line in lines if line.strip() and not line.startswith("warning: ")]
+    return (
+        len(errors) == 1 and errors[0].startswith("imitate ") and f"pid {holder.pid}" in errors[0]
+        and f"imitate {command}" in errors[0]
+    )
+
+
 def killed(case: str, base: Path, work: Path, args: list[str], wait: str, sig: int,
            group: bool = False) -> Outcome:
     """Start ``imitate ARGS`` on a copy, wait for stderr ``== stage`` (``wait``) or a file
-    (``wait`` a glob), then send ``sig`` (to the process group if ``group``)."""
+    (``wait`` a glob), then send ``sig`` (to the process group if ``group``). Its first check:
+    the signal was sent mid-stage (``wait`` seen, the command still running)."""
     run_dir = copy(base, work, case)
     before = snapshot(run_dir)
     process = start(*args, str(run_dir))
     if wait.startswith("=="):
         seen = wait_for_line(process, wait)
+        saw = any(wait in line for line in seen)
     else:
-        seen = [] if wait_for_file(run_dir, wait) else ["(never saw " + wait + ")"]
-    if group:
-        os.killpg(process.pid, sig)
-    else:
-        os.kill(process.pid, sig)
-    return finish(case, process, run_dir, before, seen)
+        saw = wait_for_file(run_dir, wait, process)
+        seen = [] if saw else ["(never saw " + wait + ")"]
+    running = process.poll() is None
+    if running:  # (once reaped, its pid may be another process's)
+        (os.killpg if group else os.kill)(process.pid, sig)
+    o = finish(case, process, run_dir, before, seen)
+    o.checks = {"sent mid-stage": saw and running}
+    return o
 
 
 def commit_interrupted(base: Path, work: Path, args: list[str], renames: int) -> Outcome:
@@ -191,7 +292,8 @@ def commit_interrupted(base: Path, work: Path, args: list[str], renames: int) ->
     made = run(*args, str(reference))
     expected = snapshot(reference)
     written = changes(before, expected)
-    statuses, equal, saved, last = [], True, True, None
+    statuses, equal, saved = [], True, True
+    last: Outcome | None = None
     for n in range(1, renames + 1):
         run_dir = copy(base, work, "commit-sigterm")
         before = snapshot(run_dir)
@@ -207,6 +309,7 @@ def commit_interrupted(base: Path, work: Path, args: list[str], renames: int) ->
             if name not in ("report.json", "report.html")
         )
         saved &= len(last.errors) == 1 and "just after stage" in last.errors[0]
+    assert last is not None
     last.case = f"commit-sigterm (SIGTERM before each of `{' '.join(args)}`'s {renames} renames)"
     last.status = "/".join(map(str, statuses))
     last.checks = {
@@ -222,60 +325,110 @@ def commit_interrupted(base: Path, work: Path, args: list[str], renames: int) ->
 def copy(base: Path, work: Path, case: str) -> Path:
     run_dir = work / case.split()[0]
     shutil.rmtree(run_dir, ignore_errors=True)
-    shutil.copytree(base, run_dir)
+    shutil.copytree(base, run_dir, symlinks=True)
     return run_dir
 
 
-def run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([*IMITATE, *args], check=False, capture_output=True, text=True)
+def fresh(folder: Path) -> Path:
+    """``folder``, empty."""
+    shutil.rmtree(folder, ignore_errors=True)
+    folder.mkdir(parents=True)
+    return folder
 
 
-def cases(base: Path, work: Path) -> list[Outcome]:
-    video = ".video.mp4.*.partial.mp4"
-    outcomes = []
+def tiny_suite(work: Path) -> Path:
+    """The suite file of the eval cases (:data:`TINY_SUITE`): ``work/tiny.toml``."""
+    path = work / "tiny.toml"
+    path.write_text(TINY_SUITE)
+    return path
 
+
+def eval_args(run_dir: Path, work: Path, n: int, videos: int) -> list[str]:
+    return ["eval", str(run_dir), "--suite", str(tiny_suite(work)), "--n", str(n),
+            "--videos", str(videos), "--workers", "1"]
+
+
+def only_under(changed: list[str], folder: str) -> bool:
+    """Whether every change of ``changed`` (:func:`changes`) is under ``folder/``."""
+    return all(c.lstrip("+-").startswith(folder + "/") for c in changed)
+
+
+# ---------------------------------------------------------------------------------------------
+# The cases, in the order they run
+
+
+@case("kill-observe", fast=True)
+def kill_observe(base: Path, work: Path) -> list[Outcome]:
+    """kill -9 once `== observe` is printed: killed mid-stage, nothing changed, no lock held."""
     o = killed("kill-observe (kill -9 in observe)", base, work, ["observe", "--quick"],
                "== observe", signal.SIGKILL)
-    o.checks = {"killed": o.status == -9, "unchanged": not o.changed,
-                "no lock held": o.lock != "HELD"}
-    outcomes.append(o)
+    o.checks.update({"killed": o.status == -9, "unchanged": not o.changed,
+                     "no lock held": o.lock != "HELD"})
+    return [o]
 
+
+@case("kill-learn", fast=True)
+def kill_learn(base: Path, work: Path) -> list[Outcome]:
+    """kill -9 once `== learn` (--k-max 30) is printed: killed mid-stage, nothing changed."""
     o = killed("kill-learn (kill -9 in learn, --k-max 30)", base, work,
                ["learn", "--k-max", "30"], "== learn", signal.SIGKILL)
-    o.checks = {"killed": o.status == -9, "unchanged": not o.changed,
-                "no lock held": o.lock != "HELD"}
-    outcomes.append(o)
+    o.checks.update({"killed": o.status == -9, "unchanged": not o.changed,
+                     "no lock held": o.lock != "HELD"})
+    return [o]
 
+
+@case("kill-figures")
+def kill_figures(base: Path, work: Path) -> list[Outcome]:
+    """kill -9 while ffmpeg encodes the video: nothing changed, ffmpeg gone within 2 s; then
+    `figures` again (row rerun-figures): exit 0, the temporary files swept, the same video."""
     o = killed("kill-figures (kill -9 while encoding the video)", base, work, ["figures"],
-               video, signal.SIGKILL)
+               VIDEO, signal.SIGKILL)
     time.sleep(2.0)
-    o.checks = {"killed": o.status == -9, "unchanged": not o.changed,
-                "no lock held": o.lock != "HELD", "ffmpeg gone after 2 s":
-                ffmpeg_children(work / "kill-figures") == 0}
-    outcomes.append(o)
-
+    o.checks.update({"killed": o.status == -9, "unchanged": not o.changed,
+                     "no lock held": o.lock != "HELD", "ffmpeg gone after 2 s":
+                     ffmpeg_children(work / "kill-figures") == 0})
     run_dir = work / "kill-figures"
     before = snapshot(run_dir)
-    o = finish("rerun-figures (figures again after the kill -9)", start("figures", str(run_dir)),
-               run_dir, before, [])
-    o.checks = {"exit 0": o.status == 0, "temporary files swept": not o.temporary,
-                "video as before": "video.mp4" not in o.changed, "lock gone": o.lock == "none"}
-    outcomes.append(o)
+    again = finish("rerun-figures (figures again after the kill -9)",
+                   start("figures", str(run_dir)), run_dir, before, [])
+    again.checks = {"exit 0": again.status == 0, "temporary files swept": not again.temporary,
+                    "video as before": "video.mp4" not in again.changed,
+                    "lock gone": again.lock == "none"}
+    return [o, again]
 
-    o = killed("sigint-figures (Ctrl-C to the group, video)", base, work, ["figures"], video,
+
+@case("sigint-figures")
+def sigint_figures(base: Path, work: Path) -> list[Outcome]:
+    """Ctrl-C (SIGINT to the process group) during the video: exit 130, one line, nothing
+    changed, no temporary file, no ffmpeg left."""
+    o = killed("sigint-figures (Ctrl-C to the group, video)", base, work, ["figures"], VIDEO,
                signal.SIGINT, group=True)
-    o.checks = {**one_line(o, 130), "no temporary files": not o.temporary,
-                "no ffmpeg": o.ffmpeg == 0}
-    outcomes.append(o)
+    o.checks.update({**one_line(o, 130), "no temporary files": not o.temporary,
+                     "no ffmpeg": o.ffmpeg == 0})
+    return [o]
 
-    o = killed("sigterm-figures (SIGTERM, video)", base, work, ["figures"], video,
+
+@case("sigterm-figures")
+def sigterm_figures(base: Path, work: Path) -> list[Outcome]:
+    """SIGTERM during the video: exit 143, one line, nothing changed, no temporary file."""
+    o = killed("sigterm-figures (SIGTERM, video)", base, work, ["figures"], VIDEO,
                signal.SIGTERM)
-    o.checks = {**one_line(o, 143), "no temporary files": not o.temporary,
-                "no ffmpeg": o.ffmpeg == 0}
-    outcomes.append(o)
+    o.checks.update({**one_line(o, 143), "no temporary files": not o.temporary,
+                     "no ffmpeg": o.ffmpeg == 0})
+    return [o]
 
-    outcomes.append(commit_interrupted(base, work, ["learn", "--k-max", "5"], renames=5))
 
+@case("commit-sigterm")
+def commit_sigterm(base: Path, work: Path) -> list[Outcome]:
+    """SIGTERM just before each of the 5 renames of `learn --k-max 5`'s commit (instrumented):
+    exit 143 and one line saying the stage was saved, the files those of an untouched learn."""
+    return [commit_interrupted(base, work, ["learn", "--k-max", "5"], renames=5)]
+
+
+@case("concurrent")
+def concurrent(base: Path, work: Path) -> list[Outcome]:
+    """`run --quick --seed 2` while `figures` runs: refused (exit 1, one line naming the
+    holder); figures finishes, changing only the report and its page."""
     run_dir = copy(base, work, "concurrent")
     before = snapshot(run_dir)
     first = start("figures", str(run_dir))
@@ -289,34 +442,53 @@ def cases(base: Path, work: Path) -> list[Outcome]:
                 "only the report and its page changed": set(o.changed) <= {"report.json",
                                                                             "report.html"}}
     o.status = f"{o.status}/{second.returncode}"
-    outcomes.append(o)
+    return [o]
 
+
+@case("stale")
+def stale(base: Path, work: Path) -> list[Outcome]:
+    """`observe --seed 3`, then `figures`: refused (exit 1, one line naming model.npz)."""
     run_dir = copy(base, work, "stale")
     run("observe", "--quick", "--seed", "3", str(run_dir))
     before = snapshot(run_dir)
     o = finish("stale (observe --seed 3, then figures)", start("figures", str(run_dir)),
                run_dir, before, [])
     o.checks = {**one_line(o, 1), "names model.npz": "model.npz" in "".join(o.errors)}
-    outcomes.append(o)
+    return [o]
 
+
+@case("failed-optimize", fast=True)
+def failed_optimize(base: Path, work: Path) -> list[Outcome]:
+    """`optimize --collision-weight 30` on an empty model.npz: exit 1, one line, unchanged
+    (config.json too)."""
     run_dir = copy(base, work, "failed-optimize")
     (run_dir / "model.npz").write_bytes(b"")
     before = snapshot(run_dir)
     o = finish("failed-optimize (empty model.npz, --collision-weight 30)",
                start("optimize", str(run_dir), "--collision-weight", "30"), run_dir, before, [])
     o.checks = one_line(o, 1)
-    outcomes.append(o)
+    return [o]
 
+
+@case("forced-optimize", fast=True)
+def forced_optimize(base: Path, work: Path) -> list[Outcome]:
+    """The same with --force (the stage itself fails on the empty file): exit 1, one line,
+    unchanged."""
+    run_dir = copy(base, work, "forced-optimize")
+    (run_dir / "model.npz").write_bytes(b"")
     before = snapshot(run_dir)
     o = finish("forced-optimize (the same with --force: the stage fails)",
                start("optimize", str(run_dir), "--collision-weight", "30", "--force"), run_dir,
                before, [])
     o.checks = one_line(o, 1)
-    outcomes.append(o)
+    return [o]
 
-    folder = work / "foreign"
-    shutil.rmtree(folder, ignore_errors=True)
-    folder.mkdir()
+
+@case("foreign", fast=True)
+def foreign(base: Path, work: Path) -> list[Outcome]:
+    """`observe --quick` into a folder holding another tool's config.json: exit 1, one line
+    naming the folder and --into-existing, the file kept, no lock written."""
+    folder = fresh(work / "foreign")
     (folder / "config.json").write_text('{"lr": 0.1}\n')
     before = snapshot(folder)
     o = finish("foreign (observe --quick into a folder holding another tool's config.json)",
@@ -324,16 +496,192 @@ def cases(base: Path, work: Path) -> list[Outcome]:
     o.checks = {**one_line(o, 1), "no lock written": o.lock == "none",
                 "names the folder and --into-existing": f"{folder} holds config.json"
                 in "".join(o.errors) and "--into-existing" in "".join(o.errors)}
-    outcomes.append(o)
+    return [o]
 
+
+@case("corrupt-report", fast=True)
+def corrupt_report(base: Path, work: Path) -> list[Outcome]:
+    """`replay --particles 10` with report.json garbage: exit 1, one line, unchanged."""
     run_dir = copy(base, work, "corrupt-report")
     (run_dir / "report.json").write_text("garbage{")
     before = snapshot(run_dir)
     o = finish("corrupt-report (replay --particles 10)",
                start("replay", str(run_dir), "--particles", "10"), run_dir, before, [])
     o.checks = one_line(o, 1)
-    outcomes.append(o)
+    return [o]
+
+
+@case("symlink-figures")
+def symlink_figures(base: Path, work: Path) -> list[Outcome]:
+    """`figures` with R/figures a symbolic link to an outside folder holding a user's
+    `.notes.partial.txt` (review S2): exit 1, one line, the run unchanged, nothing written into
+    the outside folder and the user's file still there."""
+    run_dir = copy(base, work, "symlink-figures")
+    outside = fresh(work / "symlink-figures-outside")
+    notes = outside / ".notes.partial.txt"
+    notes.write_text("a user's notes, named like a temporary file\n")
+    shutil.rmtree(run_dir / "figures")
+    (run_dir / "figures").symlink_to(outside, target_is_directory=True)
+    before, outside_before = snapshot(run_dir), listing(outside)
+    o = finish("symlink-figures (R/figures a link to an outside folder)",
+               start("figures", str(run_dir)), run_dir, before, [])
+    o.checks = {**one_line(o, 1), "nothing written outside": listing(outside) == outside_before,
+                "the user's .notes.partial.txt kept": notes.is_file()}
+    return [o]
+
+
+@case("symlink-lock", fast=True)
+def symlink_lock(base: Path, work: Path) -> list[Outcome]:
+    """`learn` with R/.lock a symbolic link to an outside file (review C5): exit 1, one line,
+    the run unchanged, the outside file's content as it was."""
+    run_dir = copy(base, work, "symlink-lock")
+    victim = work / "symlink-lock-victim.txt"
+    victim.write_text("do not truncate me\n")
+    (run_dir / ".lock").symlink_to(victim)
+    before = snapshot(run_dir)
+    o = finish("symlink-lock (R/.lock a link to an outside file; learn)",
+               start("learn", str(run_dir)), run_dir, before, [])
+    o.checks = {**one_line(o, 1),
+                "outside file as it was": victim.read_text() == "do not truncate me\n"}
+    return [o]
+
+
+@case("traversal")
+def traversal(base: Path, work: Path) -> list[Outcome]:
+    """A results.jsonl record under the evaluation's own digest whose outcome is a `../` path
+    to a file outside the run (review S5): `eval --videos 1` exits 0, writes nothing outside
+    (the target's folder is not even made), skips the record (runs the variation again) and
+    names its failure videos by known outcomes only. The record comes from a first `eval`."""
+    run_dir = copy(base, work, "traversal")
+    outside = work / "traversal-outside"
+    shutil.rmtree(outside, ignore_errors=True)
+    first = run(*eval_args(run_dir, work, n=1, videos=0))
+    results = sorted(run_dir.glob("eval/**/results.jsonl"))
+    if first.returncode != 0 or len(results) != 1:
+        o = Outcome("traversal (the first eval failed)", first.returncode,
+                    first.stderr.splitlines(), [], [], lock_state(run_dir), 0)
+        o.checks = {"first eval exit 0": first.returncode == 0,
+                    "one results.jsonl": len(results) == 1}
+        return [o]
+    record = json.loads(results[0].read_text().splitlines()[0])
+    climb = len((results[0].parent / "failures" / record["digest"] / "0000-x").parts) + 2
+    record["outcome"] = "x/" + "../" * climb + str(outside / "ESCAPED").lstrip("/")
+    record["settings"]["obstacle"] = None
+    crafted = json.dumps(record)
+    results[0].write_text(crafted + "\n")
+    before = snapshot(run_dir)
+    o = finish("traversal (a results.jsonl record's outcome a ../ path; eval --videos 1)",
+               start(*eval_args(run_dir, work, n=1, videos=1)), run_dir, before, [])
+    lines = results[0].read_text().splitlines()
+    later = [json.loads(line) for line in lines[1:] if line.strip()]
+    videos = [p.name for p in run_dir.glob("eval/**/failures/*/*")]
+    o.checks = {
+        "exit 0": o.status == 0, "no error": not errors_of(o),
+        "nothing outside": not outside.exists()
+        and not any(work.glob("**/ESCAPED*")),
+        "record skipped: the variation ran again": lines[0] == crafted and [
+            (r.get("digest"), r.get("id")) for r in later] == [(record["digest"], 0)]
+        and "/" not in str(later[0].get("outcome")),
+        "failure videos named ID-OUTCOME.mp4": all(
+            re.fullmatch(r"\d{4}-[a-z_]+\.mp4", name) for name in videos
+        ),
+        "only eval/ changed": only_under(o.changed, "eval"), "no lock held": o.lock != "HELD",
+    }
+    return [o]
+
+
+@case("two-evals")
+def two_evals(base: Path, work: Path) -> list[Outcome]:
+    """Two `eval`s of one run (tiny suite, --n 2), the second started once the first holds the
+    lock (or has made eval/, where eval takes no lock; review E6): the second exits 1 with one
+    line naming the first; the first exits 0 and its results hold each id once; only eval/
+    changed."""
+    run_dir = copy(base, work, "two-evals")
+    before = snapshot(run_dir)
+    args = eval_args(run_dir, work, n=2, videos=0)
+    first = start(*args)
+    holds = wait_for_eval(run_dir, first)
+    second = run(*args)
+    first_running = first.poll() is None
+    o = finish("two-evals (eval --n 2; the same eval meanwhile)", first, run_dir, before, [])
+    errors = second.stderr.splitlines()
+    o.errors = [f"first: {line}" for line in o.errors] + errors
+    ids = [json.loads(line)["id"] for path in run_dir.glob("eval/**/results.jsonl")
+           for line in path.read_text().splitlines() if line.strip()]
+    o.checks = {
+        "first held the lock": holds, "first exit 0": o.status == 0,
+        "second exit 1": second.returncode == 1,
+        "second: one line naming the holder": refused_by(errors, first, "eval"),
+        "second ended while the first ran": first_running,
+        "each id once": sorted(ids) == [0, 1], "only eval/ changed": only_under(o.changed, "eval"),
+        "no lock held": o.lock != "HELD",
+    }
+    o.status = f"{o.status}/{second.returncode}"
+    return [o]
+
+
+@case("eval-against-stage")
+def eval_against_stage(base: Path, work: Path) -> list[Outcome]:
+    """`learn` while an `eval` (tiny suite, --n 2) holds the run: learn exits 1 with one line
+    naming the eval; the eval exits 0; only eval/ changed (model.npz as it was)."""
+    run_dir = copy(base, work, "eval-against-stage")
+    before = snapshot(run_dir)
+    evaluation = start(*eval_args(run_dir, work, n=2, videos=0))
+    holds = wait_for_eval(run_dir, evaluation)
+    stage = run("learn", str(run_dir))
+    eval_running = evaluation.poll() is None
+    o = finish("eval-against-stage (eval --n 2; learn meanwhile)", evaluation, run_dir, before,
+               [])
+    errors = stage.stderr.splitlines()
+    o.errors = [f"eval: {line}" for line in o.errors] + [line for line in errors
+                                                          if not line.startswith("== ")]
+    o.checks = {
+        "eval held the lock": holds, "eval exit 0": o.status == 0,
+        "learn exit 1": stage.returncode == 1,
+        "learn: one line naming the holder": refused_by(
+            [line for line in errors if not line.startswith("== ")], evaluation, "eval"),
+        "learn ended while the eval ran": eval_running,
+        "only eval/ changed": only_under(o.changed, "eval"), "no lock held": o.lock != "HELD",
+    }
+    o.status = f"{o.status}/{stage.returncode}"
+    return [o]
+
+
+# ---------------------------------------------------------------------------------------------
+# Running them
+
+
+def run_cases(names: list[str], base: Path, work: Path) -> list[Outcome]:
+    """The rows of the cases ``names`` (of :data:`CASES`) on copies of ``base`` under ``work``;
+    a case that raises is a failed row naming the exception."""
+    outcomes = []
+    for name in names:
+        try:
+            outcomes += CASES[name](base, work)
+        except Exception as err:  # a case's own failure (a file it expected missing): a row
+            o = Outcome(f"{name} (raised)", None, [f"{type(err).__name__}: {err}"], [], [],
+                        "?", 0)
+            o.checks = {"ran to its end": False}
+            outcomes.append(o)
     return outcomes
+
+
+def select(only: str | None, fast: bool) -> list[str]:
+    """The names of the cases to run, in :data:`CASES`' order.
+
+    Raises:
+        ValueError: a name of ``only`` (comma-separated) is not a case's; one line.
+    """
+    if only is None:
+        return [name for name in CASES if name in FAST or not fast]
+    names = [name.strip() for name in only.split(",") if name.strip()]
+    unknown = [name for name in names if name not in CASES]
+    if unknown or not names:
+        raise ValueError(
+            f"--only {only} not accepted: {', '.join(unknown) or 'no name'} is no case; one or "
+            f"more (comma-separated) of {', '.join(CASES)}"
+        )
+    return [name for name in CASES if name in names]
 
 
 def table(outcomes: list[Outcome]) -> str:
@@ -354,11 +702,26 @@ def table(outcomes: list[Outcome]) -> str:
     return "\n".join(lines)
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="cases (* in --fast):\n" + "\n".join(
+            f"  {name}{' *' if name in FAST else ''}: "
+            + " ".join((CASES[name].__doc__ or "").split()) for name in CASES
+        ),
+    )
     parser.add_argument("--base", type=Path, help="a finished quick run (made if not given)")
     parser.add_argument("--work", type=Path, help="where the copies go (default: a temp dir)")
-    args = parser.parse_args()
+    which = parser.add_mutually_exclusive_group()
+    which.add_argument("--only", metavar="NAME,NAME", help="these cases only (names below)")
+    which.add_argument("--fast", action="store_true",
+                       help="the cases that take a few seconds each (* below)")
+    args = parser.parse_args(argv)
+    try:
+        names = select(args.only, args.fast)
+    except ValueError as err:
+        print(f"{parser.prog}: error: {err}", file=sys.stderr)
+        return 2
     work = (args.work or Path(tempfile.mkdtemp(prefix="faults-"))).resolve()
     work.mkdir(parents=True, exist_ok=True)
     base = args.base
@@ -369,9 +732,10 @@ def main() -> int:
             print(made.stderr, file=sys.stderr)
             return 1
     start_time = time.perf_counter()
-    outcomes = cases(base.resolve(), work)
+    outcomes = run_cases(names, base.resolve(), work)
     print(table(outcomes))
-    print(f"\n{len(outcomes)} cases in {time.perf_counter() - start_time:.0f} s, copies in {work}")
+    seconds = time.perf_counter() - start_time
+    print(f"\n{len(outcomes)} rows of {len(names)} cases in {seconds:.0f} s, copies in {work}")
     return 0 if all(o.verdict == "OK" for o in outcomes) else 1
 
 
