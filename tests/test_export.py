@@ -345,7 +345,9 @@ def test_from_eval_one_episode_per_variation_whose_actions_replay_to_its_outcome
             assert (metadata["variation"], metadata["outcome"]) == (record["id"], record["outcome"])
             assert metadata["pour_fraction"] == record["replays"][0]["pour_fraction"]
             actions = demo["actions"][()]
-            assert replayed(metadata, actions)["pour_fraction"] == metadata["pour_fraction"]
+            again = replayed(metadata, actions)
+            assert again["pour_fraction"] == metadata["pour_fraction"]
+            assert again["is_success"] == metadata["poured"] == demo["infos/is_success"][-1]
             assert demo["infos/pour_fraction"][-1] == metadata["pour_fraction"]
         hdf5_actions = [d["actions"][()] for d in demos]
     assert main(["export", str(run_dir), "--format", "lerobot", "--from-eval", str(eval_dir),

@@ -6,7 +6,8 @@ that model (checked against the record: the same clearance and iterations) and r
 perturbed physics from its first replay seed, recorded (:func:`imitate.export.episodes.recorded`).
 The episode's ``metadata`` says what it is: ``teacher``, ``variation`` (the id), ``settings``
 (the record's, :class:`~imitate.evaluation.variation.Variation`), ``outcome`` and ``pour_min``
-(the evaluation's, over all its replays), ``pour_fraction`` (this replay's).
+(the evaluation's, over all its replays and its plan's clearance), ``pour_fraction`` and
+``poured`` (this replay's: the env's ``is_success``).
 """
 
 from __future__ import annotations
@@ -122,6 +123,7 @@ def evaluated_episodes(
             "teacher": teacher, "variation": variation.id, "settings": record["settings"],
             "outcome": record["outcome"], "pour_min": record["pour_min"],
             "pour_fraction": float(episode.infos["pour_fraction"][-1]),
+            "poured": bool(episode.infos["is_success"][-1]),
         })
 
 

@@ -15,7 +15,7 @@ from typing import Any
 
 from imitate.errors import ImitateError
 from imitate.rundir import page, table
-from imitate.rundir.artifacts import load_json, save_json, staged
+from imitate.rundir.artifacts import load_json, refuse_link, save_json, staged
 from imitate.rundir.schema import REPORT_SCHEMA, check_schema
 from imitate.stages import provenance
 from imitate.stages.config import RunConfig
@@ -48,6 +48,8 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
         raise ImitateError(f"{problems[0]}, or add --force to go on anyway")
     for problem in problems:
         log.warning("%s; going on anyway (--force)", problem)
+    for name in (*current.writes, table.REPORT, table.PAGE, provenance.MANIFEST):
+        refuse_link(run_dir / name)  # now, not after the stage's work, at its commit
     with staged(run_dir, last=provenance.MANIFEST) as staging:
         start = time.perf_counter()
         sections = current.body()(run_dir, config)

@@ -511,7 +511,7 @@ def corrupt_report(base: Path, work: Path) -> list[Outcome]:
     return [o]
 
 
-@case("symlink-figures")
+@case("symlink-figures", fast=True)
 def symlink_figures(base: Path, work: Path) -> list[Outcome]:
     """`figures` with R/figures a symbolic link to an outside folder holding a user's
     `.notes.partial.txt` (review S2): exit 1, one line, the run unchanged, nothing written into

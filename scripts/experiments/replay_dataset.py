@@ -7,8 +7,8 @@ folder of ``--format lerobot`` (read with pyarrow as LeRobot v3.0 lays it out; i
 float32, the env's float64).
 
 Prints one line per episode (teacher, variation, the evaluation's outcome, the recorded pour and
-the replayed one, the success flags) and how many replay to the recorded pour exactly and to the
-same success.
+the replayed one, whether each poured: the env's ``is_success``) and how many replay to the
+recorded pour exactly and to the same ``is_success``.
 """
 
 from __future__ import annotations
@@ -52,18 +52,19 @@ def main() -> None:
         sys.exit(f"replay_dataset.py: {path} does not exist")
     episodes = hdf5_episodes(path) if path.suffix == ".hdf5" else lerobot_episodes(path)
     print(f"{len(episodes)} episodes in {path}")
-    print(f"{'teacher':>7} {'id':>4}  {'outcome':<15}{'pour':>7}{'replayed':>10}  poured")
-    same_pour = same_success = 0
+    print(f"{'teacher':>7} {'id':>4}  {'evaluated':<15}{'pour':>7}{'replayed':>10}  "
+          f"{'poured':<7}replayed")
+    same_pour = same_poured = 0
     for metadata, actions in episodes:
         again = replayed(metadata, actions)
+        poured = bool(again["is_success"])
         same_pour += again["pour_fraction"] == metadata["pour_fraction"]
-        same_success += bool(again["is_success"]) == (metadata["outcome"] == "success")
+        same_poured += poured == metadata["poured"]
         print(f"{metadata['teacher']:>7} {metadata['variation']:>4}  {metadata['outcome']:<15}"
               f"{metadata['pour_fraction']:7.3f}{again['pour_fraction']:10.3f}  "
-              f"{bool(again['is_success'])}")
-    print(f"replayed to the recorded pour exactly: {same_pour}/{len(episodes)}; "
-          f"poured (is_success) where the evaluation's outcome is success, and only there: "
-          f"{same_success}/{len(episodes)}")
+              f"{metadata['poured']!s:<7}{poured}")
+    print(f"replayed to the recorded pour exactly: {same_pour}/{len(episodes)}; to the recorded "
+          f"poured (is_success): {same_poured}/{len(episodes)}")
 
 
 if __name__ == "__main__":
