@@ -435,7 +435,6 @@ def _eval(args: argparse.Namespace) -> int:
     from imitate import evaluation  # MuJoCo and the planner: once the arguments are fine
     from imitate.evaluation import compare
 
-    folder = args.run_dir / "compare"
     kept = "the finished variations are kept; run it again to go on"
     try:
         name, suite = evaluation.named_suite(args.suite)
@@ -446,7 +445,7 @@ def _eval(args: argparse.Namespace) -> int:
         if args.command == "eval":
             folder = args.out or evaluation.default_out(args.run_dir, name, suite)
         else:
-            folder = folder / name
+            folder = args.run_dir / "compare" / name
         kept = f"the finished variations are kept in {folder}; run it again to go on"
         with console.terminated_as_exception():
             if args.command == "compare":
