@@ -4,6 +4,7 @@ import errno
 import os
 import signal
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -174,6 +175,7 @@ def test_a_signal_during_the_commit_waits_for_its_last_rename(tmp_path, signum, 
                 os.kill(os.getpid(), signum)
             else:
                 signal.pthread_kill(other.ident, signum)
+                time.sleep(0.2)  # time for that thread to take it, mid-commit
         replace(src, dst)
 
     seen = {}
@@ -186,6 +188,11 @@ def test_a_signal_during_the_commit_waits_for_its_last_rename(tmp_path, signum, 
     try:
         with pytest.raises(Stop):
             commit_over_old_files(tmp_path, replace_and_signal)
+            # A signal sent to another thread is taken when the kernel runs that thread, which
+            # under load may be after the commit: the handler runs then.
+            deadline = time.monotonic() + 10.0
+            while time.monotonic() < deadline:
+                time.sleep(0.01)
         assert signal.getsignal(signum) is handler
     finally:
         signal.signal(signum, previous)
