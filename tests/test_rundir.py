@@ -5,6 +5,7 @@ The numbers in the test names are those of issue 14 (the reliability review of 2
 """
 
 import contextlib
+import errno
 import hashlib
 import json
 import os
@@ -402,6 +403,29 @@ def test_sigterm_during_the_commit_comes_after_it_and_says_the_stage_was_saved(
     config, manifest = load_config(run_dir), provenance.load(run_dir)
     assert config.k_max == 5 and provenance.stale(run_dir, table.find("optimize"), config,
                                                   manifest) == []
+
+
+def test_sigterm_during_a_commit_that_fails_says_what_the_commit_replaced(
+    run_dir, monkeypatch, capsys
+):
+    replace, renamed = os.replace, []
+
+    def replace_terminate_and_fail(src, dst):
+        if Path(dst).parent == run_dir:
+            renamed.append(Path(dst).name)
+            if len(renamed) == 2:
+                os.kill(os.getpid(), signal.SIGTERM)
+            if len(renamed) == 3:
+                raise OSError(errno.EIO, os.strerror(errno.EIO))
+        replace(src, dst)
+
+    monkeypatch.setattr(os, "replace", replace_terminate_and_fail)
+    assert main(["-q", "learn", "--k-max", "5", str(run_dir)]) == 143
+    monkeypatch.undo()
+    line = one_error_line(capsys.readouterr().err, "learn")
+    assert "terminated (SIGTERM) as stage learn failed: cannot rename" in line
+    assert f"replaced: {', '.join(renamed[:2])}; not replaced" in line
+    assert "changed nothing" not in line
 
 
 def pretend_stages(monkeypatch) -> list[str]:

@@ -339,16 +339,14 @@ def main(argv: list[str] | None = None) -> int:
         return console.fail(args.command, str(err), 1)
     except OSError as err:
         return console.fail(args.command, str(err), 1)
-    except KeyboardInterrupt:
-        stopped = console.stopped(
-            "interrupted (Ctrl-C)", stage, run_dir, _manifest_id(run_dir) != manifest
+    except (KeyboardInterrupt, console.Terminated) as err:
+        how, status = ("interrupted (Ctrl-C)", 130) if isinstance(err, KeyboardInterrupt) else (
+            "terminated (SIGTERM)", 143
         )
-        return console.fail(args.command, stopped, 130)
-    except console.Terminated:
-        stopped = console.stopped(
-            "terminated (SIGTERM)", stage, run_dir, _manifest_id(run_dir) != manifest
-        )
-        return console.fail(args.command, stopped, 143)
+        stopped = console.stopped(how, stage, run_dir, _manifest_id(run_dir) != manifest)
+        if isinstance(err.__context__, ImitateError):  # the signal came as the stage failed
+            stopped = f"{how} as stage {stage} failed: {err.__context__}"
+        return console.fail(args.command, stopped, status)
     print(console.summary(report, stages, run_dir))
     return 0
 
