@@ -379,21 +379,36 @@ def test_after_a_stage_re_runs_the_page_marks_what_is_out_of_date(run_dir, caplo
 # --- a commit waits for no signal; a folder of something else is not taken for a run ------------
 
 
+def learn_with_renames(run_dir, monkeypatch, at: dict) -> tuple[int, list[str]]:
+    """``learn --k-max 5`` with ``at[n]()`` called just before its ``n``-th rename into
+    ``run_dir``: its exit status and the names renamed (or tried)."""
+    replace, renamed = os.replace, []
+
+    def replace_calling(src, dst):
+        if Path(dst).parent == run_dir:
+            renamed.append(Path(dst).name)
+            at.get(len(renamed), lambda: None)()
+        replace(src, dst)
+
+    with monkeypatch.context() as patched:
+        patched.setattr(os, "replace", replace_calling)
+        status = main(["-q", "learn", "--k-max", "5", str(run_dir)])
+    return status, renamed
+
+
+def terminate() -> None:
+    os.kill(os.getpid(), signal.SIGTERM)
+
+
+def fail_to_rename() -> None:
+    raise OSError(errno.EIO, os.strerror(errno.EIO))
+
+
 def test_sigterm_during_the_commit_comes_after_it_and_says_the_stage_was_saved(
     run_dir, monkeypatch, capsys
 ):
-    replace, renamed = os.replace, []
-
-    def replace_and_terminate(src, dst):
-        if Path(dst).parent == run_dir:
-            renamed.append(Path(dst).name)
-            if len(renamed) == 2:
-                os.kill(os.getpid(), signal.SIGTERM)
-        replace(src, dst)
-
-    monkeypatch.setattr(os, "replace", replace_and_terminate)
-    assert main(["-q", "learn", "--k-max", "5", str(run_dir)]) == 143
-    monkeypatch.undo()
+    status, renamed = learn_with_renames(run_dir, monkeypatch, {2: terminate})
+    assert status == 143
     line = one_error_line(capsys.readouterr().err, "learn")
     assert line.endswith(f"terminated (SIGTERM) just after stage learn was saved in {run_dir}")
     assert renamed[-1] == provenance.MANIFEST
@@ -408,20 +423,10 @@ def test_sigterm_during_the_commit_comes_after_it_and_says_the_stage_was_saved(
 def test_sigterm_during_a_commit_that_fails_says_what_the_commit_replaced(
     run_dir, monkeypatch, capsys
 ):
-    replace, renamed = os.replace, []
-
-    def replace_terminate_and_fail(src, dst):
-        if Path(dst).parent == run_dir:
-            renamed.append(Path(dst).name)
-            if len(renamed) == 2:
-                os.kill(os.getpid(), signal.SIGTERM)
-            if len(renamed) == 3:
-                raise OSError(errno.EIO, os.strerror(errno.EIO))
-        replace(src, dst)
-
-    monkeypatch.setattr(os, "replace", replace_terminate_and_fail)
-    assert main(["-q", "learn", "--k-max", "5", str(run_dir)]) == 143
-    monkeypatch.undo()
+    status, renamed = learn_with_renames(
+        run_dir, monkeypatch, {2: terminate, 3: fail_to_rename}
+    )
+    assert status == 143
     line = one_error_line(capsys.readouterr().err, "learn")
     assert "terminated (SIGTERM) as stage learn failed: cannot rename" in line
     assert f"replaced: {', '.join(renamed[:2])}; not replaced" in line
