@@ -4,13 +4,23 @@ comparison of similarity weightings (the same variations for every weighting).""
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from imitate.cli import main
 from imitate.demos.oracle import oracle_model
 from imitate.errors import ImitateError
 from imitate.evaluation import Suite, evaluate, named_suite
-from imitate.evaluation.compare import compare, paired, settings_digest
+from imitate.evaluation.compare import (
+    compare,
+    markdown,
+    paired,
+    parse_sweep,
+    plot_comparison,
+    settings_digest,
+)
+from imitate.evaluation.inference import crossing, ed50, teacher_effect
+from imitate.evaluation.report import wilson
 from imitate.evaluation.evaluate import RESULTS, default_out, last_records
 from imitate.evaluation.teachers import teachers
 from imitate.learning import LearningConfig
@@ -96,10 +106,15 @@ def test_compare_plans_the_same_variations_for_every_weighting(model_dir):
     assert len({r["digest"] for r in records}) == 2  # each weighting its own records
     assert set(result["weightings"]) == {"variance", "inverted"}
     (pair,) = result["pairs"]
-    assert pair["both"] + pair["only_a"] + pair["only_b"] + pair["neither"] == 2
-    assert 0 <= pair["mcnemar_p"] <= 1 and 0 <= pair["wilcoxon_p"] <= 1
+    within = pair["within_models"]
+    assert within["both"] + within["only_a"] + within["only_b"] + within["neither"] == 2
+    assert 0 <= within["mcnemar_p"] <= 1
+    effect = pair["teacher_level"]["pour_min"]  # one teacher: a mean, no interval
+    assert effect["teachers"] == 1 and effect["ci95"] is None
+    assert all(r["mahalanobis"]["rms"] >= 0 for r in records)
     assert json.loads((out / "compare.json").read_text())["pairs"] == result["pairs"]
     assert "| variance vs inverted |" in (out / "compare.md").read_text()
+    assert "Within these models" in (out / "compare.md").read_text()
     assert (out / "compare.png").stat().st_size > 0
     again = compare(model_dir, Suite.from_dict(TINY), ["variance", "inverted"], name="tiny",
                     n=2, n_teachers=1, workers=1)
@@ -113,7 +128,7 @@ def test_shipped_suites_load_and_a_bad_name_is_refused_in_one_line(capsys, model
     name, suite = named_suite("effort")
     assert name == "effort" and suite["path_length_weight"][0] > 1 and suite["obstacle_share"] == 0
     assert named_suite(None) == ("default", Suite.default())
-    with pytest.raises(ImitateError, match="--suite nope not accepted: one of default, effort"):
+    with pytest.raises(ImitateError, match="--suite nope not accepted: one of default, .*effort"):
         named_suite("nope")
     assert main(["compare", str(model_dir), "--similarity", "variance,flat"]) == 1
     # the last line: what the library logged before main() set up logging comes first
@@ -121,3 +136,67 @@ def test_shipped_suites_load_and_a_bad_name_is_refused_in_one_line(capsys, model
     assert err.startswith("imitate compare: error: --similarity variance,flat not accepted")
     assert main(["eval", str(model_dir), "--teachers", "0"]) == 1
     assert "--teachers 0 not accepted" in capsys.readouterr().err
+
+
+def _records(weighting: str, teachers: dict[int, list[bool]], pour: float = 0.95) -> list[dict]:
+    """Synthetic records: per teacher, its variations' successes."""
+    return [
+        {"teacher": t, "id": i, "outcome": "success" if ok else "spill",
+         "settings": {"similarity": weighting, "id": i}, "pour_min": pour if ok else 0.5,
+         "mahalanobis": {"rms": 1.0 + (weighting == "uniform")},
+         "plan": {"min_distance_m": 0.012}, "change": {"pour_m": 0.01, "pour_deg": 1.0,
+                                                      "low_variance_m": 0.02}}
+        for t, outcomes in teachers.items() for i, ok in enumerate(outcomes)
+    ]
+
+
+@pytest.mark.parametrize("n", [6, 40, 100, 180, 300])
+def test_a_weighting_that_always_succeeds_is_plotted_with_a_zero_error_bar(n):
+    """Wilson's bounds at n of n and 0 of n are exact (rounding once gave 1 - 1e-16, a
+    negative error bar and a traceback instead of compare.png)."""
+    assert wilson(n, n)[1] == 1.0 and wilson(0, n)[0] == 0.0
+    result = {"suite_name": "s", "suite": {}, "seed": 0, "teachers": [0],
+              "variations_per_teacher": n,
+              **paired({"variance": _records("variance", {0: [True] * n}),
+                        "uniform": _records("uniform", {0: [False] * n})})}
+    plot_comparison(result)  # no negative yerr
+    assert "| variance | " + f"{n}/{n} | " in markdown(result)
+
+
+def test_the_teacher_level_interval_finds_a_known_effect_and_no_effect():
+    """Ten teachers whose success differs by a known 20 points, with noise: the interval covers
+    it and excludes 0; with no difference, it covers 0 and the test does not reject."""
+    rng = np.random.default_rng(0)
+    base = rng.uniform(0.3, 0.7, 10)
+    effect = teacher_effect(0.2 + rng.normal(0, 0.05, 10))
+    low, high = effect["ci95"]
+    assert low <= 0.2 <= high and low > 0 and effect["p"] < 0.01 and effect["a_higher"] == 10
+    null = teacher_effect(rng.normal(0, 0.05, 10))
+    assert null["ci95"][0] < 0 < null["ci95"][1] and null["p"] > 0.05
+    # from records: a teacher with 40 variations is one observation, not 40
+    n = 40
+    a = {t: list(rng.random(n) < p + 0.2) for t, p in enumerate(base)}
+    b = {t: list(rng.random(n) < p) for t, p in enumerate(base)}
+    (pair,) = paired({"variance": _records("variance", a),
+                      "uniform": _records("uniform", b)})["pairs"]
+    success = pair["teacher_level"]["success_rate"]
+    assert success["teachers"] == 10 and success["ci95"][0] > 0
+    assert pair["teacher_level"]["mahalanobis_rms"]["mean"] == -1.0
+
+
+def test_ed50_is_where_the_mean_curve_crosses_half_with_an_interval_over_teachers():
+    levels = np.array([10.0, 20, 40, 80, 160])
+    falling = np.array([[1.0, 0.9, 0.6, 0.4, 0.0]] * 4)  # crosses at 40..80, 60 % to 40 %
+    found = ed50(levels, falling)
+    assert found["ed50"] == pytest.approx(np.sqrt(40 * 80))  # halfway in log
+    assert found["ci95"] == [pytest.approx(found["ed50"])] * 2
+    assert crossing(levels, np.full(5, 0.8), rising=False) == np.inf  # beyond the sweep
+    assert crossing(levels, np.full(5, 0.8), rising=True) == -np.inf
+
+
+def test_a_sweep_is_numeric_increasing_and_refused_in_one_line():
+    assert parse_sweep("path_length_weight=10,20,40") == ("path_length_weight", (10, 20, 40))
+    for bad in ("path_length_weight=40,20", "similarity=1,2", "nope=1,2", "collision_weight=1",
+                "collision_weight=a,b", "path_length_weight=10,5000"):
+        with pytest.raises(ImitateError, match="not accepted"):
+            parse_sweep(bad)

@@ -30,7 +30,8 @@ from imitate.motion.approach import (
     approach_path,
     bend_approach,
 )
-from imitate.motion.optimizer import _PUSH_SCALE, _TOLERANCE
+from imitate.motion.costs import TOLERANCE as _TOLERANCE
+from imitate.motion.optimizer import _PUSH_SCALE
 from imitate.motion.replay import planning_task
 from imitate.motion.taskspace import gaze_frame, object_orientation, task_space
 

@@ -18,7 +18,8 @@ from imitate.motion import (
     similarity_weights,
     weighting,
 )
-from imitate.motion.optimizer import _TOLERANCE
+from imitate.motion.costs import REGULARIZATION
+from imitate.motion.costs import TOLERANCE as _TOLERANCE
 from imitate.motion.replay import planning_task
 
 W_MAX = np.array([4.0, 1.0])
@@ -50,14 +51,26 @@ def test_eq21_is_w_max_at_zero_zero_from_sigma_max_and_linear_between():
         similarity_weights(variance, W_MAX, np.array([0.0, 1.0]))
 
 
-@pytest.mark.parametrize("similarity", SIMILARITIES)
-def test_each_weighting_has_eq21s_total_per_dimension(gmr, similarity):
+CRITICAL = np.arange(41) >= 30  # the oracle's steps
+
+
+@pytest.mark.parametrize("similarity", [s for s in SIMILARITIES if s != "precision"])
+def test_each_diagonal_weighting_has_eq21s_total_per_dimension(gmr, similarity):
     variance, covariance = gmr
-    w = weighting(similarity, variance, covariance, W_MAX, SIGMA_MAX)
-    diagonal = np.diagonal(w, axis1=1, axis2=2) if w.ndim == 3 else w
+    w = weighting(similarity, variance, covariance, W_MAX, SIGMA_MAX, critical=CRITICAL)
     total = similarity_weights(variance, W_MAX, SIGMA_MAX).sum(axis=0)
-    np.testing.assert_allclose(diagonal.sum(axis=0), total, rtol=1e-12)
-    assert np.all(diagonal >= 0)
+    assert w.shape == variance.shape
+    np.testing.assert_allclose(w.sum(axis=0), total, rtol=1e-12)
+    assert np.all(w >= 0)
+
+
+def test_the_oracle_puts_all_weight_on_the_critical_steps_evenly(gmr):
+    variance, covariance = gmr
+    w = weighting("oracle", variance, covariance, W_MAX, SIGMA_MAX, critical=CRITICAL)
+    assert np.all(w[~CRITICAL] == 0.0)
+    np.testing.assert_allclose(w[CRITICAL], np.broadcast_to(w[-1], w[CRITICAL].shape))
+    with pytest.raises(ImitateError, match="oracle.*needs the steps"):
+        weighting("oracle", variance, covariance, W_MAX, SIGMA_MAX)
 
 
 def test_uniform_is_constant_and_inverted_rises_with_the_variance(gmr):
@@ -73,17 +86,30 @@ def test_uniform_is_constant_and_inverted_rises_with_the_variance(gmr):
     assert inverted[0, 0] == 0.0 and ramp[0, 0] == W_MAX[0]
 
 
-def test_precision_is_the_scaled_gmr_precision_with_its_cross_terms(gmr):
+def test_precision_is_one_gain_times_the_regularized_precision(gmr):
     variance, covariance = gmr
     w = weighting("precision", variance, covariance, W_MAX, SIGMA_MAX)
     assert w.shape == covariance.shape
-    precision = np.linalg.inv(covariance)
-    scale = np.sqrt(w[:, 0, 0] / precision[:, 0, 0])  # the same D at every step
-    np.testing.assert_allclose(scale, scale[0])
-    d = np.diag([scale[0], np.sqrt(w[0, 1, 1] / precision[0, 1, 1])])
-    np.testing.assert_allclose(w, d @ precision @ d, rtol=1e-10)
+    floor = REGULARIZATION / W_MAX  # lambda times the tolerances squared
+    precision = np.linalg.inv(covariance + np.diag(floor))
+    gain = w[0, 0, 0] / precision[0, 0, 0]
+    np.testing.assert_allclose(w, gain * precision, rtol=1e-10)  # one gain, every step
     assert np.all(w[:, 0, 1] < 0)  # a positive correlation: a negative cross weight
     assert np.all(np.linalg.eigvalsh(w) > 0)
+    # the stiffness each dimension keeps when the other adjusts, 1 / (W^-1)_dd, summed in units
+    # of w_max, is eq. 21's summed weight in those units
+    marginal = 1.0 / np.diagonal(np.linalg.inv(w), axis1=1, axis2=2)
+    total = similarity_weights(variance, W_MAX, SIGMA_MAX).sum(axis=0)
+    np.testing.assert_allclose(np.sum(marginal / W_MAX), np.sum(total / W_MAX), rtol=1e-10)
+
+
+def test_precision_is_finite_for_a_singular_covariance():
+    """Fewer demonstrations than dimensions: the regularized inverse stays finite."""
+    direction = np.array([1.0, 2.0])
+    covariance = np.stack([np.outer(direction, direction) * s for s in np.linspace(0, 1, 5)])
+    variance = np.diagonal(covariance, axis1=1, axis2=2).copy()
+    w = weighting("precision", variance, covariance, W_MAX, np.maximum(variance.max(0), 1e-9))
+    assert np.all(np.isfinite(w)) and np.all(np.linalg.eigvalsh(w) > 0)
 
 
 def test_an_unknown_weighting_is_refused():

@@ -202,11 +202,18 @@ def _add_compare(sub: argparse.ArgumentParser) -> None:
     """The ``compare`` sub-command's arguments (see :mod:`imitate.evaluation.compare`)."""
     from imitate.motion import SIMILARITIES
 
-    _add_variations(sub, teachers=3)
-    sub.add_argument("--similarity", default=",".join(SIMILARITIES), metavar="A,B,...",
+    # the weightings compared unless told: eq. 21, the even spread of its weight, its inverse
+    # (a negative control) and minimal intervention
+    compared = ("variance", "uniform", "inverted", "precision")
+    _add_variations(sub, teachers=10)
+    sub.add_argument("--similarity", default=",".join(compared), metavar="A,B,...",
                      dest="weightings",
-                     help=f"weightings to compare, comma-separated (default "
-                     f"{','.join(SIMILARITIES)})")
+                     help=f"weightings to compare, comma-separated, of {','.join(SIMILARITIES)} "
+                     f"(default {','.join(compared)})")
+    sub.add_argument("--sweep", metavar="KEY=V1,V2,...",
+                     help="compare at every value of a numeric suite key (a dose-response "
+                     "curve per weighting and its ED50), e.g. path_length_weight=10,20,40,70 "
+                     "or collision_weight=100,300,1000,3000,10000")
 
 
 def _add_variations(sub, teachers: int) -> None:
@@ -443,13 +450,14 @@ def _eval(args: argparse.Namespace) -> int:
         if args.command == "eval":
             folder = args.out or evaluation.default_out(args.run_dir, name, suite)
         else:
-            folder = args.run_dir / "compare" / name
+            folder = compare.out_folder(args.run_dir, name, args.sweep)
         kept = f"the finished variations are kept in {folder}; run it again to go on"
         with console.terminated_as_exception():
             if args.command == "compare":
+                sweep = compare.parse_sweep(args.sweep) if args.sweep else None
                 result = compare.compare(
                     args.run_dir, suite, args.weightings.split(","), name=name, n=args.n,
-                    seed=args.seed, n_teachers=args.teachers, workers=args.workers,
+                    seed=args.seed, n_teachers=args.teachers, sweep=sweep, workers=args.workers,
                     ray=args.ray,
                 )
                 text = compare.markdown(result) + f"\nresults: {folder}"

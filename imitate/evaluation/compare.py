@@ -1,13 +1,24 @@
-"""``imitate compare``: similarity weightings on the same variations, paired.
+"""``imitate compare``: similarity weightings on the same variations, paired, with inference over
+teachers.
 
 Every weighting plans and replays the same variations of a suite (the same settings but
-``similarity``) with the learned models of the same teachers, so that each pair of weightings
-is compared variation by variation: an exact McNemar test on success (the variations where one
-succeeds and the other fails) and a Wilcoxon signed-rank test on how far the constraints moved
-the pour (``change.pour_m``, from each weighting's own unconstrained reproduction).
+``similarity``) with the learned models of the same teachers. The unit of inference is the
+teacher, the learned model (:mod:`~imitate.evaluation.inference`): per teacher and pair of
+weightings, the paired difference of the success rate, of the mean pour (each variation's worst
+replay) and of the mean Mahalanobis deviation from the demonstrations (``mahalanobis.rms``),
+and over teachers their mean with a t interval and an exact permutation test. The exact
+McNemar test on success pools the variations and so speaks of these learned models only; how
+far the constraints moved the pour from each weighting's unconstrained reproduction
+(``change``) is descriptive.
 
-Writes under ``RUN_DIR/compare/<suite name>/``: ``results.jsonl`` (resumable as ``imitate
-eval``'s), ``compare.json``, ``compare.md`` (the tables) and ``compare.png``.
+With a sweep (a numeric suite key and its values), every level is compared: per weighting the
+success and the pour against the level with their bands over teachers, the level at 50 %
+success (ED50) with a bootstrap interval over teachers, and per teacher the first level whose
+plans (their median) keep the planner's margin.
+
+Writes under ``RUN_DIR/compare/<suite name>/`` (``<suite name>-<key>/`` for a sweep):
+``results.jsonl`` (resumable as ``imitate eval``'s), ``compare.json``, ``compare.md`` (the
+tables) and ``compare.png``.
 """
 
 from __future__ import annotations
@@ -16,6 +27,8 @@ import dataclasses
 import hashlib
 import itertools
 import json
+import logging
+import math
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -25,8 +38,9 @@ from scipy import stats
 
 from imitate.errors import ImitateError
 from imitate.evaluation.evaluate import RESULTS, Draw, check_counts, draw_jobs, run_jobs
-from imitate.evaluation.report import wilson
-from imitate.evaluation.suite import Suite
+from imitate.evaluation.inference import ed50, mean_ci, teacher_effect
+from imitate.evaluation.report import MARGIN, wilson
+from imitate.evaluation.suite import KEYS, Suite
 from imitate.evaluation.teachers import check_run, teachers
 from imitate.figures import plots
 from imitate.motion import SIMILARITIES
@@ -34,7 +48,48 @@ from imitate.rundir.artifacts import refuse_link, save_json, write_atomic
 from imitate.rundir.lock import locked
 from imitate.stages import provenance
 
-__all__ = ["compare", "markdown", "paired", "settings_digest"]
+__all__ = [
+    "compare", "dose", "markdown", "out_folder", "paired", "parse_sweep", "settings_digest",
+]
+
+log = logging.getLogger(__name__)
+
+TEACHERS = 10  # teachers a comparison uses unless told: the unit of its inference
+# The paired measures compared teacher by teacher (each teacher's mean over its variations):
+# success, the pour of the worst replay, the Mahalanobis deviation from the demonstrations.
+MEASURES = ("success_rate", "pour_min", "mahalanobis_rms")
+
+
+def parse_sweep(text: str) -> tuple[str, tuple[float, ...]]:
+    """``KEY=V1,V2,...`` as the key and its increasing values.
+
+    Raises:
+        ImitateError: not of that form, a key that is not a numeric suite key, or values that
+            are not increasing numbers the key accepts.
+    """
+    key, _, values = text.partition("=")
+    numeric = [k for k, v in KEYS.items() if not v.is_name and v.choices is None
+               and not v.integer]
+    refused = f"--sweep {text} not accepted: KEY=V1,V2,... with KEY one of {numeric} and " \
+              "two or more increasing values, e.g. path_length_weight=10,20,40,70"
+    if key not in numeric:
+        raise ImitateError(refused)
+    try:
+        levels = tuple(float(v) for v in values.split(","))
+    except ValueError:
+        raise ImitateError(refused) from None
+    if len(levels) < 2 or any(b <= a for a, b in itertools.pairwise(levels)):
+        raise ImitateError(refused)
+    for v in levels:
+        KEYS[key].check(key, v, "--sweep")
+    return key, levels
+
+
+def out_folder(run_dir: Path, name: str, sweep: str | None = None) -> Path:
+    """Where a comparison of the suite ``name`` writes: ``RUN_DIR/compare/<name>/``, or
+    ``<name>-<key>/`` for a sweep (``sweep``: ``KEY=...`` or the key)."""
+    folder = f"{name}-{sweep.partition('=')[0]}" if sweep else name
+    return Path(run_dir) / "compare" / folder
 
 
 def compare(
@@ -45,15 +100,17 @@ def compare(
     name: str = "default",
     n: int | None = None,
     seed: int = 0,
-    n_teachers: int = 3,
+    n_teachers: int = TEACHERS,
+    sweep: tuple[str, Sequence[float]] | None = None,
     workers: int | None = None,
     ray: str | None = None,
     progress: bool | None = None,
 ) -> dict:
     """Plan and replay ``n`` variations of ``suite`` (drawn with ``seed``) with each of
     ``similarities``, for ``n_teachers`` teachers of ``run_dir`` (the run's own first; their
-    models are shared with ``imitate eval``'s, under ``eval/teachers/``); ``name`` names the
-    output folder. Returns ``compare.json``'s contents.
+    models are shared with ``imitate eval``'s, under ``eval/teachers/``), at every level of
+    ``sweep`` (a key and its values, :func:`parse_sweep`) if given; ``name`` names the output
+    folder. Returns ``compare.json``'s contents.
 
     Raises:
         ImitateError: an unknown or repeated weighting, fewer than two, or what
@@ -66,41 +123,54 @@ def compare(
             f"--similarity {','.join(similarities)} not accepted: two or more of "
             f"{', '.join(SIMILARITIES)}, comma-separated, each once"
         )
+    levels = [suite] if sweep is None else [suite.replace(**{sweep[0]: v}) for v in sweep[1]]
     run_dir = check_run(run_dir)
     with locked(run_dir, f"imitate compare {run_dir}"):
         n, workers = check_counts(suite, n, workers)
-        out = run_dir / "compare" / name
+        out = out_folder(run_dir, name, sweep and sweep[0])
         for inside in (out, out / RESULTS):
             refuse_link(inside)
         out.mkdir(parents=True, exist_ok=True)
         models = teachers(run_dir, run_dir / "eval", n_teachers)
-        base = draw_jobs(models, suite, seed, n)
         code, model_bytes = provenance.code_digest(), {t.seed: t.model_bytes for t in models}
-        drawn = {
-            s: [
-                Draw(
-                    d.teacher,
-                    suite.replace(similarity=s).digest(seed, model_bytes[d.teacher], code),
-                    d.path, tuple(dataclasses.replace(v, similarity=s) for v in d.variations),
-                )
-                for d in base
-            ]
-            for s in similarities
-        }
-        everything = [d for s in similarities for d in drawn[s]]
+        drawn: dict[tuple[int, str], list[Draw]] = {}
+        for i, level in enumerate(levels):
+            base = draw_jobs(models, level, seed, n)
+            for s in similarities:
+                drawn[i, s] = [
+                    Draw(
+                        d.teacher,
+                        level.replace(similarity=s).digest(seed, model_bytes[d.teacher], code),
+                        d.path, tuple(dataclasses.replace(v, similarity=s) for v in d.variations),
+                    )
+                    for d in base
+                ]
+        everything = [d for draws in drawn.values() for d in draws]
+        log.info("compare: %d weightings x %d teachers x %d variations%s", len(similarities),
+                 len(models), n, "" if sweep is None else f" x {len(levels)} levels")
         records, run = run_jobs(out / RESULTS, everything, models, workers, ray, progress)
-        by_weighting = {
-            s: [records[(d.digest, v.id)] for d in drawn[s] for v in d.variations]
-            for s in similarities
-        }
+        compared = [
+            paired({
+                s: [records[(d.digest, v.id)] for d in drawn[i, s] for v in d.variations]
+                for s in similarities
+            })
+            for i in range(len(levels))
+        ]
         result = {
             "suite_name": name, "suite": suite.to_json(), "seed": seed,
             "teachers": [t.seed for t in models], "variations_per_teacher": n,
-            **paired(by_weighting), "run": run,
         }
+        if sweep is None:
+            result.update(compared[0])
+            figure = plot_comparison(result)
+        else:
+            result.update(sweep={"key": sweep[0], "values": list(sweep[1])}, levels=compared,
+                          dose=dose(sweep[1], compared))
+            figure = plot_dose(result)
+        result["run"] = run
         save_json(out / "compare.json", result)
         write_atomic(out / "compare.md", lambda tmp: tmp.write_text(markdown(result) + "\n"))
-        plots.save(plot_comparison(by_weighting, result), out / "compare.png")
+        plots.save(figure, out / "compare.png")
         return result
 
 
@@ -114,8 +184,10 @@ def settings_digest(record: dict) -> str:
 
 def paired(by_weighting: dict[str, list[dict]]) -> dict:
     """Per weighting (its records, in the same order for every weighting): success with its
-    Wilson interval, per teacher, and the task change [mm, deg]; per pair: the exact McNemar
-    test on success and the Wilcoxon signed-rank test on the pour-phase change.
+    Wilson interval, and per teacher its success rate, mean pour, mean Mahalanobis deviation
+    and median clearance; per pair: the teacher-level effect of each of :data:`MEASURES`
+    (:func:`~imitate.evaluation.inference.teacher_effect`), the McNemar test within these
+    models, and the descriptive pour-phase change.
 
     Raises:
         ImitateError: the weightings' records are not of the same variations.
@@ -128,112 +200,257 @@ def paired(by_weighting: dict[str, list[dict]]) -> dict:
         ok = [r["outcome"] == "success" for r in rs]
         change = {k: np.array([r["change"][k] for r in rs]) for k in ("pour_m", "pour_deg",
                                                                       "low_variance_m")}
-        per_teacher: dict[str, list[int]] = {}  # successes, variations
-        for r, good in zip(rs, ok, strict=True):
-            done = per_teacher.setdefault(str(r["teacher"]), [0, 0])
-            done[0] += good
-            done[1] += 1
         weightings[s] = {
             "variations": len(rs), "success": sum(ok), "success_rate": sum(ok) / len(rs),
             "success_wilson95": list(wilson(sum(ok), len(rs))),
-            "success_by_teacher": per_teacher,
+            "by_teacher": _by_teacher(rs),
             "outcomes": {o: sum(r["outcome"] == o for r in rs) for o in
                          sorted({r["outcome"] for r in rs})},
+            "pour_min_mean": float(np.mean([r["pour_min"] for r in rs])),
+            "mahalanobis_rms_median": float(np.median([r["mahalanobis"]["rms"] for r in rs])),
+            "clearance_median_mm": float(np.median([r["plan"]["min_distance_m"] for r in rs]))
+            * 1000,
             "pour_change_mm": _spread(change["pour_m"] * 1000),
             "pour_change_deg": _spread(change["pour_deg"]),
             "low_variance_change_mm": _spread(change["low_variance_m"] * 1000),
-            "pour_min_mean": float(np.mean([r["pour_min"] for r in rs])),
         }
     pairs = []
     for a, b in itertools.combinations(by_weighting, 2):
         ra, rb = by_weighting[a], by_weighting[b]
+        ta, tb = weightings[a]["by_teacher"], weightings[b]["by_teacher"]
         sa = np.array([r["outcome"] == "success" for r in ra])
         sb = np.array([r["outcome"] == "success" for r in rb])
         only_a, only_b = int(np.sum(sa & ~sb)), int(np.sum(~sa & sb))
         mcnemar = (
             stats.binomtest(only_a, only_a + only_b, 0.5).pvalue if only_a + only_b else 1.0
         )
-        da = np.array([r["change"]["pour_m"] for r in ra]) * 1000
-        db = np.array([r["change"]["pour_m"] for r in rb]) * 1000
-        differences = da - db
-        wilcoxon = (
-            float(stats.wilcoxon(da, db).pvalue) if np.any(differences != 0) else 1.0
-        )
+        moved = (np.array([r["change"]["pour_m"] for r in ra])
+                 - np.array([r["change"]["pour_m"] for r in rb])) * 1000
         pairs.append({
-            "a": a, "b": b, "both": int(np.sum(sa & sb)), "neither": int(np.sum(~sa & ~sb)),
-            "only_a": only_a, "only_b": only_b, "mcnemar_p": float(mcnemar),
-            "success_difference": float(sa.mean() - sb.mean()),
-            "pour_change_median_difference_mm": float(np.median(differences)),
-            "wilcoxon_p": wilcoxon,
+            "a": a, "b": b,
+            "teacher_level": {
+                m: teacher_effect(np.array([ta[t][m] - tb[t][m] for t in ta])) for m in MEASURES
+            },
+            "within_models": {
+                "both": int(np.sum(sa & sb)), "only_a": only_a, "only_b": only_b,
+                "neither": int(np.sum(~sa & ~sb)), "mcnemar_p": float(mcnemar),
+            },
+            "pour_change_median_difference_mm": float(np.median(moved)),
         })
     return {"weightings": weightings, "pairs": pairs}
 
 
+def dose(values: Sequence[float], levels: Sequence[dict]) -> dict:
+    """The dose response of a sweep: per weighting, at every level (``values``, their
+    :func:`paired` results ``levels``) the mean over teachers of the success rate and of the
+    mean pour with their t intervals, the median Mahalanobis deviation and clearance; its ED50
+    (:func:`~imitate.evaluation.inference.ed50`, beyond the levels as ``">300"`` or
+    ``"<10"``); per teacher the first level whose plans keep the margin (``None``: none).
+    Per pair: the teachers whose ED50 or first clearing level is at least twice as high
+    with ``b`` as with ``a`` (or ``a``'s), as ratios ``b / a`` per teacher."""
+    x = np.asarray(values, float)
+    weightings = list(levels[0]["weightings"])
+    teachers_ = list(levels[0]["weightings"][weightings[0]]["by_teacher"])
+    curves = {}
+    for s in weightings:
+        per = [level["weightings"][s]["by_teacher"] for level in levels]
+        rates = np.array([[p[t]["success_rate"] for p in per] for t in teachers_])
+        pours = np.array([[p[t]["pour_min"] for p in per] for t in teachers_])
+        clear = np.array([[p[t]["clearance_median_mm"] for p in per] for t in teachers_])
+        found = ed50(x, rates)
+        kept = clear >= MARGIN * 1000
+        curves[s] = {
+            "success": [_band(rates[:, j]) for j in range(len(x))],
+            "pour": [_band(pours[:, j]) for j in range(len(x))],
+            "mahalanobis_rms_median": [level["weightings"][s]["mahalanobis_rms_median"]
+                                       for level in levels],
+            "clearance_median_mm": [level["weightings"][s]["clearance_median_mm"]
+                                    for level in levels],
+            "ed50": _level(found["ed50"], x), "ed50_ci95": [_level(v, x) for v in found["ci95"]],
+            "ed50_by_teacher": dict(zip(teachers_, (_level(v, x) for v in found["by_teacher"]),
+                                        strict=True)),
+            "first_clear_by_teacher": {
+                t: float(x[np.argmax(k)]) if k.any() else None
+                for t, k in zip(teachers_, kept, strict=True)
+            },
+        }
+    pairs = []
+    for a, b in itertools.combinations(weightings, 2):
+        row = {"a": a, "b": b}
+        for what in ("ed50_by_teacher", "first_clear_by_teacher"):
+            ratios = [_ratio(curves[b][what][t], curves[a][what][t]) for t in teachers_]
+            row[what.replace("_by_teacher", "_ratio_by_teacher")] = dict(
+                zip(teachers_, ratios, strict=True))
+            row[what.replace("_by_teacher", "_b_twice_a")] = sum(
+                r is not None and r >= 2 for r in ratios)
+            row[what.replace("_by_teacher", "_a_twice_b")] = sum(
+                r is not None and r <= 0.5 for r in ratios)
+        pairs.append(row)
+    return {"weightings": curves, "pairs": pairs}
+
+
 def markdown(result: dict) -> str:
-    """``compare.md``: the weightings' table and the pairs' tests."""
+    """``compare.md``: the weightings' table and the pairs' tests, or the sweep's tables."""
     n = result["variations_per_teacher"]
     teachers_ = ", ".join(str(t) for t in result["teachers"])
+    head = (f"Suite `{result['suite_name']}`, {n} variations x {len(result['teachers'])} "
+            f"teachers (seeds {teachers_}; variation seed {result['seed']}), paired.")
+    if "sweep" in result:
+        return "\n".join([head, "", *_sweep_tables(result)])
+    return "\n".join([head, "", *_tables(result)])
+
+
+def _tables(result: dict) -> list[str]:
+    """The markdown tables of one comparison (:func:`paired`'s result)."""
     lines = [
-        f"Suite `{result['suite_name']}`, {n} variations x teachers {teachers_} (seed "
-        f"{result['seed']}), paired.",
-        "",
-        "| weighting | success | Wilson 95 % | per teacher | pour-phase change median / p95 "
-        "[mm] | [deg] | change where the demonstrations agree, median / p95 [mm] |",
-        "|---|---|---|---|---|---|---|",
+        "| weighting | success | Wilson 95 % | per teacher | mean pour (worst replay) "
+        "| Mahalanobis deviation, median [sd] | pour-phase change median / p95 [mm] | [deg] |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for s, w in result["weightings"].items():
         low, high = w["success_wilson95"]
-        per = ", ".join(f"{a}/{b}" for a, b in w["success_by_teacher"].values())
-        pour, deg, low_var = w["pour_change_mm"], w["pour_change_deg"], w["low_variance_change_mm"]
+        per = ", ".join(f"{t['success']}/{t['variations']}" for t in w["by_teacher"].values())
+        pour, deg = w["pour_change_mm"], w["pour_change_deg"]
         lines.append(
             f"| {s} | {w['success']}/{w['variations']} | {low:.3f}..{high:.3f} | {per} "
-            f"| {pour['median']:.1f} / {pour['p95']:.1f} | {deg['median']:.1f} / {deg['p95']:.1f} "
-            f"| {low_var['median']:.1f} / {low_var['p95']:.1f} |"
+            f"| {w['pour_min_mean']:.3f} | {w['mahalanobis_rms_median']:.2f} "
+            f"| {pour['median']:.1f} / {pour['p95']:.1f} | {deg['median']:.1f} / "
+            f"{deg['p95']:.1f} |"
         )
     lines += [
         "",
-        "| pair (a vs b) | both succeed | only a | only b | neither | McNemar p (exact) "
-        "| pour-phase change, median a - b [mm] | Wilcoxon p |",
-        "|---|---|---|---|---|---|---|---|",
+        "Teacher level (each teacher one paired difference a - b; mean [95 % t interval over "
+        "teachers], teachers a higher / b higher, exact permutation p):",
+        "",
+        "| pair (a vs b) | success [pp] | p | mean pour | p | Mahalanobis deviation [sd] | p |",
+        "|---|---|---|---|---|---|---|",
     ]
     for p in result["pairs"]:
+        cells = []
+        for m, scale in (("success_rate", 100), ("pour_min", 1), ("mahalanobis_rms", 1)):
+            e = p["teacher_level"][m]
+            cells += [_effect(e, scale), _p(e["p"])]
+        lines.append(f"| {p['a']} vs {p['b']} | " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        "Within these models (variations pooled, so not evidence beyond the teachers drawn):",
+        "",
+        "| pair (a vs b) | both succeed | only a | only b | neither | McNemar p (exact) "
+        "| pour-phase change, median a - b [mm] |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for p in result["pairs"]:
+        w = p["within_models"]
         lines.append(
-            f"| {p['a']} vs {p['b']} | {p['both']} | {p['only_a']} | {p['only_b']} "
-            f"| {p['neither']} | {_p(p['mcnemar_p'])} "
-            f"| {p['pour_change_median_difference_mm']:+.1f} | {_p(p['wilcoxon_p'])} |"
+            f"| {p['a']} vs {p['b']} | {w['both']} | {w['only_a']} | {w['only_b']} "
+            f"| {w['neither']} | {_p(w['mcnemar_p'])} "
+            f"| {p['pour_change_median_difference_mm']:+.1f} |"
         )
-    return "\n".join(lines)
+    return lines
 
 
-def plot_comparison(by_weighting: dict[str, list[dict]], result: dict) -> Figure:
-    """Success with its Wilson interval per weighting (dots: each teacher) beside the
-    distribution of the pour-phase change."""
-    figure = Figure(figsize=(11, 4.5), layout="constrained")
-    left, right = figure.subplots(1, 2)
-    names = list(by_weighting)
+def _sweep_tables(result: dict) -> list[str]:
+    """The markdown tables of a sweep: the dose response, ED50, first clearing level, and each
+    level's teacher-level success differences."""
+    key, values = result["sweep"]["key"], result["sweep"]["values"]
+    curves = result["dose"]["weightings"]
+    names = list(curves)
+    lines = [
+        f"Success over teachers, mean [95 % t interval] and mean pour, against `{key}`:",
+        "",
+        f"| {key} | " + " | ".join(names) + " |",
+        "|---|" + "---|" * len(names),
+    ]
+    for j, v in enumerate(values):
+        cells = [
+            f"{_percent(curves[s]['success'][j])} · {curves[s]['pour'][j]['mean']:.2f}"
+            for s in names
+        ]
+        lines.append(f"| {v:g} | " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        f"| weighting | ED50 [95 % bootstrap over teachers] | ED50 per teacher "
+        f"| first `{key}` whose plans keep the {MARGIN * 1000:.0f} mm margin, per teacher |",
+        "|---|---|---|---|",
+    ]
+    for s in names:
+        c = curves[s]
+        low, high = c["ed50_ci95"]
+        lines.append(
+            f"| {s} | {_show(c['ed50'])} [{_show(low)}, {_show(high)}] "
+            f"| {', '.join(_show(v) for v in c['ed50_by_teacher'].values())} "
+            f"| {', '.join(_show(v) for v in c['first_clear_by_teacher'].values())} |"
+        )
+    lines += [
+        "",
+        "| pair (a vs b) | teachers whose ED50 is >= 2x higher with b / with a "
+        "| whose first clearing level is >= 2x higher with b / with a |",
+        "|---|---|---|",
+    ]
+    for p in result["dose"]["pairs"]:
+        lines.append(
+            f"| {p['a']} vs {p['b']} | {p['ed50_b_twice_a']} / {p['ed50_a_twice_b']} "
+            f"| {p['first_clear_b_twice_a']} / {p['first_clear_a_twice_b']} |"
+        )
+    lines += [
+        "",
+        "Success difference a - b per level [pp], mean [95 % t interval over teachers] "
+        "(permutation p):",
+        "",
+        "| pair (a vs b) | " + " | ".join(f"{key} {v:g}" for v in values) + " |",
+        "|---|" + "---|" * len(values),
+    ]
+    for i, p in enumerate(result["levels"][0]["pairs"]):
+        cells = [
+            f"{_effect(level['pairs'][i]['teacher_level']['success_rate'], 100, counts=False)} "
+            f"({_p(level['pairs'][i]['teacher_level']['success_rate']['p'])})"
+            for level in result["levels"]
+        ]
+        lines.append(f"| {p['a']} vs {p['b']} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def plot_comparison(result: dict) -> Figure:
+    """Success per weighting with its Wilson interval (dots: each teacher), and per pair the
+    teacher-level differences of success and of the mean pour with their t intervals (dots:
+    each teacher's difference)."""
+    figure = Figure(figsize=(14, 4.8), layout="constrained")
+    left, middle, right = figure.subplots(1, 3)
+    names = list(result["weightings"])
     positions = np.arange(len(names))
     weightings = [result["weightings"][s] for s in names]
     rates = np.array([w["success_rate"] for w in weightings])
     bounds = np.array([w["success_wilson95"] for w in weightings])
     left.bar(positions, rates, color="0.85", edgecolor="0.3")
-    left.errorbar(positions, rates, yerr=[rates - bounds[:, 0], bounds[:, 1] - rates],
-                  fmt="none", color="k", capsize=6)
-    for j, teacher in enumerate(result["teachers"]):
-        shares = [w["success_by_teacher"][str(teacher)] for w in weightings]
-        offset = 0.3 * (j + 0.5) / len(result["teachers"]) - 0.15
-        left.plot(positions + offset, [a / b for a, b in shares], "o", color=f"C{j}", ms=5,
-                  label=f"teacher seed {teacher}")
+    errors = np.clip([rates - bounds[:, 0], bounds[:, 1] - rates], 0.0, None)
+    left.errorbar(positions, rates, yerr=errors, fmt="none", color="k", capsize=6)
+    teacher_list = [str(t) for t in result["teachers"]]
+    for j, teacher in enumerate(teacher_list):
+        offset = 0.3 * (j + 0.5) / len(teacher_list) - 0.15
+        left.plot(positions + offset, [w["by_teacher"][teacher]["success_rate"]
+                                       for w in weightings], "o", color=f"C{j % 10}", ms=4)
     left.set(xticks=positions, xticklabels=names, ylim=(0, 1.05), ylabel="success rate",
-             title="success (bar: 95 % Wilson interval; dots: teachers)")
-    left.legend(fontsize=8, loc="upper left")
-    changes = [
-        np.maximum(np.array([r["change"]["pour_m"] for r in by_weighting[s]]) * 1000, 0.1)
-        for s in names
-    ]
-    right.boxplot(changes, positions=positions, widths=0.5, whis=(5, 95))
-    right.set(xticks=positions, xticklabels=names, yscale="log",
-              ylabel="largest change in the pour [mm]",
-              title="pour moved from the unconstrained plan (whiskers: 5-95 %)")
+             title="success (bar: pooled, 95 % Wilson; dots: teachers)")
+    pairs = result["pairs"]
+    for axis, measure, scale, label in (
+        (middle, "success_rate", 100, "success difference a - b [pp]"),
+        (right, "pour_min", 1, "mean pour difference a - b"),
+    ):
+        for i, p in enumerate(pairs):
+            e = p["teacher_level"][measure]
+            ta = result["weightings"][p["a"]]["by_teacher"]
+            tb = result["weightings"][p["b"]]["by_teacher"]
+            d = [scale * (ta[t][measure] - tb[t][measure]) for t in ta]
+            axis.plot(d, np.full(len(d), i) + np.linspace(-0.15, 0.15, len(d)), "o",
+                      color="0.6", ms=3)
+            if e["ci95"] is not None:
+                axis.plot([scale * v for v in e["ci95"]], [i, i], color="k", lw=2)
+            axis.plot([scale * e["mean"]], [i], "D", color="k", ms=6)
+        axis.axvline(0, color="0.4", lw=0.8, ls="--")
+        axis.set(yticks=np.arange(len(pairs)), yticklabels=[f"{p['a']} vs {p['b']}"
+                                                           for p in pairs],
+                 xlabel=label, title="over teachers: mean, 95 % t interval, teachers")
+        axis.invert_yaxis()
     figure.suptitle(
         f"suite {result['suite_name']}: {result['variations_per_teacher']} variations x "
         f"{len(result['teachers'])} teachers, the same for every weighting"
@@ -241,10 +458,116 @@ def plot_comparison(by_weighting: dict[str, list[dict]], result: dict) -> Figure
     return figure
 
 
+def plot_dose(result: dict) -> Figure:
+    """Success and mean pour against the swept level per weighting (bands: 95 % t intervals
+    over teachers; ticks: ED50), and the Pareto view: clearance against the Mahalanobis
+    deviation, one point per level."""
+    figure = Figure(figsize=(15, 4.8), layout="constrained")
+    left, middle, right = figure.subplots(1, 3)
+    key, x = result["sweep"]["key"], np.asarray(result["sweep"]["values"], float)
+    log_x = bool(np.all(x > 0))
+    for i, (s, c) in enumerate(result["dose"]["weightings"].items()):
+        colour = f"C{i}"
+        for axis, which in ((left, "success"), (middle, "pour")):
+            mean = np.array([b["mean"] for b in c[which]])
+            band = np.array([b["ci95"] or [b["mean"]] * 2 for b in c[which]])
+            axis.plot(x, mean, "o-", color=colour, label=s)
+            axis.fill_between(x, band[:, 0], band[:, 1], color=colour, alpha=0.15)
+        if isinstance(c["ed50"], float):
+            left.axvline(c["ed50"], color=colour, ls=":", lw=1)
+        right.plot(c["mahalanobis_rms_median"], c["clearance_median_mm"], "o-", color=colour,
+                   label=s)
+        for v, m, d in zip(x, c["mahalanobis_rms_median"], c["clearance_median_mm"],
+                           strict=True):
+            right.annotate(f"{v:g}", (m, d), fontsize=7, color=colour,
+                           xytext=(3, 3), textcoords="offset points")
+    for axis, label in ((left, "success rate"), (middle, "mean pour (worst replay)")):
+        axis.set(xlabel=key, ylabel=label, ylim=(-0.02, 1.05), xscale="log" if log_x else "linear")
+    left.axhline(0.5, color="0.5", lw=0.8)
+    left.set_title("success (bands: 95 % over teachers; dotted: ED50)")
+    middle.set_title("pour")
+    left.legend(fontsize=8)
+    right.axhline(MARGIN * 1000, color="0.5", lw=0.8, ls="--")
+    right.set(xlabel="Mahalanobis deviation from the demonstrations, median [sd]",
+              ylabel="plan clearance, median [mm]",
+              title=f"clearance against deviation (labels: {key})")
+    figure.suptitle(
+        f"suite {result['suite_name']} swept over {key}: {result['variations_per_teacher']} "
+        f"variations x {len(result['teachers'])} teachers per level and weighting"
+    )
+    return figure
+
+
+def _by_teacher(records: Sequence[dict]) -> dict[str, dict]:
+    """Per teacher (its seed as text): variations, successes, the success rate, the mean pour,
+    the mean Mahalanobis deviation and the median plan clearance [mm]."""
+    groups: dict[str, list[dict]] = {}
+    for r in records:
+        groups.setdefault(str(r["teacher"]), []).append(r)
+    return {
+        t: {
+            "variations": len(rs), "success": sum(r["outcome"] == "success" for r in rs),
+            "success_rate": sum(r["outcome"] == "success" for r in rs) / len(rs),
+            "pour_min": float(np.mean([r["pour_min"] for r in rs])),
+            "mahalanobis_rms": float(np.mean([r["mahalanobis"]["rms"] for r in rs])),
+            "clearance_median_mm": float(np.median([r["plan"]["min_distance_m"] for r in rs]))
+            * 1000,
+        }
+        for t, rs in groups.items()
+    }
+
+
+def _band(values: np.ndarray) -> dict:
+    mean, ci = mean_ci(values)
+    return {"mean": mean, "ci95": ci}
+
+
+def _level(value: float, levels: np.ndarray) -> float | str:
+    """A level, or where it lies beyond the swept ones (``">300"``, ``"<10"``)."""
+    if value == math.inf:
+        return f">{levels[-1]:g}"
+    if value == -math.inf:
+        return f"<{levels[0]:g}"
+    return float(value)
+
+
+def _ratio(b: float | str | None, a: float | str | None) -> float | None:
+    """``b / a`` of two levels, ``None`` unless both are levels within the sweep."""
+    if isinstance(a, float) and isinstance(b, float) and a > 0:
+        return b / a
+    return None
+
+
+def _show(value: float | str | None) -> str:
+    if value is None:
+        return "none"
+    return value if isinstance(value, str) else f"{value:.3g}"
+
+
+def _percent(band: dict) -> str:
+    ci = band["ci95"]
+    inside = f" [{100 * ci[0]:.0f}, {100 * ci[1]:.0f}]" if ci else ""
+    return f"{100 * band['mean']:.0f} %{inside}"
+
+
+def _effect(e: dict, scale: float, counts: bool = True) -> str:
+    """A teacher-level effect: mean [interval] and, with ``counts``, teachers a / b higher."""
+    ci = e["ci95"]
+    digits = 1 if scale != 1 else 3
+    text = f"{scale * e['mean']:+.{digits}f}"
+    if ci is not None:
+        text += f" [{scale * ci[0]:+.{digits}f}, {scale * ci[1]:+.{digits}f}]"
+    if counts:
+        text += f", {e['a_higher']}/{e['b_higher']}"
+    return text
+
+
 def _spread(values: np.ndarray) -> dict[str, float]:
     return {"median": float(np.median(values)), "p95": float(np.percentile(values, 95)),
             "max": float(values.max())}
 
 
-def _p(p: float) -> str:
+def _p(p: float | None) -> str:
+    if p is None:
+        return "n/a"
     return f"{p:.2g}" if p >= 1e-4 else f"{p:.1e}"

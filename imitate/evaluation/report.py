@@ -34,13 +34,16 @@ MARGIN = PlanConfig().margin  # [m], the clearance every variation's plan aims f
 
 
 def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """Wilson score interval ``(low, high)`` of a success rate (95 % for ``z = 1.96``)."""
+    """Wilson score interval ``(low, high)`` of a success rate (95 % for ``z = 1.96``); exactly
+    0 below none and 1 above all (where rounding would leave ``1 - 1e-16``)."""
     if n == 0:
         return 0.0, 1.0
     p, z2 = successes / n, z * z
     centre = (p + z2 / (2 * n)) / (1 + z2 / n)
     half = z * math.sqrt(p * (1 - p) / n + z2 / (4 * n * n)) / (1 + z2 / n)
-    return max(0.0, centre - half), min(1.0, centre + half)
+    low = 0.0 if successes == 0 else max(0.0, centre - half)
+    high = 1.0 if successes == n else min(1.0, centre + half)
+    return low, high
 
 
 def place(record: dict) -> str:

@@ -1,7 +1,8 @@
 """One variation, start to end: optimize the reproduction, replay it in perturbed physics from
 each of its seeds, classify the outcome, and measure how far the constraints moved the task from
 the unconstrained reproduction (the same model and weighting in the default scene, collision
-weight 0 and the default path-length weight).
+weight 0 and the default path-length weight) and how far the reproduction lies from the
+demonstrations in their own metric (:func:`~imitate.motion.metrics.mahalanobis`).
 
 The outcome is :func:`imitate.envs.outcome.outcome`'s.
 """
@@ -23,7 +24,7 @@ from imitate.evaluation.variation import Variation
 from imitate.learning import LearnedModel
 from imitate.models import humanoid, objects
 from imitate.motion import Plan, PlanConfig, plan_from_model
-from imitate.motion.metrics import pour_phase_error, task_change
+from imitate.motion.metrics import mahalanobis, pour_phase_error, task_change
 from imitate.motion.replay import planning_task, replay
 
 __all__ = ["Trial", "physics", "plan_variation", "replay_once"]
@@ -131,6 +132,7 @@ class Trial:
         physics_min = min(r["min_distance_m"] for r in replays)
         error_m, error_deg = pour_phase_error(plan)
         change = task_change(plan, self.free(variation.similarity, variation.max_iter))
+        deviation = mahalanobis(plan, self.learned.predict(plan.times)[1])
         return {
             "id": variation.id,
             "settings": variation.to_json(),
@@ -148,6 +150,7 @@ class Trial:
                 "seconds": plan_seconds,
             },
             "change": change,
+            "mahalanobis": deviation,
             "replays": replays,
             "physics_min_distance_m": physics_min,
             "clearance_gap_m": plan.min_distance - physics_min,

@@ -28,19 +28,30 @@ from imitate.motion.control import JointLimitCost, Rollout
 from imitate.motion.kinematics import Distances
 
 __all__ = [
+    "REGULARIZATION",
     "SIMILARITIES",
+    "TOLERANCE",
     "Collision",
     "JointAcceleration",
     "JointLimits",
     "PathLength",
     "Similarity",
+    "regularized_precision",
     "similarity_weights",
     "weighting",
 ]
 
 # How W_t is made from the learned model (:func:`weighting`): eq. 21, the default, and the
 # alternatives the paper's claim is tested against.
-SIMILARITIES = ("variance", "uniform", "inverted", "precision")
+SIMILARITIES = ("variance", "uniform", "inverted", "precision", "inverse_variance", "oracle")
+# The task dimensions' tolerances in eq. 1's order (1 cm, 1 cm, 1 cm, 2 deg, 0.05, 2 deg, 0.05):
+# the error that, held for 1 s at zero variance, costs 1 (eq. 21's ``w_max = 1 / tolerance^2``
+# unless set), and the variance floor of the precision weightings.
+TOLERANCE = (0.01, 0.01, 0.01, np.radians(2.0), 0.05, np.radians(2.0), 0.05)
+# lambda of the precision weightings' floor ``Sigma_t + lambda diag(tolerance^2)``: 1 makes a
+# dimension at zero variance as stiff, relative to the others, as eq. 21's ``w_max``; it also
+# keeps the inverse of a covariance of 5 demonstrations in 7 dimensions (rank 4 at most) finite.
+REGULARIZATION = 1.0
 
 
 def similarity_weights(variance: np.ndarray, w_max: np.ndarray, sigma_max: np.ndarray):
@@ -60,54 +71,80 @@ def similarity_weights(variance: np.ndarray, w_max: np.ndarray, sigma_max: np.nd
     return w_max * np.clip(1.0 - variance / sigma_max, 0.0, None)
 
 
+def regularized_precision(covariance: np.ndarray, w_max: np.ndarray) -> np.ndarray:
+    """``(Sigma_t + lambda diag(1 / w_max))^-1`` ``(T, m, m)`` of GMR covariances ``(T, m, m)``
+    (``1 / w_max``: the tolerances squared; lambda :data:`REGULARIZATION`)."""
+    floor = REGULARIZATION / np.asarray(w_max, float)
+    return np.linalg.inv(covariance + np.diag(floor))
+
+
 def weighting(
     similarity: str,
     variance: np.ndarray,
     covariance: np.ndarray | None,
     w_max: np.ndarray,
     sigma_max: np.ndarray,
+    critical: np.ndarray | None = None,
 ) -> np.ndarray:
-    """``W_t`` of a similarity weighting; each alternative has eq. 21's total weight per
-    dimension (``sum_t W_t[d, d]``), so that only where the weight sits differs.
+    """``W_t`` of a similarity weighting, with eq. 21's total weight: per dimension
+    (``sum_t W_t[d, d]``) for the diagonal ones, so that only where the weight sits differs;
+    over all (in tolerance units, ``sum_t,d`` of the stiffness a dimension keeps when the others
+    may adjust, ``1 / (W_t^-1)_dd``) for ``precision``, whose one gain cannot match each.
 
     - ``variance``: eq. 21 (:func:`similarity_weights`), stiff where the demonstrations agree.
     - ``uniform``: constant in time.
     - ``inverted``: a negative control, rising with the variance: ``min(sigma / sigma_max, 1)``.
-    - ``precision``: the GMR precision ``Sigma_t^-1`` with its cross-covariances ("minimal
-      intervention"), as ``D Sigma_t^-1 D`` with ``D`` diagonal (a change of units per
-      dimension).
+    - ``precision``: minimal intervention (Calinon et al.): one gain times the regularized GMR
+      precision :func:`regularized_precision`, cross-covariances included.
+    - ``inverse_variance``: its diagonal alone, ``1 / (sigma + lambda tolerance^2)``, without
+      eq. 21's ``sigma_max`` ramp.
+    - ``oracle``: all weight on the ``critical`` steps (the phase that decides success), evenly:
+      what knowing the task, rather than inferring it from the variance, would give.
 
     Args:
         similarity: One of :data:`SIMILARITIES`.
         variance: GMR variances ``(T, m)``.
         covariance: GMR covariances ``(T, m, m)``, read by ``precision`` only (``None`` for
             the others).
-        w_max: ``(m,)`` eq. 21's weights at zero variance.
+        w_max: ``(m,)`` eq. 21's weights at zero variance (``1 / tolerance^2``), > 0 for
+            ``precision`` and ``inverse_variance``.
         sigma_max: ``(m,)`` eq. 21's variances where the weight reaches zero.
+        critical: ``(T,)`` bool, the steps that decide success; read by ``oracle`` only.
 
     Returns:
         ``(T, m)`` diagonals of ``W_t``, or ``(T, m, m)`` matrices for ``precision``.
 
     Raises:
-        ImitateError: an unknown ``similarity``, or ``precision`` without ``covariance``.
+        ImitateError: an unknown ``similarity``, or one without what it reads.
     """
     if similarity not in SIMILARITIES:
         raise ImitateError(f"similarity {similarity!r} unknown; accepted: {SIMILARITIES}")
+    w_max = np.asarray(w_max, float)
     ramp = similarity_weights(variance, w_max, sigma_max)
     total = ramp.sum(axis=0)  # (m,) eq. 21's weight per dimension over the steps
     if similarity == "variance":
         return ramp
+    if similarity in ("precision", "inverse_variance") and not np.all(w_max > 0):
+        raise ImitateError(f"similarity {similarity!r} needs every w_max > 0; got {w_max}")
     if similarity == "precision":
         if covariance is None:
             raise ImitateError("similarity 'precision' needs the GMR covariances")
-        precision = np.linalg.inv(covariance)
-        diagonal = np.diagonal(precision, axis1=1, axis2=2).sum(axis=0)
-        scale = np.sqrt(total / diagonal)
-        return scale[:, None] * precision * scale[None, :]
-    shape = (
-        np.ones_like(variance) if similarity == "uniform"
-        else np.clip(variance / np.asarray(sigma_max, float), 0.0, 1.0)
-    )
+        # each dimension's stiffness when the others adjust, 1 / (Sigma_t + floor)_dd, in
+        # units of its w_max; eq. 21's is its own diagonal
+        diagonal = np.diagonal(covariance, axis1=1, axis2=2)
+        marginal = 1.0 / (diagonal * w_max + REGULARIZATION)
+        gain = np.sum(total / w_max) / np.sum(marginal)
+        return gain * regularized_precision(covariance, w_max)
+    if similarity == "oracle":
+        if critical is None or not np.any(critical):
+            raise ImitateError("similarity 'oracle' needs the steps that decide success")
+        shape = np.broadcast_to(np.asarray(critical, float)[:, None], variance.shape)
+    elif similarity == "inverse_variance":
+        shape = 1.0 / (variance + REGULARIZATION / w_max)
+    elif similarity == "uniform":
+        shape = np.ones_like(variance)
+    else:
+        shape = np.clip(variance / np.asarray(sigma_max, float), 0.0, 1.0)
     return shape * total / np.maximum(shape.sum(axis=0), 1e-300)
 
 

@@ -1,12 +1,14 @@
-"""How well a plan reproduces the learned task: the pour-phase error and where it deviates."""
+"""How well a plan reproduces the learned task: the pour-phase error, where it deviates, and how
+far in the demonstrations' own metric."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from imitate.motion.costs import TOLERANCE, regularized_precision
 from imitate.motion.plan import Plan
 
-__all__ = ["deviation", "pour_phase", "pour_phase_error", "task_change"]
+__all__ = ["deviation", "mahalanobis", "pour_phase", "pour_phase_error", "task_change"]
 
 
 def pour_phase(mean: np.ndarray) -> np.ndarray:
@@ -63,4 +65,20 @@ def deviation(plan: Plan, first: Plan) -> dict[str, float]:
         "change_from_first_m2": float(extra.sum()),
         "change_high_variance_share": float(extra[high].sum() / max(extra.sum(), 1e-12)),
         "max_deviation_m": float(np.sqrt(extra.max())),
+    }
+
+
+def mahalanobis(plan: Plan, covariance: np.ndarray) -> dict[str, float]:
+    """How many of the demonstrations' standard deviations ``plan`` sits from the GMR mean: the
+    Mahalanobis distance ``d_t`` of ``x_t - mu_t`` under the GMR covariance ``(T + 1, m, m)`` at
+    ``plan.times``, floored by the tolerances (:func:`~imitate.motion.costs.regularized_precision`:
+    where the demonstrations agree to within a tolerance, an error of one tolerance counts as
+    about one standard deviation). ``rms``: over the movement; ``pour_max``: the largest in the
+    pouring phase."""
+    error = plan.task_error()
+    precision = regularized_precision(covariance, 1.0 / np.square(TOLERANCE[: error.shape[1]]))
+    d = np.sqrt(np.einsum("ti,tij,tj->t", error, precision, error))
+    return {
+        "rms": float(np.sqrt(np.mean(d * d))),
+        "pour_max": float(d[pour_phase(plan.mean)].max()),
     }

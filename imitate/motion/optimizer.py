@@ -36,6 +36,7 @@ from imitate.motion.control import (
     segment_fractions,
 )
 from imitate.motion.costs import (
+    TOLERANCE,
     Collision,
     JointAcceleration,
     JointLimits,
@@ -44,6 +45,7 @@ from imitate.motion.costs import (
     weighting,
 )
 from imitate.motion.kinematics import Kinematics
+from imitate.motion.metrics import pour_phase
 from imitate.motion.minimize import lbfgs, rprop
 from imitate.motion.plan import Plan
 from imitate.motion.plan_config import PlanConfig
@@ -54,9 +56,6 @@ if TYPE_CHECKING:
 
 __all__ = ["Problem", "Setup", "plan_from_model", "setup"]
 
-# Default similarity tolerances per task dimension (eq. 1 order): the error that, held for 1 s
-# at zero variance, costs 1: 1 cm for positions, 2 deg for angles, 0.05 for gaze components.
-_TOLERANCE = (0.01, 0.01, 0.01, np.radians(2.0), 0.05, np.radians(2.0), 0.05)
 # Task position error [m] beyond the demonstrations' two standard deviations (largest over the
 # steps and x, y, z) above which a plan's message says the target was not reached: deviating
 # where the demonstrations varied is the planner's answer to obstacles, not a miss.
@@ -65,7 +64,7 @@ UNREACHED_ERROR = 0.05
 # share, in spacings (a component's time spread is about as wide relative to the components'
 # spacing).
 _SWITCH_WIDTH = 0.4
-# The null-space push's scale [1/rad] for iRprop-'s initial step, as _TOLERANCE for the
+# The null-space push's scale [1/rad] for iRprop-'s initial step, as TOLERANCE for the
 # attractors: a push of 0.1 moves a joint by 0.5 % of its range per step (nullspace_gain 0.05).
 _PUSH_SCALE = 0.1
 # Ranges [m] of _min_distance's queries, the nearer first: a plan's closest pair is almost
@@ -237,7 +236,7 @@ def setup(
     grid = times[0] + np.arange(n_steps + 1) * c.dt
     mu = np.column_stack([np.interp(grid, times, mean[:, i]) for i in range(task.m)])
     var = np.column_stack([np.interp(grid, times, variance[:, i]) for i in range(task.m)])
-    w_max = np.asarray(c.w_max if c.w_max is not None else 1.0 / np.square(_TOLERANCE))
+    w_max = np.asarray(c.w_max if c.w_max is not None else 1.0 / np.square(TOLERANCE))
     sigma_max = np.asarray(
         c.sigma_max if c.sigma_max is not None else c.sigma_max_scale * var.max(axis=0)
     )
@@ -246,7 +245,9 @@ def setup(
         flat = np.asarray(model.covariance, dtype=float).reshape(len(times), -1)
         cov = np.column_stack([np.interp(grid, times, f) for f in flat.T])
         cov = cov.reshape(len(grid), task.m, task.m)
-    weights = weighting(c.similarity, var, cov, w_max, np.maximum(sigma_max, 1e-12))
+    weights = weighting(
+        c.similarity, var, cov, w_max, np.maximum(sigma_max, 1e-12), critical=pour_phase(mu)
+    )
 
     duration = grid[-1] - grid[0]
     if c.attractor_spacing is None:  # the paper: one attractor per GMM component
@@ -370,7 +371,7 @@ def _minimize(problem: Problem, v0: np.ndarray, c: PlanConfig, record) -> bool:
     if c.optimizer == "lbfgs":
         return lbfgs(problem.evaluate, v0, max_iter=c.max_iter, tol=c.tol, record=record)
     m = problem.task.m
-    scale = np.concatenate([_TOLERANCE[:m], np.full(v0.shape[1] - m, _PUSH_SCALE)])
+    scale = np.concatenate([TOLERANCE[:m], np.full(v0.shape[1] - m, _PUSH_SCALE)])
     step = c.rprop_step * np.broadcast_to(scale, v0.shape)
     return rprop(
         problem.evaluate, v0, step, max_iter=c.max_iter, tol=c.tol, patience=c.patience,
