@@ -4,6 +4,7 @@ of ``bench_sim``'s 60-particle scene, measured just before, so that timings take
 days or machines can be compared.
 
     python scripts/record.py scripts/bench/bench_learning.py [ARGS ...]
+    python scripts/record.py -m imitate compare runs/latest --suite effort
 
 The script's output also goes to the terminal as it comes. The section of the same command is
 replaced, the others are kept; nothing is recorded when the script fails (its exit status is
@@ -78,15 +79,16 @@ def write(path: Path, found: dict[str, str]) -> None:
 
 
 def main(argv: list[str]) -> int:
-    if not argv or not argv[0].endswith(".py"):
-        print("usage: python scripts/record.py SCRIPT.py [ARGS ...]", file=sys.stderr)
+    if not argv or not (argv[0].endswith(".py") or argv[:2] == ["-m", "imitate"]):
+        print("usage: python scripts/record.py SCRIPT.py [ARGS ...] | -m imitate COMMAND ...",
+              file=sys.stderr)
         return 2
     rate = steps_per_second()
     status, output = run([sys.executable, *argv])
     if status != 0:
         print(f"record: {argv[0]} exited with {status}; nothing recorded", file=sys.stderr)
         return status
-    command = " ".join(["python", *argv])
+    command = " ".join(argv[1:] if argv[0] == "-m" else ["python", *argv])
     header = (
         f"{datetime.date.today().isoformat()} · commit {commit()} · {os.cpu_count()} cores · "
         f"{rate:.0f} steps/s"

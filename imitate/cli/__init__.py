@@ -460,7 +460,10 @@ def _eval(args: argparse.Namespace) -> int:
                     seed=args.seed, n_teachers=args.teachers, sweep=sweep, workers=args.workers,
                     ray=args.ray,
                 )
-                text = compare.markdown(result) + f"\nresults: {folder}"
+                ran = result["run"]
+                text = (f"{compare.markdown(result)}\n\nran {ran['ran']} variations in "
+                        f"{ran['wall_seconds']:.0f} s ({ran['backend']}, workers "
+                        f"{ran['workers']}); results: {folder}")
             else:
                 summary = evaluation.evaluate(
                     args.run_dir, suite, n=args.n, seed=args.seed, n_teachers=args.teachers,

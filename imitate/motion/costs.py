@@ -98,8 +98,10 @@ def weighting(
       precision :func:`regularized_precision`, cross-covariances included.
     - ``inverse_variance``: its diagonal alone, ``1 / (sigma + lambda tolerance^2)``, without
       eq. 21's ``sigma_max`` ramp.
-    - ``oracle``: all weight on the ``critical`` steps (the phase that decides success), evenly:
-      what knowing the task, rather than inferring it from the variance, would give.
+    - ``oracle``: knowing the task instead of inferring it from the variance: ``w_max`` (eq.
+      21's largest) on each ``critical`` step (the phase that decides success), the rest of the
+      total evenly on the others. (All of it on the critical steps leaves the attractors before
+      them free: the optimizer swings them into the chest.)
 
     Args:
         similarity: One of :data:`SIMILARITIES`.
@@ -138,8 +140,11 @@ def weighting(
     if similarity == "oracle":
         if critical is None or not np.any(critical):
             raise ImitateError("similarity 'oracle' needs the steps that decide success")
-        shape = np.broadcast_to(np.asarray(critical, float)[:, None], variance.shape)
-    elif similarity == "inverse_variance":
+        critical = np.asarray(critical, bool)
+        stiff = np.minimum(w_max * critical.sum(), total)  # (m,) w_max on each critical step
+        rest = (total - stiff) / max(int(np.sum(~critical)), 1)
+        return np.where(critical[:, None], stiff / critical.sum(), rest)
+    if similarity == "inverse_variance":
         shape = 1.0 / (variance + REGULARIZATION / w_max)
     elif similarity == "uniform":
         shape = np.ones_like(variance)
