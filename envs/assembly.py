@@ -1,4 +1,5 @@
-"""Scene assembly with ``mujoco.MjSpec``: room, robot, teacher, bottle, glass, liquid, obstacles.
+"""Scene assembly with ``mujoco.MjSpec``: room, robot, teacher, bottle, glass, liquid, obstacles
+and fixtures.
 
 One model serves both halves of the experiment. The bottle and glass are free bodies held by
 weld constraints, either in the robot's hands (bottle right, glass left) or in the teacher's
@@ -59,42 +60,72 @@ class Obstacle:
             positive.
 
     Its whole footprint lies on the table top and its bottom at or above the top, at most
-    ``OBSTACLE_MAX_LIFT`` above it. Whether it clears the robot and the objects it holds is
-    :func:`check_clearance`'s question (it needs the assembled scene).
+    ``OBSTACLE_MAX_LIFT`` above it (a :class:`Fixture` may stand anywhere). Whether it clears
+    the robot and the objects it holds is :func:`check_clearance`'s question (it needs the
+    assembled scene).
     """
 
     shape: str
     pos: tuple[float, float, float]
     size: tuple[float, ...]
 
+    kind = "obstacle"  # what the messages call it
+
     def __post_init__(self):
         if self.shape not in OBSTACLE_SHAPES:
             raise ImitateError(
-                f"obstacle shape {self.shape!r} unknown; accepted: {OBSTACLE_SHAPES}"
+                f"{self.kind} shape {self.shape!r} unknown; accepted: {OBSTACLE_SHAPES}"
             )
         n_size = 3 if self.shape == "box" else 2
         pos, size = _finite(self.pos), _finite(self.size)
         if pos is None or len(pos) != 3 or size is None or len(size) != n_size or min(size) <= 0:
             raise ImitateError(
-                f"obstacle {self.shape} with pos={self.pos} size={self.size} not accepted: pos "
-                f"needs 3 finite values [m] and size {n_size} finite positive values [m]"
+                f"{self.kind} {self.shape} with pos={self.pos} size={self.size} not accepted: "
+                f"pos needs 3 finite values [m] and size {n_size} finite positive values [m]"
             )
         object.__setattr__(self, "pos", pos)
         object.__setattr__(self, "size", size)
+        self._check_place()
+
+    def _check_place(self) -> None:
+        """Raise ``ImitateError`` unless it stands on the table."""
+        pos, size = self.pos, self.size
         (x0, x1), (y0, y1), top = scene.TABLE_X, scene.TABLE_Y, scene.TABLE_HEIGHT
         (x, y, z), half_x, half_y = pos, size[0], size[1 if self.shape == "box" else 0]
         if not (x0 <= x - half_x and x + half_x <= x1 and y0 <= y - half_y and y + half_y <= y1):
             raise ImitateError(
                 f"obstacle {self.shape} at pos={pos} size={size} is outside the table: its "
                 f"footprint x {x - half_x:.3f}..{x + half_x:.3f}, y {y - half_y:.3f}.."
-                f"{y + half_y:.3f} must lie within the table top x {x0}..{x1}, y {y0}..{y1}"
+                f"{y + half_y:.3f} must lie within the table top x {x0}..{x1}, y {y0}..{y1} "
+                "(a Fixture may stand off it)"
             )
         bottom = z - size[-1]
         if not top - 1e-3 <= bottom <= top + OBSTACLE_MAX_LIFT:
             raise ImitateError(
                 f"obstacle {self.shape} at pos={pos} size={size} is outside the table: its bottom "
                 f"(z - half height = {bottom:.3f}) must be at or above the table top z={top} "
-                f"and at most {OBSTACLE_MAX_LIFT} m above it"
+                f"and at most {OBSTACLE_MAX_LIFT} m above it (a Fixture may stand off it)"
+            )
+
+
+@dataclass(frozen=True)
+class Fixture(Obstacle):
+    """A static box or upright cylinder that need not stand on the table: a shelf over the
+    pour, a plate under the glass. Built, seen by the planner's collision cost and by the
+    physics exactly as an :class:`Obstacle` (a ``SceneConfig``'s ``obstacles`` take both); only
+    its place is free, its bottom at or above the floor. Whether it clears the robot and the
+    objects it holds at the start is :func:`check_clearance`'s question, as for an obstacle."""
+
+    kind = "fixture"
+
+    def _check_place(self) -> None:
+        """Raise ``ImitateError`` if its bottom is below the floor."""
+        bottom = self.pos[2] - self.size[-1]
+        if bottom < 0:
+            raise ImitateError(
+                f"fixture {self.shape} at pos={self.pos} size={self.size} is below the floor: "
+                f"its bottom (z - half height = {bottom:.3f}) must be at or above the floor z=0; "
+                "raise its z"
             )
 
 
@@ -105,7 +136,7 @@ class SceneConfig:
     Attributes:
         teacher: include the teacher mannequin across the table.
         particles: number of liquid spheres in the bottle, 0..``MAX_PARTICLES``.
-        obstacles: obstacles on the table.
+        obstacles: obstacles on the table and fixtures (:class:`Fixture`) off it.
         holder: who holds the bottle and glass at the start, ``"robot"`` or ``"teacher"``.
         bottle_grasp: height along the bottle at which it is held [m], see ``GRASP_RANGE``.
         glass_grasp: height along the glass at which it is held [m], see ``GRASP_RANGE``.
@@ -136,7 +167,9 @@ class SceneConfig:
             check_grasp(obj, value)
         for obstacle in self.obstacles:
             if not isinstance(obstacle, Obstacle):
-                raise ImitateError(f"obstacles must be Obstacle instances, got {obstacle!r}")
+                raise ImitateError(
+                    f"obstacles must be Obstacle or Fixture instances, got {obstacle!r}"
+                )
 
 
 def check_grasp(obj: str, height: float) -> None:
@@ -150,9 +183,10 @@ def check_grasp(obj: str, height: float) -> None:
 
 
 def check_clearance(config: SceneConfig, clearance: float = 0.0) -> None:
-    """Raise ``ImitateError`` if an obstacle of ``config`` comes closer than ``clearance`` [m]
-    (overlaps, for 0) to the robot or an object it holds at the start: the rest pose, the
-    objects at their grasps. The message names the obstacle, the geom and the distance."""
+    """Raise ``ImitateError`` if an obstacle or fixture of ``config`` comes closer than
+    ``clearance`` [m] (overlaps, for 0) to the robot or an object it holds at the start: the
+    rest pose, the objects at their grasps. The message names the obstacle, the geom and the
+    distance. Obstacles may touch the table and each other."""
     if not config.obstacles:
         return
     model = build_model(dataclasses.replace(config, teacher=False, particles=0, holder="robot"))
@@ -170,7 +204,8 @@ def check_clearance(config: SceneConfig, clearance: float = 0.0) -> None:
                 where = (f"overlaps {names[g]!r} by {-distance * 1000:.1f} mm" if distance < 0
                          else f"is {distance * 1000:.1f} mm from {names[g]!r}")
                 raise ImitateError(
-                    f"obstacle {obstacle.shape} at pos={obstacle.pos} size={obstacle.size} "
+                    f"{obstacle.kind} {obstacle.shape} at pos={obstacle.pos} "
+                    f"size={obstacle.size} "
                     f"{where} at the start (rest pose, objects at their grasps): it must stand "
                     f"{f'{clearance * 1000:.0f} mm ' if clearance else ''}clear of the robot and "
                     "the objects it holds"

@@ -6,10 +6,12 @@ import pytest
 
 from imitate.envs import assembly
 from imitate.envs.collision import CollisionPairs
+from imitate.envs.pouring import PouringEnv
 from imitate.errors import ImitateError
 from imitate.models import humanoid, objects
 from imitate.models import scene as names
 from imitate.models import teacher as teacher_names
+from imitate.motion.replay import planning_task
 
 
 @pytest.fixture(scope="module")
@@ -216,3 +218,41 @@ def test_hulls_enclose_the_collision_geoms(model, obj):
             np.abs(points[:, 2] - centre[2]) <= half + 1e-9
         )
     assert inside.all(), f"{(~inside).sum()} of {len(points)} points outside the hulls"
+
+
+def test_a_fixture_may_stand_off_the_table_clear_of_the_robot():
+    """Off the table, over the pour, a fixture is accepted where an obstacle is refused; in the
+    robot it is refused like an obstacle, in one line."""
+    shelf = ("box", (0.31, -0.28, 0.95), (0.05, 0.05, 0.05))  # over the bottle in the pour
+    with pytest.raises(ImitateError, match=r"outside the table.*\(a Fixture may stand off it\)"):
+        assembly.Obstacle(*shelf)
+    fixture = assembly.Fixture(*shelf)
+    assert isinstance(fixture, assembly.Obstacle) and fixture != assembly.Obstacle(
+        "box", (0.6, 0.0, 0.7), (0.05, 0.05, 0.05)
+    )
+    assembly.check_clearance(assembly.SceneConfig(obstacles=(fixture,)), clearance=0.011)
+    in_chest = assembly.Fixture("box", (0.05, 0.0, 0.85), (0.05, 0.05, 0.05))
+    with pytest.raises(ImitateError, match=r"^fixture box at pos=\(0\.05, 0\.0, 0\.85\) size="
+                       r".* overlaps 'torso_chest' by .* mm at the start") as err:
+        assembly.check_clearance(assembly.SceneConfig(obstacles=(in_chest,)))
+    assert "\n" not in str(err.value)
+    with pytest.raises(ImitateError, match=r"below the floor: its bottom \(z - half height = "
+                       r"-0\.050\) must be at or above the floor z=0; raise its z$"):
+        assembly.Fixture("box", (0.3, 0.0, 0.0), (0.05, 0.05, 0.05))
+    with pytest.raises(ImitateError, match="fixture shape 'sphere' unknown"):
+        assembly.Fixture("sphere", (0.3, 0.0, 0.9), (0.05,))
+
+
+def test_the_planner_and_the_physics_see_a_fixture():
+    """A fixture 5 mm over the bottle at the start: the planner's clearance and the env's both
+    measure it."""
+    over_bottle = assembly.Fixture("box", (0.356, -0.18, 0.941), (0.03, 0.03, 0.02))
+    task = planning_task(assembly.SceneConfig(obstacles=(over_bottle,)))
+    distance, pair = task.kin.min_distance()
+    assert distance == pytest.approx(0.005, abs=1e-3) and f"{names.OBSTACLE_PREFIX}0" in pair
+    env = PouringEnv(particles=0, teacher=False, obstacles=(over_bottle,), reset_noise_scale=0.0)
+    try:
+        _, info = env.reset(seed=0)
+        assert info["min_distance"] == pytest.approx(distance, abs=1e-3)
+    finally:
+        env.close()

@@ -195,6 +195,8 @@ def _fmt_default(value: Any) -> str:
     """A suite key's default as a suite file writes it: ``[low, high]`` for a range."""
     if isinstance(value, tuple):
         return "[" + ", ".join(map(str, value)) + "]"
+    if isinstance(value, bool):
+        return "true" if value else "false"
     return str(value)
 
 

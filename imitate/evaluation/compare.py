@@ -68,8 +68,8 @@ def parse_sweep(text: str) -> tuple[str, tuple[float, ...]]:
             are not increasing numbers the key accepts.
     """
     key, _, values = text.partition("=")
-    numeric = [k for k, v in KEYS.items() if not v.is_name and v.choices is None
-               and not v.integer]
+    numeric = [k for k, v in KEYS.items() if not (v.is_name or v.is_switch or v.integer)
+               and v.choices is None]
     refused = f"--sweep {text} not accepted: KEY=V1,V2,... with KEY one of {numeric} and " \
               "two or more increasing values, e.g. path_length_weight=10,20,40,70"
     if key not in numeric:

@@ -2,7 +2,8 @@
 
 The models are the run's and, with ``teachers``, those of more teacher seeds
 (:mod:`~imitate.evaluation.teachers`); each teacher reproduces every variation, drawn once per
-teacher (its obstacles in the path are placed on that teacher's path).
+teacher (its obstacles in the path are placed on that teacher's path, its shelves and plates
+where that teacher pours).
 
 Writes under ``RUN_DIR/eval/<suite>-w<collision weight>-<similarity>/`` (:func:`default_out`;
 or the folder ``out``), so that evaluations of another suite, weight or weighting keep theirs:
@@ -35,7 +36,7 @@ from imitate.evaluation.parallel import Job, run_local, run_ray
 from imitate.evaluation.report import failure_video, plot_outcomes, summarize, summarize_teachers
 from imitate.evaluation.suite import KEYS, Suite
 from imitate.evaluation.teachers import Teacher, check_run, teachers
-from imitate.evaluation.variation import Variation, draw, path_points
+from imitate.evaluation.variation import Variation, draw, free_places
 from imitate.figures import plots
 from imitate.learning import LearnedModel
 from imitate.rundir import page
@@ -137,15 +138,16 @@ class Draw:
 
 
 def draw_jobs(models: Sequence[Teacher], suite: Suite, seed: int, n: int) -> list[Draw]:
-    """Variations ``0..n-1`` of ``suite`` drawn with ``seed`` for each teacher in ``models``."""
+    """Variations ``0..n-1`` of ``suite`` drawn with ``seed`` for each teacher in ``models``
+    (its path and pour from one reproduction at collision weight 0: :func:`free_places`)."""
     code = provenance.code_digest()
     drawn = []
     for t in models:
         learned = LearnedModel.from_arrays(t.arrays)
-        path = path_points(learned, t.arrays["gaze"], suite["max_iter"])
+        path, pour = free_places(learned, t.arrays["gaze"], suite["max_iter"])
         drawn.append(Draw(
             t.seed, suite.digest(seed, t.model_bytes, code), path,
-            tuple(draw(suite, seed, i, path) for i in range(n)),
+            tuple(draw(suite, seed, i, path, pour) for i in range(n)),
         ))
     return drawn
 

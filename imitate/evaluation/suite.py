@@ -2,7 +2,8 @@
 
 A suite is a TOML or JSON file of top-level keys, each optional (the built-in default suite
 fills the rest); :data:`KEYS` declares every key once with its default, range and meaning. A
-range key takes ``[low, high]`` (drawn uniformly) or one number (fixed). Unknown keys,
+range key takes ``[low, high]`` (drawn uniformly) or one number (fixed), a switch ``true`` or
+``false``. Unknown keys,
 out-of-range values, ``low > high`` and an empty file are refused with an ``ImitateError``
 naming the entry.
 """
@@ -39,6 +40,8 @@ class Key:
         low, high: Accepted values (each end of a range), inclusive.
         integer: Whole numbers only.
         choices: The accepted names: of a list of names, or of one name (a ``str`` default).
+
+    A ``bool`` default makes a switch: ``true`` or ``false`` only.
     """
 
     default: Any
@@ -56,10 +59,16 @@ class Key:
     def is_name(self) -> bool:
         return isinstance(self.default, str)
 
+    @property
+    def is_switch(self) -> bool:
+        return isinstance(self.default, bool)
+
     def accepted(self) -> str:
         """What the key accepts, in words."""
         if self.is_name:
             return f"one of {list(self.choices or ())}"
+        if self.is_switch:
+            return "true or false"
         if self.choices is not None:
             return f"a non-empty list of {list(self.choices)}"
         kind = "whole numbers" if self.integer else "numbers"
@@ -78,6 +87,10 @@ class Key:
         refused = f"{source}: entry {name}={value!r} not accepted: {self.accepted()}"
         if self.is_name:
             if not isinstance(value, str) or value not in (self.choices or ()):
+                raise ImitateError(refused)
+            return value
+        if self.is_switch:
+            if not isinstance(value, bool):
                 raise ImitateError(refused)
             return value
         if self.choices is not None:
@@ -122,6 +135,15 @@ KEYS: dict[str, Key] = {
         "it competes with the task everywhere)", 0, 1e3,
     ),
     "max_iter": Key(PlanConfig.max_iter, "optimizer iteration limit", 1, 10_000, integer=True),
+    "nullspace_push": Key(
+        PlanConfig.nullspace_push, "whether the planner may push a plan that keeps less than its "
+        "margin once more through the task's null space (the default planner); false: the "
+        "attractors alone, as in the paper",
+    ),
+    "limit_margin": Key(
+        0.0, "the planner keeps every joint this far inside its range at each end (never past "
+        "the rest pose) [rad]", 0.0, 0.5,
+    ),
     "replays": Key(
         3, "physics replays per variation, each from its own seed of the initial-state noise "
         "(joint angles +-0.01 rad, particle jitter)", 1, 20, integer=True,
@@ -145,6 +167,22 @@ KEYS: dict[str, Key] = {
     "path_overlap": Key(
         (0.005, 0.03), "how far an obstacle in the path rises above the bottom of the held "
         "object it stands under [m]", 0.0, 0.2,
+    ),
+    "shelf_share": Key(
+        0.0, "share of variations with a shelf (a fixture off the table) over the bottle's "
+        "raised end in the pour, placed from the path at collision weight 0", 0, 1,
+    ),
+    "shelf_gap": Key(
+        (0.02, 0.10), "how far a shelf's underside reaches below the bottle's highest point in "
+        "the pour at collision weight 0 [m]", 0.0, 0.3,
+    ),
+    "plate_share": Key(
+        0.0, "share of variations with a plate (a fixture off the table) under the glass in the "
+        "pour, placed from the path at collision weight 0", 0, 1,
+    ),
+    "plate_gap": Key(
+        (-0.01, 0.0), "how far a plate's top rises above the glass's lowest point in the pour "
+        "at collision weight 0 [m] (below it, if negative)", -0.1, 0.1,
     ),
     "bottle_grasp": Key(_BOTTLE, "where the hand holds the bottle, above its bottom [m]", *_BOTTLE),
     "glass_grasp": Key(_GLASS, "where the hand holds the glass, above its bottom [m]", *_GLASS),

@@ -32,8 +32,9 @@ __all__ = ["Trial", "physics", "plan_variation", "replay_once"]
 
 
 def plan_variation(learned: LearnedModel, gaze: np.ndarray, variation: Variation) -> Plan:
-    """The reproduction of ``learned`` in the variation's scene (its obstacle and grasps)."""
-    task = planning_task(variation.scene(), gaze)
+    """The reproduction of ``learned`` in the variation's scene (its obstacle, fixtures and
+    grasps) and joint ranges."""
+    task = variation.planning_task(gaze)
     return plan_from_model(
         task, learned, q0=humanoid.rest_pose(), config=variation.plan_config()
     )

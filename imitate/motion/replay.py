@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from numbers import Real
 from typing import cast
 
 import gymnasium as gym
@@ -17,6 +18,7 @@ import numpy as np
 
 from imitate.envs import assembly
 from imitate.envs.pouring import PouringEnv
+from imitate.errors import ImitateError
 from imitate.learning import LearnedModel
 from imitate.models import humanoid, objects
 from imitate.motion import Plan, PlanConfig, plan_from_model
@@ -32,6 +34,7 @@ def planning_task(
     config: assembly.SceneConfig | None = None,
     gaze: np.ndarray | None = None,
     control: ControlConfig | None = None,
+    limit_margin: float = 0.0,
 ) -> TaskMap:
     """Task map on the scene's planning model (:func:`assembly.planning_model`; default:
     ``PouringEnv``'s scene), objects held by the robot, its kinematics updated to the rest pose.
@@ -41,16 +44,42 @@ def planning_task(
         gaze: ``R_gaze`` ``(3, 3)``, right-handed, columns right, down, forward (e.g. the gaze
             stored with observed tracks); ``None`` for the rest pose's left-eye camera.
         control: Its ``fixed_joints`` get zero Jacobian columns; ``None`` for the default.
+        limit_margin: Every planned joint's range narrowed by this much [rad] at each end, never
+            past the rest pose (:func:`narrowed_limits`): the planner's clipping, its joint-limit
+            cost and its joint metric (the ranges' widths) see the narrowed ranges.
+
+    Raises:
+        ImitateError: a ``limit_margin`` that is no finite number >= 0.
     """
     config, control = config or assembly.SceneConfig(), control or ControlConfig()
     model = assembly.planning_model(config)
     kin = Kinematics(model, humanoid.JOINTS, assembly.clearance_geoms(model))
+    kin.lower, kin.upper = narrowed_limits(kin.lower, kin.upper, limit_margin)
     kin.update(humanoid.rest_pose())
     if gaze is None:
         _, R = kin.camera_pose(GAZE_CAMERA)
         # MuJoCo camera axes are right, up, backward: right, down, forward is x, -y, -z.
         gaze = np.column_stack((R[:, 0], -R[:, 1], -R[:, 2]))
     return TaskMap(kin, objects.BOTTLE, objects.GLASS, gaze, control.fixed_joints)
+
+
+def narrowed_limits(
+    lower: np.ndarray, upper: np.ndarray, margin: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The joint ranges ``lower``, ``upper`` ``(n,)`` [rad] of :data:`humanoid.JOINTS`
+    narrowed by ``margin`` [rad] at each end, each end stopping at the rest pose
+    (:func:`humanoid.rest_pose`): the rest posture stays within the range.
+
+    Raises:
+        ImitateError: a ``margin`` that is no finite number >= 0.
+    """
+    if isinstance(margin, bool) or not isinstance(margin, Real) or not 0 <= margin < np.inf:
+        raise ImitateError(
+            f"limit_margin={margin!r} not accepted: a finite angle >= 0 [rad]; 0 keeps the "
+            "joints' full ranges"
+        )
+    rest = humanoid.rest_pose()
+    return np.minimum(lower + margin, rest), np.maximum(upper - margin, rest)
 
 
 def reproduce(
@@ -214,4 +243,4 @@ def _task_state(env: PouringEnv, task: TaskMap, plan: Plan, t: float) -> np.ndar
     return x
 
 
-__all__ = ["ReplayResult", "planning_task", "replay"]
+__all__ = ["ReplayResult", "narrowed_limits", "planning_task", "replay"]
