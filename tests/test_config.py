@@ -1,13 +1,26 @@
-"""RunConfig's value checks and the CLI's one-line refusals of them."""
+"""RunConfig's value checks and the CLI's one-line refusals of them; the push and teacher
+settings' way to the planner, the teacher and the manifest."""
+
+import dataclasses
+import json
 
 import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from imitate.cli import main
+from imitate.cli import build_parser, config_for, main
+from imitate.envs.teacher_motion import TeacherConfig
 from imitate.envs.video import write_video
 from imitate.errors import ImitateError
-from imitate.stages.config import MAX_WEIGHT, VIDEO_BLOCK, RunConfig, parse_obstacle
+from imitate.rundir import table
+from imitate.stages import provenance
+from imitate.stages.config import (
+    MAX_WEIGHT,
+    VIDEO_BLOCK,
+    RunConfig,
+    load_config,
+    parse_obstacle,
+)
 
 
 @pytest.mark.parametrize(
@@ -79,3 +92,60 @@ def test_video_has_the_accepted_size(tmp_path):
     frames = [np.full((height, width, 3), 40 * i, np.uint8) for i in range(3)]
     write_video(tmp_path / "v.mp4", frames, fps=10)
     assert iio.imread(tmp_path / "v.mp4").shape == (3, height, width, 3)
+
+
+def _parsed(*argv: str) -> RunConfig:
+    args = build_parser().parse_args(list(argv))
+    return config_for(args, RunConfig())
+
+
+def test_push_and_teacher_variation_flags_reach_the_planner_and_the_teacher():
+    default = _parsed("run")
+    assert default.push and default.plan_config().nullspace_push
+    assert default.teacher_variation == "aligned" and default.teacher().variation == "aligned"
+    assert default.teacher() == TeacherConfig(n_demos=5, seed=0)  # today's teacher
+    off = _parsed("optimize", "--no-push")
+    assert not off.push and not off.plan_config().nullspace_push
+    assert _parsed("run", "--push").push
+    swapped = _parsed("run", "--teacher-variation", "misaligned", "--no-push")
+    assert swapped.teacher().variation == "misaligned" and not swapped.push
+    assert _parsed("observe", "--teacher-variation", "misaligned").teacher_variation == "misaligned"
+
+
+def test_cli_refuses_an_unknown_teacher_variation(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["run", "--quick", "--teacher-variation", "sideways", "--out", str(tmp_path)])
+    assert exit_info.value.code == 2
+    assert "misaligned" in capsys.readouterr().err.splitlines()[-1]
+
+
+def test_push_and_teacher_variation_are_recorded_and_rerun_their_stages(tmp_path):
+    """config.json keeps both; the manifest records ``push`` with the optimize stage (changing
+    it outdates the plan, not the demonstrations) and ``teacher_variation`` with observe (it
+    outdates everything after it). A run recorded before the settings existed is not outdated
+    by them at their defaults."""
+    config = RunConfig(push=False, teacher_variation="misaligned")
+    assert RunConfig.from_json(json.loads(json.dumps(config.to_json()))) == config
+    manifest: dict = {}
+    for name, output in (("observe", "demos.npz"), ("optimize", "plan.npz")):
+        (tmp_path / output).write_bytes(name.encode())
+        manifest = provenance.recorded(
+            manifest, tmp_path, table.find(name), config, {output: tmp_path / output}
+        )
+    assert manifest["optimize"]["settings"]["push"] is False
+    assert "push" not in manifest["observe"]["settings"]
+    assert manifest["observe"]["settings"]["teacher_variation"] == "misaligned"
+    assert provenance.outdated(tmp_path, config, manifest) == {}
+    pushed = dataclasses.replace(config, push=True)
+    assert provenance.outdated(tmp_path, pushed, manifest) == {
+        "optimize": "made with push=False, not True"
+    }
+    aligned = dataclasses.replace(config, teacher_variation="aligned")
+    assert set(provenance.outdated(tmp_path, aligned, manifest)) == {"observe", "optimize"}
+    for record in manifest.values():  # as recorded before the settings existed
+        for name in ("push", "teacher_variation"):
+            record["settings"].pop(name, None)
+    assert provenance.outdated(tmp_path, RunConfig(), manifest) == {}
+    (tmp_path / "config.json").write_text(json.dumps({"seed": 0, "n_demos": 5}))
+    old = load_config(tmp_path)
+    assert old.push and old.teacher_variation == "aligned"

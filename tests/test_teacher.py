@@ -1,15 +1,20 @@
-"""The scripted teacher: seeded, right lengths and spreads, stillness between demonstrations."""
+"""The scripted teacher: seeded, right lengths and spreads, stillness between demonstrations;
+the misaligned variation, and its pours in physics."""
 
 import numpy as np
 import pytest
 
 from imitate.envs.observation import tracked_point
+from imitate.envs.outcome import SUCCESS_FRACTION
 from imitate.envs.teacher_motion import (
+    _POUR_ROWS,
     _SWING_ROWS,
     _WAYPOINTS,
+    TEACHER_VARIATIONS,
     TeacherConfig,
     _cross,
     script_demonstrations,
+    teacher_pour,
 )
 from imitate.errors import ImitateError
 
@@ -95,3 +100,98 @@ def test_the_posing_cross_product_is_numpys_bit_for_bit():
     rng = np.random.default_rng(0)
     for a, b in rng.normal(size=(1000, 2, 3)) * rng.lognormal(0, 3, size=(1000, 2, 1)):
         assert np.array_equal(_cross(a, b), np.cross(a, b))
+
+
+def _spread_by_phase(motion, phases):
+    """Per phase ``u``: the standard deviation over the demonstrations of the bottle's tracked
+    point relative to the glass's ``(3,)`` [m] and of the bottle's tilt [deg]."""
+    grid = np.linspace(0.0, 1.0, motion.warps.shape[1])
+    spread = {}
+    for u in phases:
+        rel, tilt = [], []
+        for demo, (start, end) in enumerate(motion.boundaries):
+            t = start + (end - start) * np.interp(u, motion.warps[demo], grid)
+            poses = motion.poses(np.array([t]))
+            bottle, axis = tracked_point("bottle", *poses["bottle"])
+            glass, _ = tracked_point("glass", *poses["glass"])
+            rel.append((bottle - glass)[0])
+            tilt.append(np.degrees(np.arccos(axis[0, 2])))
+        spread[u] = (np.std(rel, axis=0), np.std(tilt))
+    return spread
+
+
+SWING, POUR = (0.12, 0.2), (0.55, 0.6, 0.65)  # phases of the swing and of the pour
+
+
+@pytest.mark.parametrize("seed", [0, 3, 11])
+def test_misaligned_teacher_varies_in_the_pour_and_agrees_in_the_swing(seed):
+    """The aligned teacher varies by centimetres in the swing and by millimetres in the pour;
+    the misaligned one the other way round: the swing the same in every demonstration (up to the
+    tilt plane's azimuth, under a millimetre), the pour spread along the stream (world y)."""
+    quiet = dict(seed=seed, tremor=0.0, tremor_angle=0.0)
+    spread = {
+        v: _spread_by_phase(script_demonstrations(TeacherConfig(variation=v, **quiet)),
+                            SWING + POUR)
+        for v in TEACHER_VARIATIONS
+    }
+    swing = {v: max(s[u][0].max() for u in SWING) for v, s in spread.items()}
+    pour = {v: min(s[u][0].max() for u in POUR) for v, s in spread.items()}
+    assert swing["aligned"] > 0.02 and pour["aligned"] < 0.01
+    assert swing["misaligned"] < 0.001 and max(s[1] for s in spread["misaligned"].values()) < 1.5
+    assert pour["misaligned"] > 0.014  # offsets evenly over +-25 mm: a std of 17.7 mm
+    assert all(np.argmax(spread["misaligned"][u][0]) == 1 for u in POUR)  # along the stream
+
+
+def test_misaligned_offsets_are_bounded_and_move_only_the_bottle():
+    """Same seed, same session but for where the bottle's mouth is: the timing, the tremor, the
+    tilt planes and the glass are the aligned teacher's; the mouth's offsets along the stream while
+    pouring are evenly spread over +-pour_offset and centred."""
+    aligned, misaligned = (
+        script_demonstrations(TeacherConfig(seed=5, variation=v)) for v in TEACHER_VARIATIONS
+    )
+    for name in ("boundaries", "warps", "tilt_planes", "tremor"):
+        assert np.array_equal(getattr(aligned, name), getattr(misaligned, name)), name
+    t = np.linspace(0.0, aligned.duration, 500)
+    assert np.array_equal(aligned.poses(t)["glass"][0], misaligned.poses(t)["glass"][0])
+    u = [_WAYPOINTS[row][0] for row in _POUR_ROWS]
+    nominal = [_WAYPOINTS[row][3][1] for row in _POUR_ROWS]
+    offsets = np.array([path(u)[:, 5] - nominal for path in misaligned.paths])
+    np.testing.assert_allclose(offsets[:, 0], offsets[:, 1], atol=1e-15)
+    np.testing.assert_allclose(np.sort(offsets[:, 0]), np.linspace(-0.025, 0.025, 5), atol=1e-15)
+
+
+def test_aligned_teacher_is_the_teacher_before_the_variation_setting():
+    """The default (aligned) session of seed 0 is, bit for bit up to rounding, what the teacher
+    drew before ``variation`` existed (the default run's demonstrations)."""
+    motion = script_demonstrations(TeacherConfig(seed=0, variation="aligned"))
+    t = np.array([1.0, 3.0, 4.5, 6.0, 9.0, 14.0, 20.0])
+    before = [
+        [1.2098355976798763, -0.13039172858613546, 1.0502258461083096],
+        [1.126466798202895, -0.20428727321995976, 1.2636832344274953],
+        [1.1601217668951938, -0.3275471749258018, 1.3227508777820258],
+        [1.1825324854042272, -0.15755842676344603, 1.0102386394544614],
+        [1.079100695054475, -0.22809636681419881, 1.117320379710604],
+        [0.7161447564857176, -0.00602162687857729, 1.1720215629769328],
+        [1.1252802701796776, -0.22262212259609707, 1.178313893172592],
+    ]
+    np.testing.assert_allclose(motion.poses(t)["bottle"][0], before, rtol=1e-12, atol=0)
+    assert motion.duration == pytest.approx(30.15467246576906, abs=1e-12)
+
+
+def test_misaligned_demonstrations_still_pour_with_little_margin():
+    """In physics with the liquid, the outermost pours (25 mm either side along the stream) put
+    at least SUCCESS_FRACTION of it into the glass; 35 mm either side spills."""
+    outer = {}
+    for offset in (0.025, 0.035):
+        motion = script_demonstrations(
+            TeacherConfig(seed=0, variation="misaligned", pour_offset=offset)
+        )
+        y = np.array([path(0.6)[5] for path in motion.paths])
+        outer[offset] = [teacher_pour(motion, int(d)) for d in (np.argmin(y), np.argmax(y))]
+    assert min(outer[0.025]) >= SUCCESS_FRACTION, outer
+    assert min(outer[0.035]) < SUCCESS_FRACTION, outer
+
+
+def test_bad_variation_is_refused():
+    with pytest.raises(ImitateError, match="variation='sideways' not accepted"):
+        TeacherConfig(variation="sideways")

@@ -212,7 +212,7 @@ def _add_compare(sub: argparse.ArgumentParser) -> None:
                      dest="weightings",
                      help=f"weightings to compare, comma-separated, of {','.join(SIMILARITIES)} "
                      f"(default {','.join(compared)})")
-    sub.add_argument("--sweep", metavar="KEY=V1,V2,...",
+    sub.add_argument("--sweep", metavar="KEY=V1,V2,...", dest="levels",
                      help="compare at every value of a numeric suite key (a dose-response "
                      "curve per weighting and its ED50), e.g. path_length_weight=10,20,40,70 "
                      "or collision_weight=100,300,1000,3000,10000")
@@ -452,11 +452,11 @@ def _eval(args: argparse.Namespace) -> int:
         if args.command == "eval":
             folder = args.out or evaluation.default_out(args.run_dir, name, suite)
         else:
-            folder = compare.out_folder(args.run_dir, name, args.sweep)
+            folder = compare.out_folder(args.run_dir, name, args.levels)
         kept = f"the finished variations are kept in {folder}; run it again to go on"
         with console.terminated_as_exception():
             if args.command == "compare":
-                sweep = compare.parse_sweep(args.sweep) if args.sweep else None
+                sweep = compare.parse_sweep(args.levels) if args.levels else None
                 result = compare.compare(
                     args.run_dir, suite, args.weightings.split(","), name=name, n=args.n,
                     seed=args.seed, n_teachers=args.teachers, sweep=sweep, workers=args.workers,

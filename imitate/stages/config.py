@@ -17,7 +17,7 @@ import numpy as np
 
 from imitate.demos.segment import StillnessConfig
 from imitate.envs import assembly
-from imitate.envs.teacher_motion import TeacherConfig
+from imitate.envs.teacher_motion import TEACHER_VARIATIONS, TeacherConfig
 from imitate.errors import ImitateError
 from imitate.learning.bic import BIC_METHODS, DEFAULT_BIC
 from imitate.motion import SIMILARITIES, PlanConfig
@@ -173,6 +173,14 @@ class RunConfig:
         480, "head-camera image height [px]", stage="observe", flag="--height", low=48, high=1080
     )
     fps: float = _setting(30.0, "camera rate [Hz]", stage="observe", flag="--fps", low=5, high=120)
+    teacher_variation: str = _setting(
+        TeacherConfig.variation, "where the teacher's demonstrations vary: aligned (by "
+        "centimetres in the swing, by millimetres in the pour: low variance where the task is, "
+        "as the paper assumes) or misaligned (the swing the same every time, the pour's position "
+        "spread across the glass by centimetres: low variance where the task is not, a test "
+        "of that premise)", stage="observe", flag="--teacher-variation",
+        choices=TEACHER_VARIATIONS,
+    )
     k_max: int = _setting(
         30, "largest number of GMM components tried", stage="learn", flag="--k-max", low=1,
         high=50,
@@ -209,6 +217,12 @@ class RunConfig:
     sweep: tuple[float, ...] = _setting(
         (0.0, 0.03, 0.1, 0.3, 1.0), "collision weights of the Fig. 9 sweep, as fractions of "
         "collision_weight", stage="optimize", low=0, high=1,
+    )
+    push: bool = _setting(
+        PlanConfig.nullspace_push, "where the attractors alone leave less than the collision "
+        "margin, optimize once more with a null-space push per attractor (the body's "
+        "redundancy, not in the paper); --no-push keeps the attractors' plan (the paper's)",
+        stage="optimize", flag="--push",
     )
     max_iter: int = _setting(
         PlanConfig.max_iter, "optimizer iteration limit", stage="optimize", flag="--max-iter",
@@ -285,11 +299,12 @@ class RunConfig:
         return PlanConfig(
             collision_weight=self.collision_weight, max_iter=self.max_iter,
             similarity=self.similarity, sigma_max_scale=self.sigma_max_scale,
+            nullspace_push=self.push,
         )
 
     def teacher(self) -> TeacherConfig:
         """The teacher's demonstrations."""
-        return TeacherConfig(n_demos=self.n_demos, seed=self.seed)
+        return TeacherConfig(n_demos=self.n_demos, seed=self.seed, variation=self.teacher_variation)
 
     def to_json(self) -> dict[str, Any]:
         """The settings as JSON-ready values (the obstacle as a dict)."""
