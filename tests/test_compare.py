@@ -144,8 +144,8 @@ def _records(weighting: str, teachers: dict[int, list[bool]], pour: float = 0.95
         {"teacher": t, "id": i, "outcome": "success" if ok else "spill",
          "settings": {"similarity": weighting, "id": i}, "pour_min": pour if ok else 0.5,
          "mahalanobis": {"rms": 1.0 + (weighting == "uniform")},
-         "plan": {"min_distance_m": 0.012}, "change": {"pour_m": 0.01, "pour_deg": 1.0,
-                                                      "low_variance_m": 0.02}}
+         "plan": {"min_distance_m": 0.012, "pour_phase_err_m": 0.003},
+         "change": {"pour_m": 0.01, "pour_deg": 1.0, "low_variance_m": 0.02}}
         for t, outcomes in teachers.items() for i, ok in enumerate(outcomes)
     ]
 

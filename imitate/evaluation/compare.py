@@ -210,6 +210,8 @@ def paired(by_weighting: dict[str, list[dict]]) -> dict:
             "mahalanobis_rms_median": float(np.median([r["mahalanobis"]["rms"] for r in rs])),
             "clearance_median_mm": float(np.median([r["plan"]["min_distance_m"] for r in rs]))
             * 1000,
+            "pour_error_median_mm": float(np.median([r["plan"]["pour_phase_err_m"] for r in rs]))
+            * 1000,
             "pour_change_mm": _spread(change["pour_m"] * 1000),
             "pour_change_deg": _spread(change["pour_deg"]),
             "low_variance_change_mm": _spread(change["low_variance_m"] * 1000),
@@ -243,7 +245,8 @@ def paired(by_weighting: dict[str, list[dict]]) -> dict:
 def dose(values: Sequence[float], levels: Sequence[dict]) -> dict:
     """The dose response of a sweep: per weighting, at every level (``values``, their
     :func:`paired` results ``levels``) the mean over teachers of the success rate and of the
-    mean pour with their t intervals, the median Mahalanobis deviation and clearance; its ED50
+    mean pour with their t intervals, the median Mahalanobis deviation, pour-phase error (the
+    plan's largest relative position error from the GMR mean there) and clearance; its ED50
     (:func:`~imitate.evaluation.inference.ed50`, beyond the levels as ``">300"`` or
     ``"<10"``); per teacher the first level whose plans keep the margin (``None``: none).
     Per pair: the teachers whose ED50 or first clearing level is at least twice as high
@@ -264,6 +267,8 @@ def dose(values: Sequence[float], levels: Sequence[dict]) -> dict:
             "pour": [_band(pours[:, j]) for j in range(len(x))],
             "mahalanobis_rms_median": [level["weightings"][s]["mahalanobis_rms_median"]
                                        for level in levels],
+            "pour_error_median_mm": [level["weightings"][s]["pour_error_median_mm"]
+                                     for level in levels],
             "clearance_median_mm": [level["weightings"][s]["clearance_median_mm"]
                                     for level in levels],
             "ed50": _level(found["ed50"], x), "ed50_ci95": [_level(v, x) for v in found["ci95"]],
@@ -460,8 +465,8 @@ def plot_comparison(result: dict) -> Figure:
 
 def plot_dose(result: dict) -> Figure:
     """Success and mean pour against the swept level per weighting (bands: 95 % t intervals
-    over teachers; ticks: ED50), and the Pareto view: clearance against the Mahalanobis
-    deviation, one point per level."""
+    over teachers; dotted: ED50), and the Pareto view: the plans' clearance against their
+    pour-phase error, one point per level."""
     figure = Figure(figsize=(15, 4.8), layout="constrained")
     left, middle, right = figure.subplots(1, 3)
     key, x = result["sweep"]["key"], np.asarray(result["sweep"]["values"], float)
@@ -475,9 +480,9 @@ def plot_dose(result: dict) -> Figure:
             axis.fill_between(x, band[:, 0], band[:, 1], color=colour, alpha=0.15)
         if isinstance(c["ed50"], float):
             left.axvline(c["ed50"], color=colour, ls=":", lw=1)
-        right.plot(c["mahalanobis_rms_median"], c["clearance_median_mm"], "o-", color=colour,
+        right.plot(c["pour_error_median_mm"], c["clearance_median_mm"], "o-", color=colour,
                    label=s)
-        for v, m, d in zip(x, c["mahalanobis_rms_median"], c["clearance_median_mm"],
+        for v, m, d in zip(x, c["pour_error_median_mm"], c["clearance_median_mm"],
                            strict=True):
             right.annotate(f"{v:g}", (m, d), fontsize=7, color=colour,
                            xytext=(3, 3), textcoords="offset points")
@@ -488,9 +493,9 @@ def plot_dose(result: dict) -> Figure:
     middle.set_title("pour")
     left.legend(fontsize=8)
     right.axhline(MARGIN * 1000, color="0.5", lw=0.8, ls="--")
-    right.set(xlabel="Mahalanobis deviation from the demonstrations, median [sd]",
+    right.set(xlabel="pour-phase error of the plan, median [mm]",
               ylabel="plan clearance, median [mm]",
-              title=f"clearance against deviation (labels: {key})")
+              title=f"clearance against the task (labels: {key}; dashed: margin)")
     figure.suptitle(
         f"suite {result['suite_name']} swept over {key}: {result['variations_per_teacher']} "
         f"variations x {len(result['teachers'])} teachers per level and weighting"
@@ -541,7 +546,7 @@ def _ratio(b: float | str | None, a: float | str | None) -> float | None:
 def _show(value: float | str | None) -> str:
     if value is None:
         return "none"
-    return value if isinstance(value, str) else f"{value:.3g}"
+    return value if isinstance(value, str) else f"{value:.4g}"
 
 
 def _percent(band: dict) -> str:
