@@ -13,6 +13,7 @@ from imitate.errors import ImitateError
 from imitate.evaluation import Suite, evaluate, named_suite
 from imitate.evaluation.compare import (
     compare,
+    dose,
     markdown,
     paired,
     parse_sweep,
@@ -155,12 +156,12 @@ def test_a_weighting_that_always_succeeds_is_plotted_with_a_zero_error_bar(n):
     """Wilson's bounds at n of n and 0 of n are exact (rounding once gave 1 - 1e-16, a
     negative error bar and a traceback instead of compare.png)."""
     assert wilson(n, n)[1] == 1.0 and wilson(0, n)[0] == 0.0
-    result = {"suite_name": "s", "suite": {}, "seed": 0, "teachers": [0],
+    result = {"suite_name": "s", "suite": {}, "seed": 0, "teachers": [0, 1],
               "variations_per_teacher": n,
-              **paired({"variance": _records("variance", {0: [True] * n}),
-                        "uniform": _records("uniform", {0: [False] * n})})}
+              **paired({"variance": _records("variance", {0: [True] * n, 1: [True] * n}),
+                        "uniform": _records("uniform", {0: [False] * n, 1: [True] * n})})}
     plot_comparison(result)  # no negative yerr
-    assert "| variance | " + f"{n}/{n} | " in markdown(result)
+    assert f"| variance | 100 % | {n}/{n}, {n}/{n} | {2 * n}/{2 * n} (" in markdown(result)
 
 
 def test_the_teacher_level_interval_finds_a_known_effect_and_no_effect():
@@ -187,11 +188,17 @@ def test_the_teacher_level_interval_finds_a_known_effect_and_no_effect():
 def test_ed50_is_where_the_mean_curve_crosses_half_with_an_interval_over_teachers():
     levels = np.array([10.0, 20, 40, 80, 160])
     falling = np.array([[1.0, 0.9, 0.6, 0.4, 0.0]] * 4)  # crosses at 40..80, 60 % to 40 %
-    found = ed50(levels, falling)
+    found = ed50(levels, falling, rising=False)
     assert found["ed50"] == pytest.approx(np.sqrt(40 * 80))  # halfway in log
     assert found["ci95"] == [pytest.approx(found["ed50"])] * 2
-    assert crossing(levels, np.full(5, 0.8), rising=False) == np.inf  # beyond the sweep
+    # past 50 % everywhere: below the sweep; short of it at the end: beyond it
+    assert crossing(levels, np.full(5, 0.8), rising=False) == np.inf
     assert crossing(levels, np.full(5, 0.8), rising=True) == -np.inf
+    assert crossing(levels, np.full(5, 0.2), rising=False) == -np.inf
+    # the last crossing in the curve's direction: a dip below 50 % and back is not it
+    assert crossing(levels, np.array([0.6, 0.4, 0.8, 0.9, 0.9]), rising=True) == pytest.approx(
+        20 * 2**0.25)
+    assert np.isnan(crossing(levels, np.full(5, 0.8), rising=None))
 
 
 def test_a_sweep_is_numeric_increasing_and_refused_in_one_line():
@@ -200,3 +207,29 @@ def test_a_sweep_is_numeric_increasing_and_refused_in_one_line():
                 "collision_weight=a,b", "path_length_weight=10,5000"):
         with pytest.raises(ImitateError, match="not accepted"):
             parse_sweep(bad)
+
+
+def test_a_weighting_that_never_clears_counts_as_twice_as_high_not_as_unknown():
+    """Dose response: uniform's success stays 0 and its plans never keep the margin, so its
+    ED50 and first clearing level lie beyond the sweep: counted as surely >= 2x eq. 21's."""
+    def level(variance_rate: float, variance_clear: float) -> dict:
+        by = {
+            "variance": {"success_rate": variance_rate, "pour_min": 1.0,
+                         "clearance_median_mm": variance_clear},
+            "uniform": {"success_rate": 0.0, "pour_min": 0.5, "clearance_median_mm": -20.0},
+        }
+        return {"weightings": {
+            s: {"by_teacher": {"0": t, "1": t}, "mahalanobis_rms_median": 1.0,
+                "pour_error_median_mm": 2.0, "clearance_median_mm": t["clearance_median_mm"]}
+            for s, t in by.items()
+        }}
+
+    found = dose([10.0, 100.0, 1000.0], [level(0.0, -5.0), level(1.0, 12.0), level(1.0, 14.0)])
+    assert found["rising"] is True
+    variance, uniform = found["weightings"]["variance"], found["weightings"]["uniform"]
+    assert variance["ed50"] == pytest.approx(np.sqrt(10 * 100)) and uniform["ed50"] == ">1000"
+    assert variance["first_clear_by_teacher"] == {"0": 100.0, "1": 100.0}
+    assert uniform["first_clear_by_teacher"] == {"0": ">1000", "1": ">1000"}
+    (pair,) = found["pairs"]
+    assert pair["ed50"] == {"b_twice_a": 2, "a_twice_b": 0, "untold": 0}
+    assert pair["first_clear"] == {"b_twice_a": 2, "a_twice_b": 0, "untold": 0}

@@ -135,7 +135,7 @@ def test_a_fixture_in_the_robot_at_the_start_is_left_out(teacher):
 def test_a_suite_with_fixtures_needs_the_pour():
     suite = Suite.default().replace(shelf_share=0.5)
     with pytest.raises(ImitateError, match=r"shelf_share=0.5 plate_share=0.0 need the pour's "
-                       r"place: pass draw\(\.\.\., pour=pour_place") as err:
+                       r"place: pass draw\(\.\.\., pour=free_places") as err:
         draw(suite, 0, 0, PATH)
     assert "\n" not in str(err.value)
 

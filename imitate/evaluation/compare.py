@@ -29,6 +29,7 @@ import itertools
 import json
 import logging
 import math
+import time
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -80,8 +81,13 @@ def parse_sweep(text: str) -> tuple[str, tuple[float, ...]]:
         raise ImitateError(refused) from None
     if len(levels) < 2 or any(b <= a for a, b in itertools.pairwise(levels)):
         raise ImitateError(refused)
-    for v in levels:
-        KEYS[key].check(key, v, "--sweep")
+    k = KEYS[key]
+    outside = [v for v in levels if not k.low <= v <= k.high]
+    if outside:
+        raise ImitateError(
+            f"--sweep {text} not accepted: {key} {outside[0]:g} is outside {k.low:g}.."
+            f"{k.high:g}; give values within it"
+        )
     return key, levels
 
 
@@ -124,6 +130,7 @@ def compare(
             f"{', '.join(SIMILARITIES)}, comma-separated, each once"
         )
     levels = [suite] if sweep is None else [suite.replace(**{sweep[0]: v}) for v in sweep[1]]
+    start = time.perf_counter()
     run_dir = check_run(run_dir)
     with locked(run_dir, f"imitate compare {run_dir}"):
         n, workers = check_counts(suite, n, workers)
@@ -134,8 +141,9 @@ def compare(
         models = teachers(run_dir, run_dir / "eval", n_teachers)
         code, model_bytes = provenance.code_digest(), {t.seed: t.model_bytes for t in models}
         drawn: dict[tuple[int, str], list[Draw]] = {}
+        places: dict = {}  # each teacher's weight-0 path and pour, the same at every level
         for i, level in enumerate(levels):
-            base = draw_jobs(models, level, seed, n)
+            base = draw_jobs(models, level, seed, n, places)
             for s in similarities:
                 drawn[i, s] = [
                     Draw(
@@ -167,7 +175,7 @@ def compare(
             result.update(sweep={"key": sweep[0], "values": list(sweep[1])}, levels=compared,
                           dose=dose(sweep[1], compared))
             figure = plot_dose(result)
-        result["run"] = run
+        result["run"] = {**run, "command_seconds": time.perf_counter() - start}
         save_json(out / "compare.json", result)
         write_atomic(out / "compare.md", lambda tmp: tmp.write_text(markdown(result) + "\n"))
         plots.save(figure, out / "compare.png")
@@ -183,9 +191,10 @@ def settings_digest(record: dict) -> str:
 
 
 def paired(by_weighting: dict[str, list[dict]]) -> dict:
-    """Per weighting (its records, in the same order for every weighting): success with its
-    Wilson interval, and per teacher its success rate, mean pour, mean Mahalanobis deviation
-    and median clearance; per pair: the teacher-level effect of each of :data:`MEASURES`
+    """Per weighting (its records, in the same order for every weighting): success over
+    teachers (mean, t interval) and over all variations (Wilson interval), and per teacher its
+    success rate, mean pour, median Mahalanobis deviation and median clearance; per pair: the
+    teacher-level effect of each of :data:`MEASURES`
     (:func:`~imitate.evaluation.inference.teacher_effect`), the McNemar test within these
     models, and the descriptive pour-phase change.
 
@@ -193,17 +202,35 @@ def paired(by_weighting: dict[str, list[dict]]) -> dict:
         ImitateError: the weightings' records are not of the same variations.
     """
     keys = {s: [settings_digest(r) for r in rs] for s, rs in by_weighting.items()}
-    if len({tuple(k) for k in keys.values()}) != 1:
-        raise ImitateError("the weightings' records are not of the same variations")
+    first, *others = keys
+    for s in others:
+        if len(keys[s]) != len(keys[first]):
+            raise ImitateError(
+                f"the weightings' records are not of the same variations: {len(keys[s])} of "
+                f"{s}, {len(keys[first])} of {first}; remove the comparison's results.jsonl "
+                "and run it again"
+            )
+        for r, a, b in zip(by_weighting[s], keys[first], keys[s], strict=True):
+            if a != b:
+                raise ImitateError(
+                    f"the weightings' records are not of the same variations: {s}'s record of "
+                    f"teacher {r['teacher']}, variation {r['id']} has other settings than "
+                    f"{first}'s; remove the comparison's results.jsonl and run it again"
+                )
     weightings = {}
     for s, rs in by_weighting.items():
         ok = [r["outcome"] == "success" for r in rs]
         change = {k: np.array([r["change"][k] for r in rs]) for k in ("pour_m", "pour_deg",
                                                                       "low_variance_m")}
+        by_teacher = _by_teacher(rs)
+        mean, ci = mean_ci(np.array([t["success_rate"] for t in by_teacher.values()]))
         weightings[s] = {
             "variations": len(rs), "success": sum(ok), "success_rate": sum(ok) / len(rs),
+            "success_over_teachers": {"mean": mean, "ci95": ci},
             "success_wilson95": list(wilson(sum(ok), len(rs))),
-            "by_teacher": _by_teacher(rs),
+            "by_teacher": by_teacher,
+            "fixtures": {f: sum(r["settings"].get(f) is not None for r in rs)
+                         for f in ("shelf", "plate")},
             "outcomes": {o: sum(r["outcome"] == o for r in rs) for o in
                          sorted({r["outcome"] for r in rs})},
             "pour_min_mean": float(np.mean([r["pour_min"] for r in rs])),
@@ -247,51 +274,56 @@ def dose(values: Sequence[float], levels: Sequence[dict]) -> dict:
     :func:`paired` results ``levels``) the mean over teachers of the success rate and of the
     mean pour with their t intervals, the median Mahalanobis deviation, pour-phase error (the
     plan's largest relative position error from the GMR mean there) and clearance; its ED50
-    (:func:`~imitate.evaluation.inference.ed50`, beyond the levels as ``">300"`` or
-    ``"<10"``); per teacher the first level whose plans keep the margin (``None``: none).
-    Per pair: the teachers whose ED50 or first clearing level is at least twice as high
-    with ``b`` as with ``a`` (or ``a``'s), as ratios ``b / a`` per teacher."""
+    (:func:`~imitate.evaluation.inference.ed50`; success rising or falling with the level as
+    all weightings' mean curves do together; beyond the levels as ``">300"`` or ``"<10"``);
+    per teacher the first level whose plans keep the margin (``">L"``: none). Per pair: how
+    many teachers' ED50 or first clearing level is surely at least twice as high with ``b`` as
+    with ``a``, or with ``a`` as with ``b`` (a level beyond the sweep counts as a bound), and
+    how many cannot be told."""
     x = np.asarray(values, float)
     weightings = list(levels[0]["weightings"])
     teachers_ = list(levels[0]["weightings"][weightings[0]]["by_teacher"])
+
+    def per_teacher(s: str, what: str) -> np.ndarray:  # (teachers, levels)
+        return np.array([[level["weightings"][s]["by_teacher"][t][what] for level in levels]
+                         for t in teachers_])
+
+    rates = {s: per_teacher(s, "success_rate") for s in weightings}
+    slope = sum(r.mean(axis=0)[-1] - r.mean(axis=0)[0] for r in rates.values())
+    rising = None if slope == 0 else bool(slope > 0)
     curves = {}
     for s in weightings:
-        per = [level["weightings"][s]["by_teacher"] for level in levels]
-        rates = np.array([[p[t]["success_rate"] for p in per] for t in teachers_])
-        pours = np.array([[p[t]["pour_min"] for p in per] for t in teachers_])
-        clear = np.array([[p[t]["clearance_median_mm"] for p in per] for t in teachers_])
-        found = ed50(x, rates)
+        pours, clear = per_teacher(s, "pour_min"), per_teacher(s, "clearance_median_mm")
+        found = ed50(x, rates[s], rising)
         kept = clear >= MARGIN * 1000
+        totals = {k: [level["weightings"][s][k] for level in levels] for k in
+                  ("mahalanobis_rms_median", "pour_error_median_mm", "clearance_median_mm")}
         curves[s] = {
-            "success": [_band(rates[:, j]) for j in range(len(x))],
+            "success": [_band(rates[s][:, j]) for j in range(len(x))],
             "pour": [_band(pours[:, j]) for j in range(len(x))],
-            "mahalanobis_rms_median": [level["weightings"][s]["mahalanobis_rms_median"]
-                                       for level in levels],
-            "pour_error_median_mm": [level["weightings"][s]["pour_error_median_mm"]
-                                     for level in levels],
-            "clearance_median_mm": [level["weightings"][s]["clearance_median_mm"]
-                                    for level in levels],
-            "ed50": _level(found["ed50"], x), "ed50_ci95": [_level(v, x) for v in found["ci95"]],
+            **totals,
+            "ed50": _level(found["ed50"], x),
+            "ed50_ci95": found["ci95"] and [_level(v, x) for v in found["ci95"]],
             "ed50_by_teacher": dict(zip(teachers_, (_level(v, x) for v in found["by_teacher"]),
                                         strict=True)),
             "first_clear_by_teacher": {
-                t: float(x[np.argmax(k)]) if k.any() else None
+                t: float(x[np.argmax(k)]) if k.any() else f">{x[-1]:g}"
                 for t, k in zip(teachers_, kept, strict=True)
             },
         }
     pairs = []
     for a, b in itertools.combinations(weightings, 2):
-        row = {"a": a, "b": b}
-        for what in ("ed50_by_teacher", "first_clear_by_teacher"):
-            ratios = [_ratio(curves[b][what][t], curves[a][what][t]) for t in teachers_]
-            row[what.replace("_by_teacher", "_ratio_by_teacher")] = dict(
-                zip(teachers_, ratios, strict=True))
-            row[what.replace("_by_teacher", "_b_twice_a")] = sum(
-                r is not None and r >= 2 for r in ratios)
-            row[what.replace("_by_teacher", "_a_twice_b")] = sum(
-                r is not None and r <= 0.5 for r in ratios)
+        row: dict = {"a": a, "b": b}
+        for what in ("ed50", "first_clear"):
+            ca, cb = curves[a][f"{what}_by_teacher"], curves[b][f"{what}_by_teacher"]
+            bounds = [(_bounds(ca[t]), _bounds(cb[t])) for t in teachers_]
+            row[what] = {
+                "b_twice_a": sum(lb >= 2 * ha for (_, ha), (lb, _) in bounds),
+                "a_twice_b": sum(la >= 2 * hb for (la, _), (_, hb) in bounds),
+                "untold": sum(math.isnan(la + lb) for (la, _), (lb, _) in bounds),
+            }
         pairs.append(row)
-    return {"weightings": curves, "pairs": pairs}
+    return {"rising": rising, "weightings": curves, "pairs": pairs}
 
 
 def markdown(result: dict) -> str:
@@ -308,8 +340,9 @@ def markdown(result: dict) -> str:
 def _tables(result: dict) -> list[str]:
     """The markdown tables of one comparison (:func:`paired`'s result)."""
     lines = [
-        "| weighting | success | Wilson 95 % | per teacher | mean pour (worst replay) "
-        "| Mahalanobis deviation, median [sd] | pour-phase change median / p95 [mm] | [deg] |",
+        "| weighting | success over teachers, mean [95 % t] | per teacher | all variations "
+        "(Wilson 95 %, these models) | mean pour (worst replay) | Mahalanobis deviation, "
+        "median [sd] | pour-phase change median / p95 [mm] | [deg] |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for s, w in result["weightings"].items():
@@ -317,11 +350,17 @@ def _tables(result: dict) -> list[str]:
         per = ", ".join(f"{t['success']}/{t['variations']}" for t in w["by_teacher"].values())
         pour, deg = w["pour_change_mm"], w["pour_change_deg"]
         lines.append(
-            f"| {s} | {w['success']}/{w['variations']} | {low:.3f}..{high:.3f} | {per} "
+            f"| {s} | {_percent(w['success_over_teachers'])} | {per} "
+            f"| {w['success']}/{w['variations']} ({low:.3f}..{high:.3f}) "
             f"| {w['pour_min_mean']:.3f} | {w['mahalanobis_rms_median']:.2f} "
             f"| {pour['median']:.1f} / {pour['p95']:.1f} | {deg['median']:.1f} / "
             f"{deg['p95']:.1f} |"
         )
+    fixtures = next(iter(result["weightings"].values()))["fixtures"]
+    if any(fixtures.values()):
+        lines += ["", "Fixtures: " + ", ".join(f"a {f} in {k} variations"
+                                               for f, k in fixtures.items() if k)
+                  + " (one that would touch the robot at the start is left out)."]
     lines += [
         "",
         "Teacher level (each teacher one paired difference a - b; mean [95 % t interval over "
@@ -361,7 +400,8 @@ def _sweep_tables(result: dict) -> list[str]:
     curves = result["dose"]["weightings"]
     names = list(curves)
     lines = [
-        f"Success over teachers, mean [95 % t interval] and mean pour, against `{key}`:",
+        f"Success over teachers, mean [95 % t interval] and mean pour, against `{key}` (success "
+        f"{'rising' if result['dose']['rising'] else 'falling'} with it):",
         "",
         f"| {key} | " + " | ".join(names) + " |",
         "|---|" + "---|" * len(names),
@@ -380,27 +420,29 @@ def _sweep_tables(result: dict) -> list[str]:
     ]
     for s in names:
         c = curves[s]
-        low, high = c["ed50_ci95"]
+        ci = c["ed50_ci95"]
+        interval = f" [{_show(ci[0])}, {_show(ci[1])}]" if ci else ""
         lines.append(
-            f"| {s} | {_show(c['ed50'])} [{_show(low)}, {_show(high)}] "
+            f"| {s} | {_show(c['ed50'])}{interval} "
             f"| {', '.join(_show(v) for v in c['ed50_by_teacher'].values())} "
             f"| {', '.join(_show(v) for v in c['first_clear_by_teacher'].values())} |"
         )
     lines += [
         "",
-        "| pair (a vs b) | teachers whose ED50 is >= 2x higher with b / with a "
-        "| whose first clearing level is >= 2x higher with b / with a |",
+        "Teachers whose level is surely at least twice as high with b as with a / with a as "
+        "with b (a level beyond the sweep counts as a bound) / not known:",
+        "",
+        "| pair (a vs b) | ED50 | first level keeping the margin |",
         "|---|---|---|",
     ]
     for p in result["dose"]["pairs"]:
-        lines.append(
-            f"| {p['a']} vs {p['b']} | {p['ed50_b_twice_a']} / {p['ed50_a_twice_b']} "
-            f"| {p['first_clear_b_twice_a']} / {p['first_clear_a_twice_b']} |"
-        )
+        cells = [f"{p[w]['b_twice_a']} / {p[w]['a_twice_b']} / {p[w]['untold']}"
+                 for w in ("ed50", "first_clear")]
+        lines.append(f"| {p['a']} vs {p['b']} | " + " | ".join(cells) + " |")
     lines += [
         "",
         "Success difference a - b per level [pp], mean [95 % t interval over teachers] "
-        "(permutation p):",
+        "(permutation p, each level and pair on its own: not corrected for the tests made):",
         "",
         "| pair (a vs b) | " + " | ".join(f"{key} {v:g}" for v in values) + " |",
         "|---|" + "---|" * len(values),
@@ -416,16 +458,18 @@ def _sweep_tables(result: dict) -> list[str]:
 
 
 def plot_comparison(result: dict) -> Figure:
-    """Success per weighting with its Wilson interval (dots: each teacher), and per pair the
-    teacher-level differences of success and of the mean pour with their t intervals (dots:
-    each teacher's difference)."""
+    """Success per weighting over teachers (bar: the mean, 95 % t interval; dots: each
+    teacher), and per pair the teacher-level differences of success and of the mean pour with
+    their t intervals (dots: each teacher's difference)."""
     figure = Figure(figsize=(14, 4.8), layout="constrained")
     left, middle, right = figure.subplots(1, 3)
     names = list(result["weightings"])
     positions = np.arange(len(names))
     weightings = [result["weightings"][s] for s in names]
-    rates = np.array([w["success_rate"] for w in weightings])
-    bounds = np.array([w["success_wilson95"] for w in weightings])
+    bands = [w["success_over_teachers"] for w in weightings]
+    rates = np.array([b["mean"] for b in bands])
+    bounds = np.array([np.clip(b["ci95"], 0, 1) if b["ci95"] else [b["mean"]] * 2
+                       for b in bands])
     left.bar(positions, rates, color="0.85", edgecolor="0.3")
     errors = np.clip([rates - bounds[:, 0], bounds[:, 1] - rates], 0.0, None)
     left.errorbar(positions, rates, yerr=errors, fmt="none", color="k", capsize=6)
@@ -435,7 +479,7 @@ def plot_comparison(result: dict) -> Figure:
         left.plot(positions + offset, [w["by_teacher"][teacher]["success_rate"]
                                        for w in weightings], "o", color=f"C{j % 10}", ms=4)
     left.set(xticks=positions, xticklabels=names, ylim=(0, 1.05), ylabel="success rate",
-             title="success (bar: pooled, 95 % Wilson; dots: teachers)")
+             title="success over teachers (95 % t interval; dots: teachers)")
     pairs = result["pairs"]
     for axis, measure, scale, label in (
         (middle, "success_rate", 100, "success difference a - b [pp]"),
@@ -505,7 +549,7 @@ def plot_dose(result: dict) -> Figure:
 
 def _by_teacher(records: Sequence[dict]) -> dict[str, dict]:
     """Per teacher (its seed as text): variations, successes, the success rate, the mean pour,
-    the mean Mahalanobis deviation and the median plan clearance [mm]."""
+    the median Mahalanobis deviation and the median plan clearance [mm]."""
     groups: dict[str, list[dict]] = {}
     for r in records:
         groups.setdefault(str(r["teacher"]), []).append(r)
@@ -514,7 +558,7 @@ def _by_teacher(records: Sequence[dict]) -> dict[str, dict]:
             "variations": len(rs), "success": sum(r["outcome"] == "success" for r in rs),
             "success_rate": sum(r["outcome"] == "success" for r in rs) / len(rs),
             "pour_min": float(np.mean([r["pour_min"] for r in rs])),
-            "mahalanobis_rms": float(np.mean([r["mahalanobis"]["rms"] for r in rs])),
+            "mahalanobis_rms": float(np.median([r["mahalanobis"]["rms"] for r in rs])),
             "clearance_median_mm": float(np.median([r["plan"]["min_distance_m"] for r in rs]))
             * 1000,
         }
@@ -527,8 +571,11 @@ def _band(values: np.ndarray) -> dict:
     return {"mean": mean, "ci95": ci}
 
 
-def _level(value: float, levels: np.ndarray) -> float | str:
-    """A level, or where it lies beyond the swept ones (``">300"``, ``"<10"``)."""
+def _level(value: float, levels: np.ndarray) -> float | str | None:
+    """A level, or where it lies beyond the swept ones (``">300"``, ``"<10"``); ``None`` for
+    none (``nan``: curves that do not move)."""
+    if math.isnan(value):
+        return None
     if value == math.inf:
         return f">{levels[-1]:g}"
     if value == -math.inf:
@@ -536,11 +583,15 @@ def _level(value: float, levels: np.ndarray) -> float | str:
     return float(value)
 
 
-def _ratio(b: float | str | None, a: float | str | None) -> float | None:
-    """``b / a`` of two levels, ``None`` unless both are levels within the sweep."""
-    if isinstance(a, float) and isinstance(b, float) and a > 0:
-        return b / a
-    return None
+def _bounds(value: float | str | None) -> tuple[float, float]:
+    """A level as the interval it is known to lie in: ``">300"`` is ``(300, inf)``, ``"<10"``
+    ``(0, 10)``; no level (``None``) ``(nan, nan)``."""
+    if value is None:
+        return math.nan, math.nan
+    if isinstance(value, str):
+        bound = float(value[1:])
+        return (bound, math.inf) if value[0] == ">" else (0.0, bound)
+    return value, value
 
 
 def _show(value: float | str | None) -> str:
@@ -550,8 +601,9 @@ def _show(value: float | str | None) -> str:
 
 
 def _percent(band: dict) -> str:
+    """A success band in percent, its interval clipped to 0..100."""
     ci = band["ci95"]
-    inside = f" [{100 * ci[0]:.0f}, {100 * ci[1]:.0f}]" if ci else ""
+    inside = (f" [{100 * max(ci[0], 0.0):.0f}, {100 * min(ci[1], 1.0):.0f}]" if ci else "")
     return f"{100 * band['mean']:.0f} %{inside}"
 
 

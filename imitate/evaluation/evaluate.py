@@ -36,7 +36,7 @@ from imitate.evaluation.parallel import Job, run_local, run_ray
 from imitate.evaluation.report import failure_video, plot_outcomes, summarize, summarize_teachers
 from imitate.evaluation.suite import KEYS, Suite
 from imitate.evaluation.teachers import Teacher, check_run, teachers
-from imitate.evaluation.variation import Variation, draw, free_places
+from imitate.evaluation.variation import PourPlace, Variation, draw, free_places
 from imitate.figures import plots
 from imitate.learning import LearnedModel
 from imitate.rundir import page
@@ -137,14 +137,21 @@ class Draw:
     variations: tuple[Variation, ...]
 
 
-def draw_jobs(models: Sequence[Teacher], suite: Suite, seed: int, n: int) -> list[Draw]:
+def draw_jobs(
+    models: Sequence[Teacher], suite: Suite, seed: int, n: int,
+    places: dict[int, tuple[np.ndarray, PourPlace]] | None = None,
+) -> list[Draw]:
     """Variations ``0..n-1`` of ``suite`` drawn with ``seed`` for each teacher in ``models``
-    (its path and pour from one reproduction at collision weight 0: :func:`free_places`)."""
+    (its path and pour from one reproduction at collision weight 0: :func:`free_places`, kept
+    in ``places`` by teacher seed if given, for the next suite of the same ``max_iter``)."""
     code = provenance.code_digest()
+    places = {} if places is None else places
     drawn = []
     for t in models:
-        learned = LearnedModel.from_arrays(t.arrays)
-        path, pour = free_places(learned, t.arrays["gaze"], suite["max_iter"])
+        if t.seed not in places:
+            learned = LearnedModel.from_arrays(t.arrays)
+            places[t.seed] = free_places(learned, t.arrays["gaze"], suite["max_iter"])
+        path, pour = places[t.seed]
         drawn.append(Draw(
             t.seed, suite.digest(seed, t.model_bytes, code), path,
             tuple(draw(suite, seed, i, path, pour) for i in range(n)),

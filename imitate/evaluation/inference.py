@@ -26,13 +26,11 @@ _LEVEL = 0.5  # the success rate whose dose ED50 is
 
 def mean_ci(values: np.ndarray) -> tuple[float, list[float] | None]:
     """The mean of per-teacher values ``(n,)`` and its 95 % t interval over teachers (``None``
-    below two teachers, ``[mean, mean]`` if they all agree)."""
+    below two teachers, or where they all agree: no spread to infer from)."""
     v = np.asarray(values, dtype=float)
     mean = float(np.mean(v)) if len(v) else math.nan
-    if len(v) < 2:
+    if len(v) < 2 or np.ptp(v) == 0:
         return mean, None
-    if np.ptp(v) == 0:
-        return mean, [mean, mean]
     return mean, [float(b) for b in stats.ttest_1samp(v, 0.0).confidence_interval(0.95)]
 
 
@@ -41,8 +39,8 @@ def teacher_effect(differences: np.ndarray) -> dict:
     says beyond these teachers.
 
     Returns:
-        ``teachers`` (n), ``mean``, ``ci95`` (a t interval over teachers, ``None`` below two
-        teachers; ``[mean, mean]`` if they all agree), ``p`` (two-sided, exact sign-flip
+        ``teachers`` (n), ``mean``, ``ci95`` (a t interval over teachers, :func:`mean_ci`),
+        ``p`` (two-sided, exact sign-flip
         permutation test of the mean, sampled beyond 16 teachers; 1 without a difference,
         ``None`` below two teachers), and
         how many teachers favour ``a`` (``a_higher``), ``b`` (``b_higher``) or neither
@@ -69,44 +67,46 @@ def teacher_effect(differences: np.ndarray) -> dict:
     }
 
 
-def crossing(levels: np.ndarray, curve: np.ndarray, rising: bool) -> float:
-    """The level where ``curve`` ``(L,)`` over increasing ``levels`` ``(L,)`` first crosses 50 %,
-    interpolated linearly (in ``log`` of the level when all are positive); ``inf`` or ``-inf``
-    when it stays on one side: beyond the largest or below the smallest level, as a curve
-    ``rising`` (or falling) with the level would cross there."""
+def crossing(levels: np.ndarray, curve: np.ndarray, rising: bool | None) -> float:
+    """The level where ``curve`` ``(L,)`` over increasing ``levels`` ``(L,)`` passes 50 % for
+    good in its direction (upwards if ``rising``, else downwards): its last crossing that way,
+    interpolated linearly (in ``log`` of the level when all are positive). ``-inf`` when it is
+    past 50 % at every level (below the smallest), ``inf`` when it ends short of it (beyond the
+    largest); ``nan`` for a ``None`` direction (curves that do not move)."""
+    if rising is None:
+        return math.nan
     x = np.log(levels) if np.all(levels > 0) else np.asarray(levels, float)
-    above = np.asarray(curve, float) - _LEVEL
-    for i in range(len(x) - 1):
-        if above[i] == 0:
-            return float(_back(x[i], levels))
-        if above[i] * above[i + 1] < 0 or above[i + 1] == 0:
-            share = above[i] / (above[i] - above[i + 1])
-            return float(_back(x[i] + share * (x[i + 1] - x[i]), levels))
-    if len(x) and above[-1] == 0:
-        return float(levels[-1])
-    high = bool(np.all(above < 0)) == rising
-    return math.inf if high else -math.inf
+    past = (np.asarray(curve, float) - _LEVEL) * (1.0 if rising else -1.0)  # >= 0: past 50 %
+    if past[-1] < 0:
+        return math.inf
+    short = np.flatnonzero(past < 0)
+    if not len(short):
+        return -math.inf
+    i = short[-1]  # the last level short of 50 %; the next one is past it
+    share = past[i] / (past[i] - past[i + 1])
+    return float(_back(x[i] + share * (x[i + 1] - x[i]), levels))
 
 
-def ed50(levels: np.ndarray, rates: np.ndarray) -> dict:
+def ed50(levels: np.ndarray, rates: np.ndarray, rising: bool | None) -> dict:
     """The dose at 50 % success of a weighting, from its success rates ``(teachers, L)`` at
-    ``levels`` ``(L,)``: where the mean over teachers crosses 50 % (:func:`crossing`), with a
-    95 % percentile bootstrap interval over teachers (resampled with replacement, seed 0), and
-    each teacher's own crossing. Values beyond the swept levels are ``inf`` or ``-inf``.
+    ``levels`` ``(L,)`` with success ``rising`` with the level or falling (one direction for
+    every weighting of a sweep): where the mean over teachers crosses 50 % (:func:`crossing`),
+    with a 95 % percentile bootstrap interval over teachers (resampled with replacement, seed 0;
+    ``None`` below two teachers), and each teacher's own crossing. Values beyond the swept
+    levels are ``inf`` or ``-inf``.
 
     Returns:
         ``{"ed50", "ci95", "by_teacher"}``.
     """
     levels, rates = np.asarray(levels, float), np.asarray(rates, float)
-    mean = rates.mean(axis=0)
-    rising = bool(mean[-1] >= mean[0])
-    rng = np.random.default_rng(0)
-    picks = rng.integers(0, len(rates), size=(_RESAMPLES, len(rates)))
-    boot = np.array([crossing(levels, rates[p].mean(axis=0), rising) for p in picks])
-    low, high = np.quantile(boot, [0.025, 0.975], method="inverted_cdf")
+    ci = None
+    if len(rates) >= 2 and rising is not None:
+        picks = np.random.default_rng(0).integers(0, len(rates), size=(_RESAMPLES, len(rates)))
+        boot = np.array([crossing(levels, rates[p].mean(axis=0), rising) for p in picks])
+        ci = [float(v) for v in np.quantile(boot, [0.025, 0.975], method="inverted_cdf")]
     return {
-        "ed50": crossing(levels, mean, rising),
-        "ci95": [float(low), float(high)],
+        "ed50": crossing(levels, rates.mean(axis=0), rising),
+        "ci95": ci,
         "by_teacher": [crossing(levels, r, rising) for r in rates],
     }
 

@@ -142,7 +142,7 @@ KEYS: dict[str, Key] = {
     ),
     "limit_margin": Key(
         0.0, "the planner keeps every joint this far inside its range at each end (never past "
-        "the rest pose) [rad]", 0.0, 0.5,
+        "the rest pose) [rad]", 0.0, 0.3,
     ),
     "replays": Key(
         3, "physics replays per variation, each from its own seed of the initial-state noise "

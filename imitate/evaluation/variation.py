@@ -8,7 +8,7 @@ point and its top rises ``path_overlap`` above it, so that reproduction would ru
 other obstacles are placed at random over the suite's part of the table (some of them in the
 path too).
 
-The fixtures stand off the table where the same reproduction pours (:func:`pour_place`): a
+The fixtures stand off the table where the same reproduction pours (:func:`free_places`): a
 shelf over the bottle, its underside ``shelf_gap`` below the bottle's highest point in the pour,
 and a plate under the glass, its top ``plate_gap`` above the glass's lowest point. The shelf
 alone leaves the plan one way out that keeps the task, lowering both hands together (the
@@ -35,7 +35,7 @@ from imitate.motion.metrics import pour_phase
 from imitate.motion.replay import planning_task
 from imitate.motion.taskspace import TaskMap
 
-__all__ = ["PourPlace", "Variation", "draw", "free_places", "path_points", "pour_place"]
+__all__ = ["PourPlace", "Variation", "draw", "free_places", "path_points"]
 
 # The held objects, whose bottoms (body origins) an obstacle in the path stands under.
 PATH_BODIES = (objects.BOTTLE, objects.GLASS)
@@ -143,7 +143,7 @@ class Variation:
 
 @dataclass(frozen=True)
 class PourPlace:
-    """Where the held objects are in the pour of a reproduction (:func:`pour_place`), as the
+    """Where the held objects are in the pour of a reproduction (:func:`free_places`), as the
     planner sees them (their hulls).
 
     Attributes:
@@ -160,9 +160,11 @@ class PourPlace:
 def free_places(
     learned: LearnedModel, gaze: np.ndarray, max_iter: int
 ) -> tuple[np.ndarray, PourPlace]:
-    """:func:`path_points` and :func:`pour_place` of one reproduction of ``learned`` at
+    """:func:`path_points` and where the bottle and the glass are in the pouring phase
+    (:func:`~imitate.motion.metrics.pour_phase`) of one reproduction of ``learned`` at
     collision weight 0 in the default scene (eq. 21's weighting, the default planner otherwise,
-    whatever a suite's: every weighting's variations stand in the same places)."""
+    whatever a suite's: every weighting's variations stand in the same places; the weightings'
+    own unconstrained pours lie a few mm apart, the fixtures' gaps are centimetres)."""
     task = planning_task(SceneConfig(), gaze)
     plan = plan_from_model(
         task, learned, q0=humanoid.rest_pose(),
@@ -178,13 +180,6 @@ def path_points(learned: LearnedModel, gaze: np.ndarray, max_iter: int) -> np.nd
     return free_places(learned, gaze, max_iter)[0]
 
 
-def pour_place(learned: LearnedModel, gaze: np.ndarray, max_iter: int) -> PourPlace:
-    """Where the bottle and the glass are in the pouring phase
-    (:func:`~imitate.motion.metrics.pour_phase`) when ``learned`` is reproduced at collision
-    weight 0 in the default scene."""
-    return free_places(learned, gaze, max_iter)[1]
-
-
 def _path_points(kin: Kinematics, plan: Plan) -> np.ndarray:
     """:func:`path_points` of ``plan`` on ``kin``."""
     passed: list[np.ndarray] = []
@@ -198,7 +193,7 @@ def _path_points(kin: Kinematics, plan: Plan) -> np.ndarray:
 
 
 def _pour_place(kin: Kinematics, plan: Plan) -> PourPlace:
-    """:func:`pour_place` of ``plan`` on ``kin``."""
+    """Where ``plan`` pours (:class:`PourPlace`), on ``kin``."""
     tops, bottoms = [], []
     for q in plan.q[pour_phase(plan.mean)]:
         kin.update(q)
@@ -241,7 +236,7 @@ def draw(
 ) -> Variation:
     """Variation ``index`` of ``suite`` for ``seed``; ``path`` from :func:`path_points` (an
     obstacle drawn for the path is placed off it when ``path`` is empty), ``pour`` from
-    :func:`pour_place` (needed for a suite with shelves or plates). An obstacle closer than
+    :func:`free_places` (needed for a suite with shelves or plates). An obstacle closer than
     the planner's margin to the robot or the objects it holds at the start (the reset's noise on
     the joints can close a few millimetres) is drawn again, up to ``_OBSTACLE_DRAWS`` times,
     then left out; so is a fixture at once (its place is the pour's, not drawn).
@@ -255,7 +250,7 @@ def draw(
     if pour is None and (suite["shelf_share"] > 0 or suite["plate_share"] > 0):
         raise ImitateError(
             f"shelf_share={suite['shelf_share']} plate_share={suite['plate_share']} need the "
-            "pour's place: pass draw(..., pour=pour_place(learned, gaze, max_iter))"
+            "pour's place: pass draw(..., pour=free_places(learned, gaze, max_iter)[1])"
         )
     rng = np.random.default_rng([seed, index])
 

@@ -145,7 +145,8 @@ class Rollout:
 
 
 def _metric(kin: Kinematics, task: TaskMap) -> np.ndarray:
-    return (kin.upper - kin.lower) * task.driven
+    """The joint metric: each driven joint's full range (not its narrowed one) [rad]."""
+    return kin.span * task.driven
 
 
 def rollout(

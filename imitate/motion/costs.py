@@ -96,8 +96,8 @@ def weighting(
     - ``inverted``: a negative control, rising with the variance: ``min(sigma / sigma_max, 1)``.
     - ``precision``: minimal intervention (Calinon et al.): one gain times the regularized GMR
       precision :func:`regularized_precision`, cross-covariances included.
-    - ``inverse_variance``: its diagonal alone, ``1 / (sigma + lambda tolerance^2)``, without
-      eq. 21's ``sigma_max`` ramp.
+    - ``inverse_variance``: ``1 / (sigma + lambda tolerance^2)`` per dimension, without the
+      cross-covariances or eq. 21's ``sigma_max`` ramp.
     - ``oracle``: knowing the task instead of inferring it from the variance: ``w_max`` (eq.
       21's largest) on each ``critical`` step (the phase that decides success), the rest of the
       total evenly on the others. (All of it on the critical steps leaves the attractors before
@@ -127,7 +127,10 @@ def weighting(
     if similarity == "variance":
         return ramp
     if similarity in ("precision", "inverse_variance") and not np.all(w_max > 0):
-        raise ImitateError(f"similarity {similarity!r} needs every w_max > 0; got {w_max}")
+        raise ImitateError(
+            f"similarity {similarity!r} needs every w_max > 0 (its floor is lambda / w_max); "
+            f"got {w_max}: set each w_max > 0, or use a diagonal weighting"
+        )
     if similarity == "precision":
         if covariance is None:
             raise ImitateError("similarity 'precision' needs the GMR covariances")
@@ -138,8 +141,11 @@ def weighting(
         gain = np.sum(total / w_max) / np.sum(marginal)
         return gain * regularized_precision(covariance, w_max)
     if similarity == "oracle":
-        if critical is None or not np.any(critical):
-            raise ImitateError("similarity 'oracle' needs the steps that decide success")
+        if critical is None or len(critical) != len(variance) or not np.any(critical):
+            raise ImitateError(
+                f"similarity 'oracle' needs the steps that decide success, (T,) = "
+                f"({len(variance)},) bools, some true; got {critical!r}"
+            )
         critical = np.asarray(critical, bool)
         stiff = np.minimum(w_max * critical.sum(), total)  # (m,) w_max on each critical step
         rest = (total - stiff) / max(int(np.sum(~critical)), 1)

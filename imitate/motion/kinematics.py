@@ -125,6 +125,7 @@ class Kinematics:
             for adr in (self.qpos_adr, self.dof_adr)
         )
         self.lower, self.upper = model.jnt_range[ids].T.copy()
+        self.span = self.upper - self.lower  # the joints' full ranges [rad], however narrowed
         self._held = self._held_objects()
         owner = np.arange(model.nbody)  # body whose Jacobian moves each body
         for obj, (hand, _, _) in self._held.items():

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from imitate.motion.costs import TOLERANCE, regularized_precision
+from imitate.motion.costs import TOLERANCE
 from imitate.motion.plan import Plan
 
 __all__ = ["deviation", "mahalanobis", "pour_phase", "pour_phase_error", "task_change"]
@@ -71,14 +71,11 @@ def deviation(plan: Plan, first: Plan) -> dict[str, float]:
 def mahalanobis(plan: Plan, covariance: np.ndarray) -> dict[str, float]:
     """How many of the demonstrations' standard deviations ``plan`` sits from the GMR mean: the
     Mahalanobis distance ``d_t`` of ``x_t - mu_t`` under the GMR covariance ``(T + 1, m, m)`` at
-    ``plan.times``, floored by the tolerances (:func:`~imitate.motion.costs.regularized_precision`:
-    where the demonstrations agree to within a tolerance, an error of one tolerance counts as
-    about one standard deviation). ``rms``: over the movement; ``pour_max``: the largest in the
-    pouring phase."""
+    ``plan.times`` plus the tolerances squared (where the demonstrations agree to within a
+    tolerance, an error of one tolerance counts as about one standard deviation; the same
+    floor as the ``precision`` weighting's at its lambda of 1, which that weighting therefore
+    minimizes: not a neutral measure for it). ``rms``: over the movement."""
     error = plan.task_error()
-    precision = regularized_precision(covariance, 1.0 / np.square(TOLERANCE[: error.shape[1]]))
-    d = np.sqrt(np.einsum("ti,tij,tj->t", error, precision, error))
-    return {
-        "rms": float(np.sqrt(np.mean(d * d))),
-        "pour_max": float(d[pour_phase(plan.mean)].max()),
-    }
+    floor = np.diag(np.square(TOLERANCE[: error.shape[1]]))
+    d = np.sqrt(np.einsum("ti,tij,tj->t", error, np.linalg.inv(covariance + floor), error))
+    return {"rms": float(np.sqrt(np.mean(d * d)))}

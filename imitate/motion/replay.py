@@ -28,6 +28,7 @@ from imitate.motion.kinematics import Kinematics
 from imitate.motion.taskspace import TaskMap, task_space
 
 GAZE_CAMERA = humanoid.LEFT_EYE
+MIN_RANGE = 0.05  # [rad] the narrowest range narrowed_limits leaves a joint
 
 
 def planning_task(
@@ -45,8 +46,8 @@ def planning_task(
             stored with observed tracks); ``None`` for the rest pose's left-eye camera.
         control: Its ``fixed_joints`` get zero Jacobian columns; ``None`` for the default.
         limit_margin: Every planned joint's range narrowed by this much [rad] at each end, never
-            past the rest pose (:func:`narrowed_limits`): the planner's clipping, its joint-limit
-            cost and its joint metric (the ranges' widths) see the narrowed ranges.
+            past the rest pose (:func:`narrowed_limits`): the planner's clipping and its
+            joint-limit cost see the narrowed ranges (its joint metric the full ones).
 
     Raises:
         ImitateError: a ``limit_margin`` that is no finite number >= 0.
@@ -71,7 +72,8 @@ def narrowed_limits(
     (:func:`humanoid.rest_pose`): the rest posture stays within the range.
 
     Raises:
-        ImitateError: a ``margin`` that is no finite number >= 0.
+        ImitateError: a ``margin`` that is no finite number >= 0, or one that leaves a joint
+            less than :data:`MIN_RANGE` of a wider range.
     """
     if isinstance(margin, bool) or not isinstance(margin, Real) or not 0 <= margin < np.inf:
         raise ImitateError(
@@ -79,7 +81,16 @@ def narrowed_limits(
             "joints' full ranges"
         )
     rest = humanoid.rest_pose()
-    return np.minimum(lower + margin, rest), np.maximum(upper - margin, rest)
+    low, high = np.minimum(lower + margin, rest), np.maximum(upper - margin, rest)
+    closed = (high - low < MIN_RANGE) & (upper - lower >= MIN_RANGE)
+    if np.any(closed):
+        j = int(np.argmax(closed))
+        raise ImitateError(
+            f"limit_margin={margin!r} not accepted: it leaves joint {humanoid.JOINTS[j]!r} "
+            f"{high[j] - low[j]:.3f} rad of its {upper[j] - lower[j]:.3f}, less than "
+            f"{MIN_RANGE} rad; give a smaller margin"
+        )
+    return low, high
 
 
 def reproduce(
