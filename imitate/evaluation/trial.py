@@ -105,7 +105,8 @@ class Trial:
 
     def free(self, similarity: str, max_iter: int) -> Plan:
         """The unconstrained reproduction with ``similarity``: default scene, no collision
-        cost, the default path-length weight."""
+        cost, the default path-length weight, the full joint ranges (what a variation's
+        constraints, narrowed ranges among them, move its plan from)."""
         key = (similarity, max_iter)
         if key not in self._free:
             config = PlanConfig(collision_weight=0.0, similarity=similarity, max_iter=max_iter)
