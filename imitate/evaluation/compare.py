@@ -461,7 +461,7 @@ def plot_comparison(result: dict) -> Figure:
     """Success per weighting over teachers (bar: the mean, 95 % t interval; dots: each
     teacher), and per pair the teacher-level differences of success and of the mean pour with
     their t intervals (dots: each teacher's difference)."""
-    figure = Figure(figsize=(14, 4.8), layout="constrained")
+    figure = Figure(figsize=(15, 5.2), layout="constrained")
     left, middle, right = figure.subplots(1, 3)
     names = list(result["weightings"])
     positions = np.arange(len(names))
@@ -478,8 +478,9 @@ def plot_comparison(result: dict) -> Figure:
         offset = 0.3 * (j + 0.5) / len(teacher_list) - 0.15
         left.plot(positions + offset, [w["by_teacher"][teacher]["success_rate"]
                                        for w in weightings], "o", color=f"C{j % 10}", ms=4)
-    left.set(xticks=positions, xticklabels=names, ylim=(0, 1.05), ylabel="success rate",
-             title="success over teachers (95 % t interval; dots: teachers)")
+    left.set(xticks=positions, ylim=(0, 1.05), ylabel="success rate",
+             title="success: mean over teachers, 95 % t\n(dots: teachers)")
+    left.set_xticklabels(names, rotation=30, ha="right")
     pairs = result["pairs"]
     for axis, measure, scale, label in (
         (middle, "success_rate", 100, "success difference a - b [pp]"),
@@ -498,7 +499,7 @@ def plot_comparison(result: dict) -> Figure:
         axis.axvline(0, color="0.4", lw=0.8, ls="--")
         axis.set(yticks=np.arange(len(pairs)), yticklabels=[f"{p['a']} vs {p['b']}"
                                                            for p in pairs],
-                 xlabel=label, title="over teachers: mean, 95 % t interval, teachers")
+                 xlabel=label, title="mean over teachers, 95 % t\n(dots: teachers)")
         axis.invert_yaxis()
     figure.suptitle(
         f"suite {result['suite_name']}: {result['variations_per_teacher']} variations x "
