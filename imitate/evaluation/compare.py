@@ -520,7 +520,7 @@ def plot_dose(result: dict) -> Figure:
         colour = f"C{i}"
         for axis, which in ((left, "success"), (middle, "pour")):
             mean = np.array([b["mean"] for b in c[which]])
-            band = np.array([b["ci95"] or [b["mean"]] * 2 for b in c[which]])
+            band = np.clip([b["ci95"] or [b["mean"]] * 2 for b in c[which]], 0.0, 1.0)
             axis.plot(x, mean, "o-", color=colour, label=s)
             axis.fill_between(x, band[:, 0], band[:, 1], color=colour, alpha=0.15)
         if isinstance(c["ed50"], float):
@@ -540,7 +540,7 @@ def plot_dose(result: dict) -> Figure:
     right.axhline(MARGIN * 1000, color="0.5", lw=0.8, ls="--")
     right.set(xlabel="pour-phase error of the plan, median [mm]",
               ylabel="plan clearance, median [mm]",
-              title=f"clearance against the task (labels: {key}; dashed: margin)")
+              title=f"clearance against the task\n(labels: {key}; dashed: the margin)")
     figure.suptitle(
         f"suite {result['suite_name']} swept over {key}: {result['variations_per_teacher']} "
         f"variations x {len(result['teachers'])} teachers per level and weighting"
@@ -598,7 +598,9 @@ def _bounds(value: float | str | None) -> tuple[float, float]:
 def _show(value: float | str | None) -> str:
     if value is None:
         return "none"
-    return value if isinstance(value, str) else f"{value:.4g}"
+    if isinstance(value, str):
+        return value
+    return f"{value:.4g}" if value < 1e4 else f"{value:.0f}"
 
 
 def _percent(band: dict) -> str:
