@@ -210,7 +210,7 @@ def _add_compare(sub: argparse.ArgumentParser) -> None:
     _add_variations(sub, teachers=10)
     sub.add_argument("--similarity", default=",".join(compared), metavar="A,B,...",
                      dest="weightings",
-                     help=f"weightings to compare, comma-separated, of {','.join(SIMILARITIES)} "
+                     help=f"weightings to compare, comma-separated, of {', '.join(SIMILARITIES)} "
                      f"(default {','.join(compared)})")
     sub.add_argument("--sweep", metavar="KEY=V1,V2,...", dest="levels",
                      help="compare at every value of a numeric suite key (a dose-response "
