@@ -611,8 +611,9 @@ def _percent(band: dict) -> str:
 
 
 def _effect(e: dict, scale: float, counts: bool = True) -> str:
-    """A teacher-level effect: mean [interval] and, with ``counts``, teachers a / b higher."""
-    ci = e["ci95"]
+    """A teacher-level effect: mean [interval] and, with ``counts``, teachers a / b higher;
+    ``scale`` 100 for success rates in points (their interval clipped to -100..100)."""
+    ci = e["ci95"] and (np.clip(e["ci95"], -1.0, 1.0) if scale == 100 else e["ci95"])
     digits = 1 if scale != 1 else 3
     text = f"{scale * e['mean']:+.{digits}f}"
     if ci is not None:
