@@ -184,21 +184,26 @@ def test_shipped_shelf_chest_and_limits_suites():
     assert not chest["nullspace_push"] and chest["obstacle_share"] == 0 and chest["replays"] == 1
     assert chest["shelf_share"] == chest["plate_share"] == chest["limit_margin"] == 0
     _, limits = named_suite("limits")
-    assert limits["limit_margin"] == 0.15 and limits["nullspace_push"]
+    assert limits["limit_margin"] == 0.13 and limits["nullspace_push"]
     assert limits["obstacle_share"] == 0 and limits["replays"] == 1
 
 
 def test_limit_margin_narrows_the_planned_ranges_but_never_past_the_rest_pose():
     full = planning_task().kin
     v = draw(named_suite("limits")[1], 0, 0, PATH)
-    assert v.limit_margin == 0.15
+    m = v.limit_margin
     narrowed = v.planning_task(None).kin
     rest = humanoid.rest_pose()
-    np.testing.assert_allclose(narrowed.lower, np.minimum(full.lower + 0.15, rest))
-    np.testing.assert_allclose(narrowed.upper, np.maximum(full.upper - 0.15, rest))
+    np.testing.assert_allclose(narrowed.lower, np.minimum(full.lower + m, rest))
+    np.testing.assert_allclose(narrowed.upper, np.maximum(full.upper - m, rest))
     assert np.all(narrowed.lower <= rest) and np.all(rest <= narrowed.upper)
-    stops = np.flatnonzero(narrowed.lower == rest)  # torso_pitch: 0.15 rad would pass its rest
+    stopped = planning_task(limit_margin=0.15).kin  # torso_pitch: 0.15 rad would pass its rest
+    stops = np.flatnonzero(stopped.lower == rest)
     assert [full.joints[j] for j in stops] == ["torso_pitch"]
+    np.testing.assert_array_equal(narrowed.span, full.span)  # the joint metric: full ranges
+    with pytest.raises(ImitateError, match=r"^limit_margin=0\.5 not accepted: it leaves joint "
+                       r"'torso_pitch' 0\.000 rad of its .* give a smaller margin$"):
+        planning_task(limit_margin=0.5)
     zero = Variation.from_json({**v.to_json(), "limit_margin": 0.0}).planning_task(None).kin
     assert np.array_equal(zero.lower, full.lower) and np.array_equal(zero.upper, full.upper)
     for bad in (-0.1, float("nan"), True, "0.1"):

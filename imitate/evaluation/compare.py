@@ -291,7 +291,7 @@ def dose(values: Sequence[float], levels: Sequence[dict]) -> dict:
     rates = {s: per_teacher(s, "success_rate") for s in weightings}
     slope = sum(r.mean(axis=0)[-1] - r.mean(axis=0)[0] for r in rates.values())
     rising = None if slope == 0 else bool(slope > 0)
-    curves = {}
+    curves: dict[str, dict] = {}
     for s in weightings:
         pours, clear = per_teacher(s, "pour_min"), per_teacher(s, "clearance_median_mm")
         found = ed50(x, rates[s], rising)
