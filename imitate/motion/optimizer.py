@@ -245,9 +245,8 @@ def setup(
         flat = np.asarray(model.covariance, dtype=float).reshape(len(times), -1)
         cov = np.column_stack([np.interp(grid, times, f) for f in flat.T])
         cov = cov.reshape(len(grid), task.m, task.m)
-    weights = weighting(
-        c.similarity, var, cov, w_max, np.maximum(sigma_max, 1e-12), critical=pour_phase(mu)
-    )
+    critical = pour_phase(mu) if c.similarity == "oracle" else None  # the oracle's steps
+    weights = weighting(c.similarity, var, cov, w_max, np.maximum(sigma_max, 1e-12), critical)
 
     duration = grid[-1] - grid[0]
     if c.attractor_spacing is None:  # the paper: one attractor per GMM component

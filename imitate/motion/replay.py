@@ -50,7 +50,7 @@ def planning_task(
             joint-limit cost see the narrowed ranges (its joint metric the full ones).
 
     Raises:
-        ImitateError: a ``limit_margin`` that is no finite number >= 0.
+        ImitateError: a ``limit_margin`` :func:`narrowed_limits` refuses.
     """
     config, control = config or assembly.SceneConfig(), control or ControlConfig()
     model = assembly.planning_model(config)
