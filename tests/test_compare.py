@@ -145,7 +145,7 @@ def _records(weighting: str, teachers: dict[int, list[bool]], pour: float = 0.95
         {"teacher": t, "id": i, "outcome": "success" if ok else "spill",
          "settings": {"similarity": weighting, "id": i}, "pour_min": pour if ok else 0.5,
          "mahalanobis": {"rms": 1.0 + (weighting == "uniform")},
-         "plan": {"min_distance_m": 0.012, "pour_phase_err_m": 0.003},
+         "plan": {"min_distance_m": 0.012, "pour_phase_err_m": 0.003, "nullspace_push": i == 0},
          "change": {"pour_m": 0.01, "pour_deg": 1.0, "low_variance_m": 0.02}}
         for t, outcomes in teachers.items() for i, ok in enumerate(outcomes)
     ]
@@ -162,6 +162,8 @@ def test_a_weighting_that_always_succeeds_is_plotted_with_a_zero_error_bar(n):
                         "uniform": _records("uniform", {0: [False] * n, 1: [True] * n})})}
     plot_comparison(result)  # no negative yerr
     assert f"| variance | 100 % | {n}/{n}, {n}/{n} | {2 * n}/{2 * n} (" in markdown(result)
+    assert "push changed (the attractors alone kept less than the margin): variance 2/" in \
+        markdown(result)
 
 
 def test_the_teacher_level_interval_finds_a_known_effect_and_no_effect():

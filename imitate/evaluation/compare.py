@@ -193,7 +193,8 @@ def settings_digest(record: dict) -> str:
 def paired(by_weighting: dict[str, list[dict]]) -> dict:
     """Per weighting (its records, in the same order for every weighting): success over
     teachers (mean, t interval) and over all variations (Wilson interval), and per teacher its
-    success rate, mean pour, median Mahalanobis deviation and median clearance; per pair: the
+    success rate, mean pour, median Mahalanobis deviation and median clearance, and how many
+    plans the null-space push changed and had fixtures; per pair: the
     teacher-level effect of each of :data:`MEASURES`
     (:func:`~imitate.evaluation.inference.teacher_effect`), the McNemar test within these
     models, and the descriptive pour-phase change.
@@ -231,6 +232,7 @@ def paired(by_weighting: dict[str, list[dict]]) -> dict:
             "by_teacher": by_teacher,
             "fixtures": {f: sum(r["settings"].get(f) is not None for r in rs)
                          for f in ("shelf", "plate")},
+            "pushed": sum(r["plan"]["nullspace_push"] for r in rs),
             "outcomes": {o: sum(r["outcome"] == o for r in rs) for o in
                          sorted({r["outcome"] for r in rs})},
             "pour_min_mean": float(np.mean([r["pour_min"] for r in rs])),
@@ -356,6 +358,10 @@ def _tables(result: dict) -> list[str]:
             f"| {pour['median']:.1f} / {pour['p95']:.1f} | {deg['median']:.1f} / "
             f"{deg['p95']:.1f} |"
         )
+    if any(w["pushed"] for w in result["weightings"].values()):
+        lines += ["", "Plans the null-space push changed (the attractors alone kept less than the "
+                  "margin): " + ", ".join(f"{s} {w['pushed']}/{w['variations']}"
+                                          for s, w in result["weightings"].items()) + "."]
     fixtures = next(iter(result["weightings"].values()))["fixtures"]
     if any(fixtures.values()):
         lines += ["", "Fixtures: " + ", ".join(f"a {f} in {k} variations"
