@@ -14,12 +14,13 @@ define install
 	bash scripts/ci/install_system_deps.sh
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip uninstall --quiet --yes imitate 2>/dev/null || true  # the distribution's old name
 	$(BIN)/pip install --quiet -e ".$(1)"
 endef
 
-# What `make run` needs.
+# What `make run` needs, and the export extra: the README's examples export a dataset.
 $(BIN)/.installed: pyproject.toml scripts/ci/install_system_deps.sh
-	$(call install,)
+	$(call install,[export])
 	touch $@
 
 # Plus the test-only dependencies (pytest, ruff and the cross-check libraries), in the same
@@ -58,17 +59,19 @@ suite: setup-test lint
 	$(BIN)/python -m pytest -n auto --dist loadfile
 	$(BIN)/python scripts/ci/render_ci_video.py --out runs/ci/video.mp4 --width 160 --height 120 --check
 
+# ruff checks the project's own files only (pyproject.toml's [tool.ruff] include), not a
+# user's scratch scripts in the clone.
 lint: setup-test
 	$(BIN)/ruff check .
 	$(BIN)/python scripts/ci/typecheck.py
 
 # The lowest versions pyproject.toml allows (every lower bound pinned, wheels only) on the env
-# and scene tests and a whole quick run, at a lower priority (nice); numba's cache of them kept
-# apart from .venv's and filled by the warm-up first (two processes at once, as `make setup`
-# does). pip does not byte-compile there (--no-compile): two processes import from it, and
-# compiling what they import costs less than compiling every file (even where
-# PYTHONDONTWRITEBYTECODE keeps no .pyc; not so for .venv, whose packages a hundred processes
-# of the suite import).
+# and scene tests and a whole quick run, whose task must succeed (check_outcome.py), at a lower
+# priority (nice); numba's cache of them kept apart from .venv's and filled by the warm-up
+# first (two processes at once, as `make setup` does). pip does not byte-compile there
+# (--no-compile): two processes import from it, and compiling what they import costs less than
+# compiling every file (even where PYTHONDONTWRITEBYTECODE keeps no .pyc; not so for .venv,
+# whose packages a hundred processes of the suite import).
 LOWEST_ENV := NUMBA_CACHE_DIR=$(LOWEST)/numba nice -n 10
 $(LOWEST)/.installed: pyproject.toml scripts/ci/lowest_requirements.py scripts/ci/install_system_deps.sh
 	bash scripts/ci/install_system_deps.sh
@@ -81,11 +84,12 @@ $(LOWEST)/.installed: pyproject.toml scripts/ci/lowest_requirements.py scripts/c
 
 # Its output goes to a log, printed as one block when it ends (it runs beside the suite).
 test-lowest: $(LOWEST)/.installed
-	@echo "lowest versions: warm-up, env and scene tests, quick run (output when they end)"
+	@echo "lowest versions: warm-up, env and scene tests, a quick run's outcome (output at the end)"
 	@{ $(LOWEST_ENV) $(LOWEST)/bin/python -m imitate.warmup && \
 	   $(LOWEST_ENV) $(LOWEST)/bin/python -m pytest -q -p no:cacheprovider \
 		tests/test_env.py tests/test_scene.py && \
-	   $(LOWEST_ENV) $(LOWEST)/bin/imitate run --quick --out runs/lowest; \
+	   $(LOWEST_ENV) $(LOWEST)/bin/imitate run --quick --out runs/lowest && \
+	   $(LOWEST)/bin/python scripts/ci/check_outcome.py runs/lowest; \
 	 } > $(LOWEST)/test.log 2>&1; status=$$?; \
 	 echo "== lowest versions ($(LOWEST)/test.log)"; cat $(LOWEST)/test.log; exit $$status
 

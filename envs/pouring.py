@@ -2,9 +2,9 @@
 
 ## Description
 A fixed-base, ASIMO-like humanoid holds a bottle of liquid (small spheres) in its right hand and
-a glass in its left, at a table across from a teacher mannequin. Actions are joint position
-targets for its 18 position actuators; the physics is MuJoCo's, objects held by weld
-constraints. This is where planned movements are replayed.
+a glass in its left, at a table (the teacher mannequin across it only with ``teacher=True``).
+Actions are joint position targets for its 18 position actuators; the physics is MuJoCo's,
+objects held by weld constraints. This is where planned movements are replayed.
 
 ## Action space
 ``Box(ctrl_low, ctrl_high, (18,), float32)``: target angles [rad] in ``models.humanoid.JOINTS``
@@ -13,12 +13,14 @@ order, clipped to the joint ranges.
 ## Observation space
 ``obs_type="state"``: ``Box((50,), float64)``, see ``observation_structure``: robot joint
 angles (18) [rad] and velocities (18) [rad/s], bottle and glass poses (position [m] and
-quaternion wxyz, 7 each). The robot's head cameras, keyed as LeRobot's environments key theirs
-(and gym-aloha its ``pixels_agent_pos``): ``obs_type="pixels"``:
-``{"pixels": {"left_eye": image, "right_eye": image}}``; ``obs_type="pixels_agent_pos"``: that
-and ``"agent_pos"``, the joint angles ``(18,) float64`` [rad]; ``obs_type="state_pixels"``: the
-``"state"`` vector and the ``"pixels"`` (what ``imitate export --images`` records). Images are
-``(height, width, 3) uint8`` RGB.
+quaternion wxyz, 7 each). The robot's head cameras ``cameras``, keyed as LeRobot's environments
+key theirs (and gym-aloha its ``pixels_agent_pos``): ``obs_type="pixels"``:
+``{"pixels": {"workspace": image}}`` by default (the workspace camera under the eyes, looking
+down at the hands: both objects and the pour are in view; the stereo eyes look ahead, at the
+teacher when watching); ``obs_type="pixels_agent_pos"``: that and ``"agent_pos"``, the joint
+angles ``(18,) float64`` [rad]; ``obs_type="state_pixels"``: the ``"state"`` vector and the
+``"pixels"`` (what ``imitate export --images`` records). Images are ``(height, width, 3) uint8``
+RGB.
 
 ## Rewards
 ``reward_pour``: ``pour_weight`` times the increase of the fraction of particles in the glass
@@ -39,11 +41,12 @@ False otherwise.
 |---|---|---|
 | render_mode | None | None or ``"rgb_array"`` |
 | obs_type | ``"state"`` | ``"state"``, ``"pixels"``, ``"pixels_agent_pos"`` or ``"state_pixels"`` |
-| camera | ``"overview"`` | camera for ``render()``: overview, left_eye or right_eye |
+| camera | ``"overview"`` | camera for ``render()``: one of ``models.scene.CAMERAS`` |
+| cameras | ``("workspace",)`` | the pixel observations' cameras, of ``models.humanoid.CAMERAS`` |
 | width, height | 640, 480 | image size of ``render()`` and of the head cameras' images [px] |
 | particles | 60 | liquid spheres in the bottle, 0..120 |
 | obstacles | () | ``assembly.Obstacle``s (or keyword dicts) on the table, clear of the robot |
-| teacher | True | include the teacher mannequin |
+| teacher | False | include the teacher mannequin across the table (at rest) |
 | frame_skip | 10 | physics steps (2 ms each) per env step; ``metadata["render_fps"]`` = 1 / dt |
 | reset_noise_scale | 0.01 | half-width of the uniform noise on the initial joint angles [rad] |
 | pour_weight, collision_weight | 1.0, 1.0 | reward weights |
@@ -73,7 +76,6 @@ import numpy as np
 
 from imitate.envs import assembly
 from imitate.envs.collision import CollisionPairs, signed_distances
-from imitate.envs.observation import EYES
 from imitate.envs.outcome import poured
 from imitate.envs.rendering import make_renderer
 from imitate.envs.teacher_motion import pose_arm, shoulder_position
@@ -104,11 +106,12 @@ class PouringEnv(gym.Env):
         render_mode: str | None = None,
         obs_type: str = "state",
         camera: str = scene_names.OVERVIEW,
+        cameras: tuple[str, ...] = (humanoid.WORKSPACE,),
         width: int = 640,
         height: int = 480,
         particles: int = 60,
         obstacles: tuple[assembly.Obstacle | dict, ...] = (),
-        teacher: bool = True,
+        teacher: bool = False,
         frame_skip: int = 10,
         reset_noise_scale: float = 0.01,
         pour_weight: float = 1.0,
@@ -117,6 +120,11 @@ class PouringEnv(gym.Env):
         _check_choice("render_mode", render_mode, (None, *self.metadata["render_modes"]))
         _check_choice("obs_type", obs_type, OBS_TYPES)
         _check_choice("camera", camera, scene_names.CAMERAS)
+        cameras = tuple(cameras) if isinstance(cameras, list | tuple) else (cameras,)
+        if not cameras or len(set(cameras)) < len(cameras) or set(cameras) - {*humanoid.CAMERAS}:
+            raise ImitateError(
+                f"cameras={cameras!r} not accepted: distinct names of {list(humanoid.CAMERAS)}"
+            )
         for name, value in (("width", width), ("height", height), ("frame_skip", frame_skip)):
             if not isinstance(value, int | np.integer) or value <= 0:
                 raise ImitateError(f"{name}={value!r} not accepted: a positive integer")
@@ -128,6 +136,7 @@ class PouringEnv(gym.Env):
             if not isinstance(number, Real) or not np.isfinite(number) or number < 0:
                 raise ImitateError(f"{name}={number!r} not accepted: a finite number >= 0")
         self.render_mode, self.obs_type, self.camera = render_mode, obs_type, camera
+        self.cameras = cameras
         self.width, self.height = width, height
         self.frame_skip = frame_skip
         self._reset_noise_scale = reset_noise_scale
@@ -170,7 +179,7 @@ class PouringEnv(gym.Env):
             -np.inf, np.inf, (sum(self.observation_structure.values()),), dtype=np.float64
         )
         image = gym.spaces.Box(0, 255, (height, width, 3), dtype=np.uint8)
-        pixels = gym.spaces.Dict({eye: image for eye in EYES})
+        pixels = gym.spaces.Dict({name: image for name in cameras})
         self.observation_space = {
             "state": state,
             "pixels": gym.spaces.Dict({"pixels": pixels}),
@@ -315,7 +324,7 @@ class PouringEnv(gym.Env):
     def _get_obs(self):
         if self.obs_type == "state":
             return self._state()
-        obs = {"pixels": {eye: self._render(eye) for eye in EYES}}
+        obs = {"pixels": {name: self._render(name) for name in self.cameras}}
         if self.obs_type == "pixels_agent_pos":
             obs["agent_pos"] = self.joint_positions()
         elif self.obs_type == "state_pixels":

@@ -4,11 +4,13 @@ Frames are rendered from kinematic states only (no physics here): the teacher's 
 poses (:mod:`imitate.envs.teacher_motion`) and the states a replay recorded
 (:class:`StateRecorder`). The teacher is seen from above the robot's left shoulder, with the
 robot's own eye view inset; the robot from the teacher's side, where the stream of liquid shows.
-Shadows are off by default: on a CPU (Mesa) they are costly.
+Shadows are off by default: on a CPU (Mesa) they are costly; ``quick=True`` also leaves out
+multisampling and reflections, which cost most of a frame's time there (the run's video).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
@@ -72,6 +74,7 @@ def teacher_frames(
     projection: np.ndarray | None = None,
     image_size: tuple[int, int] | None = None,
     threads: int = 1,
+    quick: bool = False,
 ) -> Iterator[np.ndarray]:
     """The teacher's session at ``times`` [s] over the robot's shoulder, and the robot's left-eye
     view inset in the top-right corner: ``(height, width, 3) uint8``.
@@ -88,14 +91,15 @@ def teacher_frames(
         image_size: ``(width, height)`` [px] of the images ``projection`` is for; needed with
             ``marks``.
         threads: render in this many threads at once (:func:`interleaved`); the same frames.
+        quick: no multisampling nor reflections (:func:`quick_renderer`).
     """
 
     def part(every: slice) -> Iterator[np.ndarray]:
         model, data = watching_scene(ObservationConfig())
         inset_size = (2 * (width // 6), 2 * (height // 6))
-        renderer = make_renderer(model, height, width, shadows=False)
+        renderer = quick_renderer(model, height, width, quick=quick)
         model.vis.quality.offsamples = 0  # the eye as the robot saw (fast_render): 2x faster
-        eye = make_renderer(model, inset_size[1], inset_size[0], shadows=False)
+        eye = quick_renderer(model, inset_size[1], inset_size[0], quick=quick)
         try:
             for i in range(len(times))[every]:
                 poses = motion.poses(times[i : i + 1])
@@ -150,16 +154,18 @@ def replay_frames(
     camera: str = scene_names.POUR_VIEW,
     shadows: bool = False,
     threads: int = 1,
+    quick: bool = False,
 ) -> Iterator[np.ndarray]:
     """Recorded replay ``states`` (:meth:`StateRecorder.arrays`) of the scene ``config``, seen
     from ``camera``, the liquid drawn so that it shows; in ``threads`` threads at once
-    (:func:`interleaved`), the same frames."""
+    (:func:`interleaved`), the same frames; ``quick``: see :func:`quick_renderer`."""
+    config = _as_recorded(config, states)
 
     def part(every: slice) -> Iterator[np.ndarray]:
         model = build_model(config)
         _show_liquid(model)
         data = mujoco.MjData(model)
-        renderer = make_renderer(model, height, width, shadows=shadows)
+        renderer = quick_renderer(model, height, width, shadows=shadows, quick=quick)
         try:
             for state in _states({name: value[every] for name, value in states.items()}):
                 _pose(model, data, *state)
@@ -172,12 +178,27 @@ def replay_frames(
     return interleaved(part, threads)
 
 
+def quick_renderer(
+    model: mujoco.MjModel, height: int, width: int, shadows: bool = False, quick: bool = False
+) -> mujoco.Renderer:
+    """:func:`~imitate.envs.rendering.make_renderer`'s renderer; with ``quick``, without
+    multisampling (``model``'s ``offsamples`` set to 0) and reflections: on a CPU (Mesa
+    llvmpipe) a 640x480 frame of the pour takes about a third of the time, its edges a little
+    jagged, its look otherwise the same."""
+    if quick:
+        model.vis.quality.offsamples = 0
+    renderer = make_renderer(model, height, width, shadows=shadows)
+    if quick:
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+    return renderer
+
+
 def penetrations(
     config: SceneConfig, states: dict[str, np.ndarray]
 ) -> list[tuple[float, tuple[str, str]]]:
     """Per recorded state, the smallest signed distance [m] between geoms that must not touch
     (as ``PouringEnv`` measures it) and the names of that pair."""
-    model = build_model(config)
+    model = build_model(_as_recorded(config, states))
     data = mujoco.MjData(model)
     pairs = CollisionPairs.between(model, clearance_geoms(model))
     found = []
@@ -187,6 +208,12 @@ def penetrations(
         k = int(np.argmin(dist))
         found.append((float(dist[k]), pairs.names(model, k)))
     return found
+
+
+def _as_recorded(config: SceneConfig, states: dict[str, np.ndarray]) -> SceneConfig:
+    """``config`` with the teacher where the ``states`` have its mocap poses (``PouringEnv``
+    has it only with ``teacher=True``)."""
+    return dataclasses.replace(config, teacher=states["mocap_pos"].shape[1] > 0)
 
 
 def _states(states: dict[str, np.ndarray]):

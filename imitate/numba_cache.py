@@ -5,7 +5,9 @@ else in the ``__pycache__`` beside the module, else in the user's cache (``~/.ca
 Where none of them is writable (a read-only install and home), numba refuses to import a
 module with cached kernels; each kernel module therefore calls :func:`ensure_writable` before
 declaring them, which then moves the cache to a private directory in the temporary folder and
-says so (one INFO line). The ``imitate`` command prints :func:`compile_notice` before a stage.
+says so (one INFO line). The ``imitate`` command prints :func:`compile_notice` before a stage;
+elsewhere (the Python API), the first compile of a kernel in a process says so in one line (see
+:func:`announce_first_compile`), so that a first call that compiles for a minute is not silent.
 """
 
 from __future__ import annotations
@@ -59,6 +61,7 @@ def ensure_writable() -> None:
     Raises:
         ImitateError: that directory cannot be used either.
     """
+    announce_first_compile()
     sources = [Path(PACKAGE, *name.split(".")[1:]).with_suffix(".py") for name in KERNEL_MODULES]
     if all(cache_dir(source) for source in sources):
         return
@@ -77,6 +80,46 @@ def ensure_writable() -> None:
     log.info("the kernels' default cache is not writable; numba caches them in %s", fallback)
 
 
+# Whether this process has said that it compiles kernels (once is enough); a caller that says
+# it its own way (the warm-up, the command's notice) sets it.
+_SAID: list[bool] = []
+
+
+def said() -> None:
+    """No :func:`announce_first_compile` line in this process: the caller says it."""
+    _SAID.append(True)
+
+
+@functools.cache
+def announce_first_compile() -> None:
+    """When numba first starts compiling one of imitate's kernels in this process (none was in
+    the cache), one line: on the ``imitate`` logger (INFO) if logging is set up for it, else on
+    stderr. Registered once per process, by :func:`ensure_writable`."""
+    from numba.core import event
+
+    class FirstCompile(event.Listener):
+        def on_start(self, ev):
+            function = ev.data["dispatcher"].py_func
+            if _SAID or not function.__module__.startswith("imitate"):
+                return
+            _SAID.append(True)
+            seconds = sum(s for _, s in STAGE_KERNELS.values())
+            line = (
+                f"numba compiles imitate's kernels on first use ({function.__module__}."
+                f"{function.__qualname__} now; about {seconds} s in all, once: later processes "
+                f"load them from the cache; `python -m imitate.warmup` compiles them ahead)"
+            )
+            if logging.getLogger("imitate").hasHandlers():
+                log.info(line)
+            else:
+                print(line, file=sys.stderr, flush=True)
+
+        def on_end(self, ev):
+            pass
+
+    event.register("numba:compile", FirstCompile())
+
+
 def compile_notice(stage: str) -> str | None:
     """A line saying that ``stage`` compiles its kernels, else None: when numba's cache has
     no index file (``*.nbi``) for any kernel of one of its modules as declared now (the name
@@ -92,6 +135,7 @@ def compile_notice(stage: str) -> str | None:
             uncached.add(str(where))
     if not uncached:
         return None
+    said()
     return (
         f"compiling the {stage} kernels once (about {seconds} s); later runs load them from "
         f"the cache at {', '.join(sorted(uncached))}"

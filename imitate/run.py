@@ -34,7 +34,7 @@ from imitate.stages.config import RunConfig, load_config
 __all__ = ["Demos", "Recording", "Run", "load_run"]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Demos:
     """Contents of ``demos.npz``: the demonstrations cut from the tracks.
 
@@ -49,8 +49,11 @@ class Demos:
     objects: tuple[str, ...]
     gaze: np.ndarray
 
+    def __repr__(self) -> str:
+        return f"Demos({len(self.segments)} demonstrations of {', '.join(self.objects)})"
 
-@dataclass(frozen=True, eq=False)
+
+@dataclass(frozen=True, eq=False, repr=False)
 class Recording:
     """Contents of ``replay.npz``: the plan replayed in physics.
 
@@ -79,6 +82,13 @@ class Recording:
     def times(self) -> np.ndarray:
         """``(n,)`` times of the recorded states [s] from the reset."""
         return np.arange(len(self.qpos)) * self.state_dt
+
+    def __repr__(self) -> str:
+        return (
+            f"Recording({len(self.qpos)} states every {self.state_dt:g} s, qpos "
+            f"{self.qpos.shape}, pour_fraction {self.pour_fraction:.3g}, spilled {self.spilled}, "
+            f"min_distance {1e3 * self.min_distance:.1f} mm)"
+        )
 
 
 class Run:

@@ -36,6 +36,10 @@ def announce_compiles(stream=None) -> None:
         return
     from numba.core import event
 
+    from imitate import numba_cache
+
+    numba_cache.said()  # this announcer names every kernel
+
     stream = stream or sys.stderr
 
     class Announcer(event.Listener):

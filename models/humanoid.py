@@ -36,6 +36,8 @@ BODIES = (
 RIGHT_HAND, LEFT_HAND = "right_hand", "left_hand"
 RIGHT_GRIP, LEFT_GRIP = "right_grip", "left_grip"  # sites: z along the held object's axis
 LEFT_EYE, RIGHT_EYE = "left_eye", "right_eye"  # cameras, 10 cm apart
+WORKSPACE = "workspace"  # camera under the eyes, looking down at the hands
+CAMERAS = (WORKSPACE, LEFT_EYE, RIGHT_EYE)  # the robot's own, in its head
 
 # Rest pose [rad]: elbows bent 90 degrees, forearms forward, the held objects upright in front
 # of the chest, head tilted down towards the table. Joints not listed are 0.

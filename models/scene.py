@@ -8,7 +8,7 @@ TABLE_TOP = "table_top"
 OVERVIEW = "overview"  # camera looking at robot, table and teacher from the side
 TEACHER_VIEW = "teacher_view"  # the teacher's hands from above the robot's left shoulder
 POUR_VIEW = "pour_view"  # the robot's hands from the teacher's side: the stream of liquid shows
-CAMERAS = (OVERVIEW, TEACHER_VIEW, POUR_VIEW, "left_eye", "right_eye")
+CAMERAS = (OVERVIEW, TEACHER_VIEW, POUR_VIEW, "workspace", "left_eye", "right_eye")
 
 # Table top in the world frame [m]: x from the robot's side to the teacher's, y across.
 TABLE_X = (0.40, 1.16)

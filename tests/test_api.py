@@ -2,6 +2,7 @@
 
 import re
 import shutil
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -121,3 +122,21 @@ def report_keys(value, prefix: str = "") -> set[str]:
 def test_every_report_key_is_documented(quick_run):
     report = imitate.load_run(quick_run).report
     assert report_keys(report) == set(REPORT_KEYS)
+
+
+def test_results_print_in_a_few_lines_with_their_shapes(quick_run):
+    run = imitate.load_run(quick_run)
+    for result in (run, run.model, run.plan, run.replay, run.demos):
+        text = repr(result)
+        assert "\n" not in text and len(text) < 300 and "array(" not in text, text
+    assert f"mean {run.model.mean.shape}" in repr(run.model)
+    assert f"q {run.plan.q.shape}" in repr(run.plan)
+
+
+def test_predict_outside_the_movement_warns(quick_run):
+    model = imitate.load_run(quick_run).model
+    with pytest.warns(UserWarning, match="outside the movement's"):
+        model.predict(model.times[-1] + 1.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        model.predict(model.times)

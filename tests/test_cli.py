@@ -261,3 +261,93 @@ def test_a_report_of_another_schema_is_refused_in_one_line(quick_run, tmp_path):
     with pytest.raises(ImitateError, match="has schema 99; this imitate reads and writes schema 1"):
         _ = imitate.load_run(run_dir).report
     assert main(["figures", str(run_dir)]) == 1
+
+
+HEAVY = ("mujoco", "numba", "scipy.signal", "scipy.stats", "matplotlib", "cv2")
+
+
+@pytest.mark.parametrize("command", ["", "observe", "learn", "optimize", "replay", "figures",
+                                     "run", "export", "eval", "compare"])
+def test_help_loads_no_heavy_module(command):
+    """Every ``--help`` builds its parser from plain constants (quick, even on a loaded
+    machine): none of MuJoCo, numba, SciPy's signal and stats, matplotlib or OpenCV loads."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, runpy\n"
+        f"sys.argv = ['imitate', *{command.split()!r}, '--help']\n"
+        "try:\n    runpy.run_module('imitate', run_name='__main__')\n"
+        "except SystemExit:\n    pass\n"
+        f"print(sorted(m for m in {HEAVY!r} if m in sys.modules), file=sys.stderr)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True)
+    assert "usage: imitate" in done.stdout
+    assert done.stderr.strip().splitlines()[-1] == "[]"
+
+
+def test_plain_settings_equal_the_values_their_modules_use():
+    from imitate import defaults as plain
+    from imitate.demos.segment import StillnessConfig
+    from imitate.envs import assembly
+    from imitate.envs.teacher_motion import TEACHER_VARIATIONS, TeacherConfig
+    from imitate.export import FORMATS
+    from imitate.learning.bic import BIC_METHODS, DEFAULT_BIC
+    from imitate.models import objects
+    from imitate.models.scene import TABLE_X, TABLE_Y
+    from imitate.motion import SIMILARITIES, PlanConfig
+
+    plan, scene = PlanConfig(), assembly.SceneConfig()
+    assert (plain.TEACHER_VARIATIONS, plain.TEACHER_VARIATION) == (
+        TEACHER_VARIATIONS, TeacherConfig.variation)
+    assert (plain.SMOOTHING, plain.BIC_METHODS, plain.DEFAULT_BIC) == (
+        StillnessConfig.smoothing, BIC_METHODS, DEFAULT_BIC)
+    assert plain.SIMILARITIES == SIMILARITIES
+    assert (plain.SIMILARITY, plain.COLLISION_WEIGHT, plain.SIGMA_MAX_SCALE, plain.NULLSPACE_PUSH,
+            plain.MAX_ITER, plain.PATH_LENGTH_WEIGHT) == (
+        plan.similarity, plan.collision_weight, plan.sigma_max_scale, plan.nullspace_push,
+        plan.max_iter, plan.path_length_weight)
+    assert (plain.BOTTLE_GRASP, plain.GLASS_GRASP) == (scene.bottle_grasp, scene.glass_grasp)
+    assert plain.GRASP_RANGE == {
+        "bottle": assembly.GRASP_RANGE[objects.BOTTLE], "glass": assembly.GRASP_RANGE[objects.GLASS]
+    }
+    assert (plain.OBSTACLE_SHAPES, plain.OBSTACLE_MAX_LIFT, plain.MAX_PARTICLES) == (
+        assembly.OBSTACLE_SHAPES, assembly.OBSTACLE_MAX_LIFT, assembly.MAX_PARTICLES)
+    assert (plain.TABLE_X, plain.TABLE_Y, plain.EXPORT_FORMATS) == (TABLE_X, TABLE_Y, FORMATS)
+
+
+def test_progress_off_a_terminal_is_log_lines(caplog, capsys, monkeypatch):
+    """Where stderr is not a terminal (as under pytest), a bar is INFO lines, no bar drawing,
+    none at the end of a work shorter than the lines' interval; below INFO (``-q``) nothing."""
+    import logging
+
+    from imitate.stages import progress as module
+    from imitate.stages.progress import Lines, bar
+
+    caplog.set_level(logging.INFO, logger="imitate")
+    assert list(bar(range(3), desc="observe")) == [0, 1, 2] and not caplog.records
+    monkeypatch.setattr(module, "LINE_INTERVAL", 0.0)
+    with bar(total=5, desc="observe", unit="pair") as progress:
+        assert isinstance(progress, Lines)
+        progress.update(5)
+    assert [r.getMessage()[:24] for r in caplog.records] == ["observe: 100% (5/5 pair)"]
+    assert "\r" not in capsys.readouterr().err
+    caplog.clear()
+    caplog.set_level(logging.WARNING, logger="imitate")
+    assert list(bar(range(3), desc="observe")) == [0, 1, 2] and not caplog.records
+
+
+def test_first_compile_outside_the_warm_up_says_so(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    code = ("import numpy as np\nfrom imitate.learning import dtw\n"
+            "dtw.local_costs(np.zeros((3, 2)), np.ones((2, 2)))\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True, env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)})
+    assert done.stderr.count("numba compiles imitate's kernels on first use") == 1
+    again = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                           check=True, env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)})
+    assert "numba compiles" not in again.stderr  # loaded from the cache

@@ -20,9 +20,9 @@ from imitate.evaluation.compare import (
     plot_comparison,
     settings_digest,
 )
-from imitate.evaluation.evaluate import RESULTS, default_out, last_records
 from imitate.evaluation.inference import crossing, ed50, teacher_effect
 from imitate.evaluation.report import wilson
+from imitate.evaluation.suite_run import RESULTS, default_out, last_records
 from imitate.evaluation.teachers import teachers
 from imitate.learning import LearningConfig
 from imitate.motion.replay import planning_task

@@ -1,17 +1,23 @@
 """The Gymnasium contract of ``imitate/Pouring-v0``: spaces, determinism, rendering, bad input."""
 
+import functools
+
+import cv2
 import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
 import imitate
+from imitate.envs import pouring
 from imitate.envs.assembly import Obstacle
 from imitate.envs.pouring import PouringEnv
+from imitate.envs.rendering import make_renderer
 from imitate.errors import ImitateError
 from imitate.models import humanoid
 from imitate.motion import Plan
 from imitate.motion.replay import replay
+from imitate.perception.colour import object_models
 
 SMALL = {"width": 96, "height": 72, "particles": 20}
 
@@ -34,10 +40,9 @@ def test_check_env_pixels(obs_type):
     env = PouringEnv(obs_type=obs_type, **SMALL)
     check_env(env, skip_render_check=True)
     obs, _ = env.reset(seed=0)
-    eyes = obs["pixels"]
-    assert set(eyes) == {"left_eye", "right_eye"}
-    assert eyes["left_eye"].shape == (72, 96, 3) and eyes["left_eye"].dtype == np.uint8
-    assert not np.array_equal(eyes["left_eye"], eyes["right_eye"])  # two viewpoints
+    (image,) = obs["pixels"].values()
+    assert set(obs["pixels"]) == {"workspace"}  # the default camera
+    assert image.shape == (72, 96, 3) and image.dtype == np.uint8
     if obs_type == "pixels_agent_pos":
         assert set(obs) == {"pixels", "agent_pos"}
         np.testing.assert_array_equal(obs["agent_pos"], env.joint_positions())
@@ -47,6 +52,47 @@ def test_check_env_pixels(obs_type):
     else:
         assert set(obs) == {"pixels"}
     env.close()
+
+
+def test_the_stereo_eyes_on_request():
+    env = PouringEnv(obs_type="pixels", cameras=["left_eye", "right_eye"], **SMALL)
+    check_env(env, skip_render_check=True)
+    eyes = env.reset(seed=0)[0]["pixels"]
+    assert set(eyes) == {"left_eye", "right_eye"}
+    assert not np.array_equal(eyes["left_eye"], eyes["right_eye"])  # two viewpoints
+    env.close()
+
+
+def test_the_teacher_only_on_request():
+    assert PouringEnv(particles=0).model.nmocap == 0
+    assert PouringEnv(particles=0, teacher=True).model.nmocap == 6  # its arms
+
+
+def visible(image):
+    """Pixels ``(2,)`` of the bottle's and the glass's colours (the tracker's ranges) in an RGB
+    image."""
+    hsv = cv2.cvtColor(image, cv2.COLOR_RGB2HSV)
+    return np.array([np.count_nonzero(m.colour.mask(hsv)) for m in object_models()])
+
+
+def test_the_workspace_camera_sees_both_objects_through_a_pour_like_motion(monkeypatch):
+    """The right arm lifts and tips the bottle over towards the glass, the left brings the
+    glass in, the torso turns: both objects stay in every image (64x48, no shadows)."""
+    monkeypatch.setattr(pouring, "make_renderer", functools.partial(make_renderer, shadows=False))
+    env = PouringEnv(obs_type="pixels", width=64, height=48, particles=0)
+    obs, _ = env.reset(seed=0)
+    seen = [visible(obs["pixels"]["workspace"])]
+    rest, pour = humanoid.rest_pose(), humanoid.rest_pose()
+    for joint, change in {
+        "torso_yaw": 0.3, "right_shoulder_pitch": -0.5, "right_shoulder_yaw": 0.5,
+        "right_wrist_roll": -0.8, "left_shoulder_yaw": -0.3, "right_elbow": 0.3,
+    }.items():
+        pour[humanoid.JOINTS.index(joint)] += change
+    for blend in np.linspace(0.0, 1.0, 25):
+        obs, *_ = env.step(rest + blend * (pour - rest))
+        seen.append(visible(obs["pixels"]["workspace"]))
+    env.close()
+    assert np.all(np.array(seen) > 10), np.array(seen).min(0)
 
 
 @pytest.mark.parametrize(("frame_skip", "fps"), [(10, 50), (4, 125)])
@@ -90,7 +136,7 @@ def test_observations_finite_and_in_space(env):
     assert np.ptp(observations[:, :18], axis=0).max() > 0  # the robot moved
 
 
-@pytest.mark.parametrize("camera", ["overview", "left_eye", "right_eye"])
+@pytest.mark.parametrize("camera", ["overview", "workspace", "left_eye", "right_eye"])
 def test_rendered_frame_is_not_blank(camera):
     env = PouringEnv(render_mode="rgb_array", camera=camera, **SMALL)
     env.reset(seed=0)
@@ -121,6 +167,8 @@ def test_obstacle_option():
         ({"particles": -3}, "particles=-3"),
         ({"obs_type": "stereo"}, r"obs_type='stereo' not accepted: one of \['state', 'pixels'"),
         ({"camera": "top"}, "camera='top'"),
+        ({"cameras": ("overview",)}, r"cameras=\('overview',\) not accepted: distinct names of"),
+        ({"cameras": ()}, r"cameras=\(\) not accepted: distinct names"),
         ({"render_mode": "human"}, "render_mode='human'"),
         ({"frame_skip": 0}, "frame_skip=0"),
         ({"width": -5}, "width=-5"),

@@ -18,14 +18,14 @@ from imitate.demos.oracle import oracle_model
 from imitate.envs.outcome import outcome
 from imitate.errors import ImitateError
 from imitate.evaluation import Suite, evaluate, load_suite
-from imitate.evaluation.evaluate import RESULTS, default_out, last_records, read_records
 from imitate.evaluation.report import summarize, text, wilson
 from imitate.evaluation.suite import KEYS
+from imitate.evaluation.suite_run import RESULTS, default_out, last_records, read_records
 from imitate.evaluation.variation import Variation, draw
 from imitate.learning import LearningConfig
 from imitate.models.scene import TABLE_HEIGHT
 from imitate.motion.replay import planning_task
-from imitate.rundir.artifacts import save_npz
+from imitate.rundir.artifacts import save_json, save_npz
 from imitate.stages import provenance
 
 # Three variations that run in seconds: few particles, a short optimization, two replays.
@@ -130,8 +130,21 @@ def test_variations_are_drawn_per_id_and_round_trip():
     assert all(draw(suite, 3, i, np.empty((0, 3))).in_path is False for i in range(5))
 
 
+def _record(**changes) -> dict:
+    """A variation's record of digest ``d`` as results.jsonl holds it, with ``changes``."""
+    settings = draw(Suite.default(), 0, 0, np.empty((0, 3))).to_json()
+    replay = {"seed": 1, "pour_fraction": 0.5, "spilled": 3, "min_distance_m": 0.01}
+    record = {
+        "digest": "d", "teacher": 0, "id": 0, "settings": settings, "outcome": "spill",
+        "pour_mean": 0.5, "pour_min": 0.5, "plan": {"min_distance_m": 0.02, "seconds": 0.1},
+        "replays": [replay], "physics_min_distance_m": 0.01, "clearance_gap_m": 0.01,
+        "seconds": 1.0,
+    }
+    return json.loads(json.dumps({**record, **changes}))
+
+
 def test_records_that_could_name_a_file_outside_are_skipped(tmp_path):
-    good = {"digest": "d", "id": 0, "outcome": "spill"}
+    good = _record()
     crafted = [
         {**good, "id": 1, "outcome": "x/../../../outside"}, {**good, "id": "2"},
         {**good, "id": -3}, {**good, "id": True}, {"digest": "d", "id": 4},
@@ -139,6 +152,22 @@ def test_records_that_could_name_a_file_outside_are_skipped(tmp_path):
     path = tmp_path / RESULTS
     path.write_text("\n".join(json.dumps(r) for r in [good, *crafted]) + "\n")
     assert read_records(path, "d") == [good]
+
+
+def test_a_line_not_utf8_or_a_record_lacking_what_the_summary_reads_is_skipped(tmp_path):
+    """Review N-e8, N-e10: tracebacks before."""
+    good = _record()
+    bad = [
+        {k: v for k, v in good.items() if k != "seconds"}, _record(id=1, settings=None),
+        _record(id=2, pour_min="abc"), _record(id=3, plan={}), _record(id=4, replays=[]),
+        _record(id=5, settings={**good["settings"], "obstacle": {"shape": "box"}}),
+        _record(id=6, teacher=None),
+    ]
+    path = tmp_path / RESULTS
+    lines = [json.dumps(r).encode() for r in bad] + [b'{"digest": "d", "note": "caf\xe9"}']
+    path.write_bytes(b"\n".join([*lines, json.dumps(good).encode()]) + b"\n")
+    assert read_records(path, "d") == [good]
+    assert summarize(read_records(path, "d"))["variations"] == 1
 
 
 def test_eval_holds_the_run_directory(tmp_path, model_arrays):
@@ -360,3 +389,77 @@ def test_summary_counts_the_plans_that_keep_the_margin_and_those_pushed():
     assert "margin: 3; of them touching in physics 1, pouring below 0.9 in a replay 1" in printed
     assert summary["nullspace_push"] == {"plans": 2, "success": 1}
     assert "plans with the null-space push: 2; of them successes 1" in printed
+
+
+# --- what eval writes, and where (review S4, N-x3, E18) ----------------------------------------
+
+
+def _tiny_eval(run_dir: Path, tmp_path: Path, *flags: str) -> list[str]:
+    (tmp_path / "tiny.json").write_text(json.dumps(TINY))
+    return ["eval", str(run_dir), "--suite", str(tmp_path / "tiny.json"), "--n", "1",
+            "--workers", "1", "--videos", "0", *flags]
+
+
+def _one_line(err: str) -> str:
+    lines = [line for line in err.splitlines() if not line.startswith("warning: ")]
+    assert len(lines) == 1 and lines[0].startswith("imitate eval: error: "), err
+    return lines[0]
+
+
+def test_a_link_on_the_way_to_the_evaluation_is_refused(tmp_path, model_arrays, capsys):
+    run_dir = _run_dir(tmp_path / "run", model_arrays)
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (run_dir / "eval").symlink_to(outside, target_is_directory=True)
+    assert main(_tiny_eval(run_dir, tmp_path)) == 1
+    assert f"{run_dir / 'eval'} is a symbolic link" in _one_line(capsys.readouterr().err)
+    assert not any(outside.iterdir())
+
+
+def test_a_link_on_the_way_to_the_teachers_is_refused(tmp_path, model_arrays):
+    from imitate.evaluation.teachers import teachers
+    from imitate.stages.config import RunConfig
+
+    run_dir = _run_dir(tmp_path / "run", model_arrays)
+    save_json(run_dir / "config.json", RunConfig.quick().to_json())
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (run_dir / "eval").mkdir()
+    (run_dir / "eval" / "teachers").symlink_to(outside, target_is_directory=True)
+    with pytest.raises(ImitateError, match="eval/teachers is a symbolic link"):
+        teachers(run_dir, run_dir / "eval", 2)
+    assert not any(outside.iterdir())
+
+
+def test_eval_out_refuses_a_folder_holding_no_evaluation(tmp_path, model_arrays, capsys):
+    run_dir = _run_dir(tmp_path / "run", model_arrays)
+    folder = tmp_path / "F"
+    folder.mkdir()
+    (folder / "report.html").write_text("mine")
+    (folder / "summary.json").write_text('{"mine": 1}')
+    assert main(_tiny_eval(run_dir, tmp_path, "--out", str(folder))) == 1
+    line = _one_line(capsys.readouterr().err)
+    assert f"{folder} holds report.html, summary.json but no evaluation" in line
+    assert "give a new or empty folder as --out" in line
+    assert sorted(p.name for p in folder.iterdir()) == ["report.html", "summary.json"]
+    assert (folder / "report.html").read_text() == "mine"
+
+
+def test_a_file_in_the_way_of_the_evaluation_is_named(tmp_path, model_arrays, capsys):
+    run_dir = _run_dir(tmp_path / "run", model_arrays)
+    (run_dir / "eval").write_text("a file")
+    assert main(_tiny_eval(run_dir, tmp_path)) == 1
+    line = _one_line(capsys.readouterr().err)
+    assert f"{run_dir / 'eval'} is a file, in the way" in line and "run it again" not in line
+
+
+@pytest.mark.parametrize("name", ["mean", "weights", "covariances"])
+def test_a_model_of_nan_names_its_file(tmp_path, model_arrays, name):
+    """Review I10, N-e1: the model's errors name model.npz and the stage to re-run."""
+    from imitate.learning import LearnedModel
+    from imitate.rundir.artifacts import load_npz
+
+    arrays = {**model_arrays, name: np.full_like(model_arrays[name], np.nan)}
+    save_npz(tmp_path / "model.npz", arrays)
+    with pytest.raises(ImitateError, match=f"model.npz: {name} must be finite .*imitate learn"):
+        LearnedModel.from_arrays(load_npz(tmp_path / "model.npz"))

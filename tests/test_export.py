@@ -3,8 +3,11 @@
 import importlib.util
 import inspect
 import json
+import re
 import shutil
+from pathlib import Path
 
+import cv2
 import gymnasium as gym
 import h5py
 import imageio.v3 as iio
@@ -19,10 +22,19 @@ import imitate
 from imitate.cli import main
 from imitate.envs import pouring
 from imitate.envs.rendering import make_renderer
+from imitate.evaluation.variation import Variation
 from imitate.export import export, to_hdf5, to_lerobot, to_minari
-from imitate.export.episodes import OBJECTS, TASK, robot_episode, teacher_episodes
+from imitate.export.episodes import (
+    OBJECTS,
+    OBSTACLE,
+    PLACES,
+    TASK,
+    robot_episode,
+    teacher_episodes,
+)
 from imitate.models import humanoid
 from imitate.motion.replay import replay
+from imitate.perception.colour import object_models
 from imitate.run import load_run
 
 
@@ -98,6 +110,18 @@ def test_minari(run, tmp_path, monkeypatch):
     obs, _ = env.reset(seed=run.config.seed, options=reset_options(run))
     np.testing.assert_array_equal(obs, episode.observations[0])
     teacher = minari.load_dataset(to_minari.TEACHER_ID)
+    pyproject = (Path(__file__).parents[1] / "pyproject.toml").read_text()
+    assert re.search(r'^name = "(.+)"$', pyproject, re.M)[1] == to_minari.DISTRIBUTION
+    for dataset in (robot, teacher):
+        metadata = dataset.storage.metadata
+        assert metadata["requirements"] == [
+            f"imitate-humanoid=={imitate.__version__}", f"mujoco=={mujoco.__version__}"
+        ]
+        assert metadata["code_permalink"] == to_minari.code_permalink()
+        assert imitate.__version__ in metadata["code_permalink"]
+        print(dataset.spec.dataset_id, {k: metadata[k] for k in (
+            "requirements", "code_permalink", "total_episodes", "total_steps"
+        )})
     assert teacher.spec.env_spec is None
     check_teacher(run, [(e.observations, e.actions) for e in teacher])
     for episode, demo in zip(teacher, run.demos.segments, strict=True):
@@ -128,6 +152,17 @@ def test_hdf5(run, tmp_path):
             run, demo["actions"][()], demo["rewards"][()], demo["infos/pour_fraction"][-1],
             demo["infos/is_success"][-1], env.unwrapped.dt,
         )
+        assert [list(f["mask"][k]) for k in ("train", "valid")] == [[b"demo_0"], []]
+        states, spec = demo["states"][()], mujoco.mjtState(data.attrs["state_spec"])
+        assert states.shape == (n, mujoco.mj_stateSize(env.unwrapped.model, spec))
+        env.reset(seed=0)  # the stored states alone continue the physics, bit for bit:
+        for k in (0, n // 2, n - 1):
+            mujoco.mj_setState(env.unwrapped.model, env.unwrapped.data, states[k], spec)
+            obs, *_ = env.step(demo["actions"][k])
+            state = np.hstack([demo["next_obs"][key][k] for key in ("qpos", "qvel", *OBJECTS)])
+            np.testing.assert_array_equal(obs, state)
+        print("robot.hdf5:", {k: v.shape for k, v in demo.items() if hasattr(v, "shape")},
+              "mask", {k: list(v) for k, v in f["mask"].items()})
     with h5py.File(out / "teacher.hdf5", "r") as f:
         demos = [f["data"][f"demo_{i}"] for i in range(len(f["data"]))]
         assert json.loads(f["data"].attrs["env_args"])["env_name"] is None
@@ -138,6 +173,12 @@ def test_hdf5(run, tmp_path):
         ])
         for d, segment in zip(demos, run.demos.segments, strict=True):
             np.testing.assert_array_equal(d["infos/time"], segment.times[1:])
+            assert "states" not in d  # no physics
+        names = {f"demo_{i}".encode() for i in range(len(demos))}
+        train, valid = (set(f["mask"][k]) for k in ("train", "valid"))
+        assert train | valid == names and not train & valid
+        assert len(valid) == int(to_hdf5.VALID_SHARE * len(demos))
+        print("teacher.hdf5: demos", len(demos), "mask", {k: len(v) for k, v in f["mask"].items()})
 
 
 def read_lerobot(root):
@@ -208,8 +249,18 @@ def test_lerobot(run, tmp_path):
         run.replay.pour_fraction, robot["next.success"][-1], 1 / info["fps"], atol=1e-6,
     )
     assert robot["next.done"][-1] and not robot["next.done"][:-1].any()
+    robot_features = info["features"]
     info, teacher, _ = read_lerobot(out / "teacher")
     assert info["fps"] == run.config.fps
+    features = info["features"]
+    assert set(features) | {"next.success"} == set(robot_features)  # the teacher: no outcome
+    environment = [f"{o}.{c}" for o in OBJECTS for c in ("x", "y", "z", "qw", "qx", "qy", "qz")]
+    for f in (features, robot_features):
+        assert f["observation.environment_state"]["names"] == environment
+    assert features["action"]["names"] == environment  # the next frame's objects
+    assert info["robot_type"] == "imitate_teacher"
+    print("lerobot robot:", {k: f["names"][:3] for k, f in robot_features.items() if f["names"]})
+    print("lerobot teacher:", {k: f["names"][:3] for k, f in features.items() if f["names"]})
     segments = run.demos.segments
     assert [len(t["action"]) for t in teacher] == [len(d.times) - 1 for d in segments]
 
@@ -223,7 +274,8 @@ def fast_renderer(model, height, width, shadows=True):
 
 
 def test_images_in_every_format(quick_run, tmp_path, monkeypatch):
-    """Both head cameras, at 64x48, rendered fast."""
+    """The robot's workspace camera and the teacher's stereo eyes, at 64x48, rendered fast: the
+    robot's images show both objects in every frame."""
     monkeypatch.setattr(pouring, "make_renderer", fast_renderer)
     run_dir = tmp_path / "run"
     shutil.copytree(quick_run, run_dir, ignore=shutil.ignore_patterns("*.mp4", "figures"))
@@ -233,11 +285,14 @@ def test_images_in_every_format(quick_run, tmp_path, monkeypatch):
     robot = robot_episode(run, images=True)
     teacher = list(teacher_episodes(run, images=True))
     eyes = ("left_eye", "right_eye")
+    assert robot.images == ("workspace",) and all(e.images == eyes for e in teacher)
     for episode in (robot, *teacher):
-        for eye in eyes:
-            images = episode.observations[eye]
+        for camera in episode.images:
+            images = episode.observations[camera]
             assert images.shape == (len(episode) + 1, 48, 64, 3) and images.dtype == np.uint8
             assert images.std() > 5.0  # a scene, not a blank
+    seen = np.array([visible(image) for image in robot.observations["workspace"]])
+    assert np.all(seen > 0), seen.min(0)
     for name, module in (("minari", to_minari), ("hdf5", to_hdf5), ("lerobot", to_lerobot)):
         (tmp_path / name).mkdir()
         module.write(tmp_path / name, [robot], teacher)
@@ -245,18 +300,24 @@ def test_images_in_every_format(quick_run, tmp_path, monkeypatch):
     for dataset_id, episodes in ((to_minari.ROBOT_ID, [robot]), (to_minari.TEACHER_ID, teacher)):
         for read, episode in zip(minari.load_dataset(dataset_id), episodes, strict=True):
             images = read.observations.get("pixels", read.observations)  # robot: as the env keys
-            assert {eye: images[eye].shape for eye in eyes} == {
-                eye: episode.observations[eye].shape for eye in eyes
+            assert {c: images[c].shape for c in episode.images} == {
+                c: episode.observations[c].shape for c in episode.images
             }
     with h5py.File(tmp_path / "hdf5" / "robot.hdf5", "r") as f:
-        stored = f["data/demo_0/obs/left_eye"][()]
-    np.testing.assert_array_equal(stored, robot.observations["left_eye"][:-1])
+        stored = f["data/demo_0/obs/workspace"][()]
+    np.testing.assert_array_equal(stored, robot.observations["workspace"][:-1])
     for name, episodes in (("robot", [robot]), ("teacher", teacher)):
         _, read, _ = read_lerobot(tmp_path / "lerobot" / name)
         for arrays, episode in zip(read, episodes, strict=True):
-            for eye in eyes:  # H.264: near the images, not equal
-                video = arrays[f"observation.images.{eye}"].astype(float)
-                assert np.abs(video - episode.observations[eye][:-1]).mean() < 8.0
+            for camera in episode.images:  # H.264: near the images, not equal
+                video = arrays[f"observation.images.{camera}"].astype(float)
+                assert np.abs(video - episode.observations[camera][:-1]).mean() < 8.0
+
+
+def visible(image):
+    """Pixels ``(2,)`` of the bottle's and the glass's colours in an RGB image."""
+    hsv = cv2.cvtColor(image, cv2.COLOR_RGB2HSV)
+    return np.array([np.count_nonzero(m.colour.mask(hsv)) for m in object_models()])
 
 
 def test_errors(run, tmp_path, monkeypatch):
@@ -273,7 +334,8 @@ def test_errors(run, tmp_path, monkeypatch):
         return None if name == "minari" else find_spec(name, *args)
 
     monkeypatch.setattr(importlib.util, "find_spec", without_minari)
-    with pytest.raises(imitate.ImitateError, match=r"needs minari: pip install 'imitate\[export"):
+    hint = r"needs minari: pip install 'imitate-humanoid\[export"
+    with pytest.raises(imitate.ImitateError, match=hint):
         export(run.path, "minari", tmp_path / "new")
     assert not (tmp_path / "new").exists()
 
@@ -318,7 +380,8 @@ def test_minari_without_out_goes_into_minaris_datasets_root(quick_run, tmp_path,
 @pytest.fixture(scope="module")
 def evaluated_run(quick_run, tmp_path_factory):
     """A copy of the quick run and the folder of its evaluation in two variations."""
-    from imitate.evaluation import Suite, evaluate
+    from imitate.evaluation.suite import Suite
+    from imitate.evaluation.suite_run import evaluate
 
     run_dir = tmp_path_factory.mktemp("evaluated") / "run"
     shutil.copytree(quick_run, run_dir, ignore=shutil.ignore_patterns("eval", "export"))
@@ -330,7 +393,7 @@ def evaluated_run(quick_run, tmp_path_factory):
 def test_from_eval_one_episode_per_variation_whose_actions_replay_to_its_outcome(
     evaluated_run, tmp_path
 ):
-    from imitate.evaluation.evaluate import last_records
+    from imitate.evaluation.suite_run import last_records
     from imitate.export.from_eval import replayed
 
     run_dir, eval_dir = evaluated_run
@@ -349,10 +412,20 @@ def test_from_eval_one_episode_per_variation_whose_actions_replay_to_its_outcome
             assert again["pour_fraction"] == metadata["pour_fraction"]
             assert again["is_success"] == metadata["poured"] == demo["infos/is_success"][-1]
             assert demo["infos/pour_fraction"][-1] == metadata["pour_fraction"]
+            variation = Variation.from_json(metadata["settings"])
+            for place in PLACES:  # the obstacle and fixtures, observed at every step
+                seen = demo["obs"][place][()]
+                np.testing.assert_array_equal(seen, np.tile(seen[0], (len(seen), 1)))
+                thing = getattr(variation, place)
+                assert seen[0, 0] == (thing is not None)
+                if thing is not None:
+                    np.testing.assert_array_equal(seen[0, 2:5], thing.pos)
         hdf5_actions = [d["actions"][()] for d in demos]
     assert main(["export", str(run_dir), "--format", "lerobot", "--from-eval", str(eval_dir),
                  "--out", str(tmp_path / "lerobot")]) == 0
-    _, tables, episodes = read_lerobot(tmp_path / "lerobot" / "robot")
+    info, tables, episodes = read_lerobot(tmp_path / "lerobot" / "robot")
+    names = info["features"]["observation.environment_state"]["names"]
+    assert names[14:] == [f"{p}.{c}" for p in PLACES for c in OBSTACLE]
     for arrays, episode, actions in zip(tables, episodes, hdf5_actions, strict=True):
         assert json.loads(episode["metadata"])["variation"] == episode["episode_index"]
         np.testing.assert_array_equal(arrays["action"], actions.astype(np.float32))

@@ -18,7 +18,8 @@ SOURCES = {
 # Bottom first. Within a layer a module imports only from its own package, except in the
 # first, whose modules are one package of helpers.
 LAYERS = (
-    ("imitate.errors", "imitate._validation", "imitate.numba_cache", "imitate.models"),
+    ("imitate.errors", "imitate._validation", "imitate.numba_cache", "imitate.defaults",
+     "imitate.models"),
     ("imitate.rundir",),
     ("imitate.envs",),
     ("imitate.learning", "imitate.perception"),

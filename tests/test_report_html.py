@@ -112,3 +112,32 @@ def test_eval_page_links_its_files_and_failure_videos(tmp_path):
 
 def test_every_figure_has_a_caption():
     assert set(CAPTIONS) == set(table.FIGURES)
+
+
+def test_run_page_explains_its_numbers(quick_run):
+    from imitate.rundir.page import run_page
+
+    report = json.loads((quick_run / table.REPORT).read_text())
+    config = json.loads((quick_run / "config.json").read_text())
+    opt = report["optimization"]
+    text = " ".join("".join(References(run_page(report, config, str(quick_run))).text).split())
+    assert "fractions of collision_weight" in text
+    for entry, fraction in zip(opt["sweep"], config["sweep"], strict=True):
+        assert f"{fraction:g}" in text and f"{entry['weight']:g}" in text
+    assert "contacts push back" in text and "half of the steps by definition" in text
+    done = "converged" if opt["converged"] else "not converged: stopped at its limit"
+    assert done in text
+    assert "may leave the ±2σ band" in CAPTIONS["fig9_collision_sweep"]
+
+
+def test_eval_page_says_how_many_variations_ran(tmp_path):
+    records = [{"outcome": "success", "seconds": 2.0, "plan": {"min_distance_m": 0.01},
+                "clearance_gap_m": 0.001, "pour_mean": 1.0, "pour_min": 1.0,
+                "settings": {"obstacle": None, "in_path": False}}] * 6
+    summary = {
+        "suite_digest": "0123456789abcdef", "seed": 0, "suite": {"variations": 100},
+        "path_points": 10, **summarize(records),
+        "run": {"ran": 6, "wall_seconds": 6.0, "backend": "local", "workers": 2},
+    }
+    text = " ".join(References(save_eval_page(tmp_path, summary).read_text()).text)
+    assert "6 ran (--n; the suite's own 100)" in text

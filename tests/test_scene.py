@@ -49,6 +49,15 @@ def test_every_element_is_named(model, kind, count):
     assert unnamed == [] or (kind == mujoco.mjtObj.mjOBJ_BODY and unnamed == [0])  # world
 
 
+def test_cameras_are_named_as_mirrored(model):
+    cameras = [model.camera(i).name for i in range(model.ncam)]
+    assert sorted(cameras) == sorted(names.CAMERAS)
+    head = model.body("head").id
+    assert {c for c in cameras if model.cam_bodyid[model.camera(c).id] == head} == set(
+        humanoid.CAMERAS
+    )
+
+
 def test_robot_structure(model):
     assert model.nu == len(humanoid.JOINTS) == 18
     assert [model.actuator(i).name for i in range(model.nu)] == list(humanoid.ACTUATORS)

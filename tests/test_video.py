@@ -115,6 +115,23 @@ def test_frames_rendered_in_two_threads_are_those_of_one(quick_run):
         assert not np.array_equal(one[0], one[-1])  # the frames differ: their order counts
 
 
+def test_quick_frames_look_like_the_full_ones(quick_run):
+    """``quick`` (no multisampling, no reflections: the run's video) changes edges, not what a
+    frame shows: the same frames to a few levels of 255 on average."""
+    config = load_config(quick_run)
+    states = load_npz(quick_run / "replay.npz")
+    shown = np.linspace(0, len(states["qpos"]) - 1, 3).astype(int)
+    states = {name: states[name][shown] for name in STATE_NAMES}
+    motion = script_demonstrations(config.teacher())
+    for frames in (
+        lambda quick: teacher_frames(motion, np.array([2.0, 4.0]), 160, 120, quick=quick),
+        lambda quick: replay_frames(config.scene(), states, 160, 120, quick=quick),
+    ):
+        full, quick = np.array(list(frames(False)), float), np.array(list(frames(True)), float)
+        assert full.shape == quick.shape
+        assert 0 < np.abs(full - quick).mean() < 4
+
+
 def test_interleaved_threads_stop_with_their_caller_and_hand_on_an_error():
     def part(every: slice):
         yield from range(10)[every]
@@ -163,3 +180,13 @@ def _glass_region(model, data, width: int, height: int) -> np.ndarray:
     mask = np.zeros((height, width), np.uint8)
     cv2.fillConvexPoly(mask, hull, 1)
     return mask.astype(bool)
+
+
+def test_the_teachers_pauses_play_faster_than_the_demonstrations():
+    from imitate.stages.figures import _teacher_times
+
+    times = _teacher_times(np.array([[1.0, 2.0], [3.0, 4.0]]), 5.0, 0.1, 0.5)
+    steps = np.diff(times)
+    moving = ((times[:-1] >= 1.0) & (times[:-1] < 2.0)) | ((times[:-1] >= 3.0) & (times[:-1] < 4.0))
+    assert np.allclose(steps[moving], 0.1) and np.allclose(steps[~moving], 0.5)
+    assert times[0] == 0.0 and times[-1] < 5.0 and moving.sum() == 20

@@ -15,8 +15,8 @@ line on stderr: exit status 1, 2 for a bad flag, 130 for Ctrl-C and 143 for SIGT
 does not finish changes nothing.
 
 Progress goes to stderr (``-q`` leaves warnings and errors, ``-v`` adds debug lines; see
-:mod:`imitate.cli.console`). The command line is built for the sub-command given only, so that
-``imitate --help`` loads no MuJoCo.
+:mod:`imitate.cli.console`). The command line is built for the sub-command given only, from
+plain constants (:mod:`imitate.defaults`): no ``--help`` loads MuJoCo, numba, SciPy or matplotlib.
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ log = logging.getLogger(__name__)
 DEFAULT_RUN = Path("runs/latest")
 EXPORT_HELP = (
     "the robot's replay and the teacher's demonstrations as datasets (pip install "
-    "'imitate[export]')"
+    "'imitate-humanoid[export]')"
 )
 EVAL_HELP = "reproduce a run's learned model in seeded variations (obstacles, grasps, physics)"
 COMPARE_HELP = (
@@ -61,10 +61,9 @@ COMMANDS = {
 
 def build_parser(full: Iterable[str] | None = None) -> argparse.ArgumentParser:
     """The command line: every sub-command, with its arguments for those in ``full`` (default:
-    all; each loads what its settings' defaults need, MuJoCo included)."""
+    all). Building it loads no MuJoCo, numba, SciPy or matplotlib (see :mod:`imitate.defaults`):
+    ``--help`` is quick."""
     full = COMMANDS if full is None else tuple(full)
-    if full:
-        console.prepare()
     parser = argparse.ArgumentParser(
         prog="imitate",
         description="Task-level imitation learning of pouring (Muehlig et al., ICRA 2009), "
@@ -114,7 +113,7 @@ def _add_run(sub: argparse.ArgumentParser, command: str) -> None:
 
 def _add_export(sub: argparse.ArgumentParser) -> None:
     """The ``export`` sub-command's arguments (see :mod:`imitate.export`)."""
-    from imitate.export import FORMATS
+    from imitate.defaults import EXPORT_FORMATS as FORMATS
 
     sub.add_argument("run_dir", nargs="?", type=Path, default=DEFAULT_RUN, metavar="RUN_DIR",
                      help=f"run directory (default {DEFAULT_RUN})")
@@ -125,7 +124,8 @@ def _add_export(sub: argparse.ArgumentParser) -> None:
                      help="output directory, must not exist (default RUN_DIR/export/FORMAT; "
                      "minari: Minari's datasets root, MINARI_DATASETS_PATH or ~/.minari/datasets)")
     sub.add_argument("--images", action="store_true",
-                     help="also store both head-camera images at every step")
+                     help="also store camera images at every step: the robot's workspace camera, "
+                     "the teacher as the stereo eyes saw it")
     sub.add_argument("--from-eval", type=Path, metavar="EVAL_DIR",
                      help="the robot's episodes: one per variation of the evaluation in EVAL_DIR "
                      "(the folder imitate eval printed), its settings and outcome in each "
@@ -165,8 +165,8 @@ def _add_verbosity(parser: argparse.ArgumentParser, default) -> None:
 def _add_eval(sub: argparse.ArgumentParser) -> None:
     """The ``eval`` sub-command's arguments (see :mod:`imitate.evaluation`); the suite's keys
     in its help."""
+    from imitate.defaults import SIMILARITIES
     from imitate.evaluation.suite import KEYS
-    from imitate.motion import SIMILARITIES
 
     _add_variations(sub, teachers=1)
     sub.add_argument("--out", type=Path, metavar="DIR",
@@ -202,7 +202,7 @@ def _fmt_default(value: Any) -> str:
 
 def _add_compare(sub: argparse.ArgumentParser) -> None:
     """The ``compare`` sub-command's arguments (see :mod:`imitate.evaluation.compare`)."""
-    from imitate.motion import SIMILARITIES
+    from imitate.defaults import SIMILARITIES
 
     # the weightings compared unless told: eq. 21, the even spread of its weight, its inverse
     # (a negative control) and minimal intervention
@@ -229,8 +229,8 @@ def _add_variations(sub, teachers: int) -> None:
                      "a .toml or .json file (default: the built-in one)")
     sub.add_argument("--n", type=int, metavar="N",
                      help="variations to run (default: the suite's 'variations', 100 built in)")
-    sub.add_argument("--seed", type=int, default=0, metavar="S",
-                     help="seed the variations are drawn with (default 0)")
+    sub.add_argument("--seed", type=_count, default=0, metavar="S",
+                     help="seed the variations are drawn with, >= 0 (default 0)")
     sub.add_argument("--teachers", type=int, default=teachers, metavar="N",
                      help=f"teachers whose learned models reproduce every variation: the run's "
                      f"and the next seeds', each observed and learned once (default {teachers})")
@@ -238,9 +238,9 @@ def _add_variations(sub, teachers: int) -> None:
                      help="local worker processes (default: one per core)")
     sub.add_argument("--ray", metavar="ADDRESS",
                      help="run the variations as Ray tasks on the cluster at ADDRESS ('auto': "
-                     "the one Ray finds); needs imitate[ray]")
+                     "the one Ray finds); needs imitate-humanoid[ray]")
     sub.add_argument("--collision-weight", type=float, metavar="W", dest="weight",
-                     help="replaces the suite's collision_weight")
+                     help="replaces the suite's collision_weight, 0..1e6")
 
 
 def _add_settings(group, declared: list[tuple[str, Setting, Any]]) -> None:
@@ -301,6 +301,7 @@ def main(argv: list[str] | None = None) -> int:
     sub = _command_parser(parser, args.command)
     if unknown:
         sub.error(_unrecognized(unknown, sub))
+    console.prepare()
     console.log_to_stderr(args.log_level)
     if args.command == "export":
         return export_command(args)
@@ -441,12 +442,14 @@ def _eval(args: argparse.Namespace) -> int:
     """``imitate eval`` or ``imitate compare`` of ``args.run_dir``; prints its summary."""
     from imitate import evaluation  # MuJoCo and the planner: once the arguments are fine
     from imitate.evaluation import compare
+    from imitate.evaluation.suite_run import check_weight
 
     kept = "the finished variations are kept; run it again to go on"
     try:
         name, suite = evaluation.named_suite(args.suite)
         if args.weight is not None:
             suite = suite.replace(collision_weight=args.weight)
+        check_weight(suite)  # as run caps it: larger weights overflow
         if args.command == "eval" and args.weighting is not None:
             suite = suite.replace(similarity=args.weighting)
         if args.command == "eval":

@@ -3,13 +3,36 @@
 :mod:`~imitate.evaluation.suite` (the distribution), :mod:`~imitate.evaluation.variation` (one
 drawn variation), :mod:`~imitate.evaluation.trial` (plan, replays, outcome),
 :mod:`~imitate.evaluation.parallel` (worker processes or Ray), :mod:`~imitate.evaluation.report`
-(summary, figure, videos), :mod:`~imitate.evaluation.evaluate` (the whole evaluation, resumable),
+(summary, figure, videos), :mod:`~imitate.evaluation.suite_run` (the whole evaluation, resumable),
 :mod:`~imitate.evaluation.teachers` (the learned models of several teacher seeds),
 :mod:`~imitate.evaluation.compare` (similarity weightings on the same variations, paired).
 """
 
-from imitate.evaluation.evaluate import default_out, evaluate
-from imitate.evaluation.report import text
-from imitate.evaluation.suite import SUITE_NAMES, Suite, load_suite, named_suite
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from imitate.evaluation.report import text
+    from imitate.evaluation.suite import SUITE_NAMES, Suite, load_suite, named_suite
+    from imitate.evaluation.suite_run import default_out, evaluate
 
 __all__ = ["SUITE_NAMES", "Suite", "default_out", "evaluate", "load_suite", "named_suite", "text"]
+
+# The names and their modules, imported when first asked for (``imitate eval --help`` reads
+# the suite's keys only: no MuJoCo).
+_LAZY = {
+    "default_out": "suite_run", "evaluate": "suite_run", "text": "report", "SUITE_NAMES": "suite",
+    "Suite": "suite", "load_suite": "suite", "named_suite": "suite",
+}
+
+
+def __getattr__(name: str):
+    """The names of :data:`_LAZY`, imported when first asked for."""
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(f"imitate.evaluation.{_LAZY[name]}"), name)
+    raise AttributeError(f"module 'imitate.evaluation' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_LAZY})

@@ -38,10 +38,10 @@ from matplotlib.figure import Figure
 from scipy import stats
 
 from imitate.errors import ImitateError
-from imitate.evaluation.evaluate import RESULTS, Draw, check_counts, draw_jobs, run_jobs
 from imitate.evaluation.inference import ed50, mean_ci, teacher_effect
 from imitate.evaluation.report import MARGIN, wilson
 from imitate.evaluation.suite import KEYS, Suite
+from imitate.evaluation.suite_run import RESULTS, Draw, check_counts, draw_jobs, run_jobs
 from imitate.evaluation.teachers import check_run, teachers
 from imitate.figures import plots
 from imitate.motion import SIMILARITIES
@@ -120,7 +120,7 @@ def compare(
 
     Raises:
         ImitateError: an unknown or repeated weighting, fewer than two, or what
-            :func:`~imitate.evaluation.evaluate.evaluate` refuses.
+            :func:`~imitate.evaluation.suite_run.evaluate` refuses.
     """
     similarities = tuple(similarities)
     unknown = [s for s in similarities if s not in SIMILARITIES]
@@ -332,8 +332,9 @@ def markdown(result: dict) -> str:
     """``compare.md``: the weightings' table and the pairs' tests, or the sweep's tables."""
     n = result["variations_per_teacher"]
     teachers_ = ", ".join(str(t) for t in result["teachers"])
-    head = (f"Suite `{result['suite_name']}`, {n} variations x {len(result['teachers'])} "
-            f"teachers (seeds {teachers_}; variation seed {result['seed']}), paired.")
+    head = (f"Suite `{result['suite_name']}`, {_count(n, 'variation')} x "
+            f"{_count(len(result['teachers']), 'teacher')} (teacher seeds {teachers_}; "
+            f"variation seed {result['seed']}), paired.")
     if "sweep" in result:
         return "\n".join([head, "", *_sweep_tables(result)])
     return "\n".join([head, "", *_tables(result)])
@@ -508,8 +509,8 @@ def plot_comparison(result: dict) -> Figure:
                  xlabel=label, title="mean over teachers, 95 % t\n(dots: teachers)")
         axis.invert_yaxis()
     figure.suptitle(
-        f"suite {result['suite_name']}: {result['variations_per_teacher']} variations x "
-        f"{len(result['teachers'])} teachers, the same for every weighting"
+        f"suite {result['suite_name']}: {_count(result['variations_per_teacher'], 'variation')}"
+        f" x {_count(len(result['teachers']), 'teacher')}, the same for every weighting"
     )
     return figure
 
@@ -539,6 +540,8 @@ def plot_dose(result: dict) -> Figure:
                            xytext=(3, 3), textcoords="offset points")
     for axis, label in ((left, "success rate"), (middle, "mean pour (worst replay)")):
         axis.set(xlabel=key, ylabel=label, ylim=(-0.02, 1.05), xscale="log" if log_x else "linear")
+        axis.set_xticks(x, [f"{v:g}" for v in x])  # the swept values, not powers of ten
+        axis.set_xticks([], minor=True)
     left.axhline(0.5, color="0.5", lw=0.8)
     left.set_title("success (bands: 95 % over teachers; dotted: ED50)")
     middle.set_title("pour")
@@ -548,10 +551,16 @@ def plot_dose(result: dict) -> Figure:
               ylabel="plan clearance, median [mm]",
               title=f"clearance against the task\n(labels: {key}; dashed: the margin)")
     figure.suptitle(
-        f"suite {result['suite_name']} swept over {key}: {result['variations_per_teacher']} "
-        f"variations x {len(result['teachers'])} teachers per level and weighting"
+        f"suite {result['suite_name']} swept over {key}: "
+        f"{_count(result['variations_per_teacher'], 'variation')} x "
+        f"{_count(len(result['teachers']), 'teacher')} per level and weighting"
     )
     return figure
+
+
+def _count(n: int, noun: str) -> str:
+    """``"1 teacher"``, ``"3 teachers"``."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
 def _by_teacher(records: Sequence[dict]) -> dict[str, dict]:

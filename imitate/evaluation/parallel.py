@@ -5,7 +5,8 @@ is filed under. Each record depends on
 its teacher's model and the variation's settings alone (``Trial.run`` seeds everything from
 them), so the two back-ends and any number of workers give the same records, timings aside.
 Local workers are spawned, not forked (MuJoCo's rendering contexts and fork do not mix), set
-``MUJOCO_GL`` and run single-threaded BLAS unless told otherwise.
+``MUJOCO_GL``, run single-threaded BLAS unless told otherwise, and exit by themselves when the
+evaluation's process is killed.
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
+import threading
+import time
 from collections.abc import Generator, Sequence
 
 import numpy as np
@@ -26,6 +29,7 @@ __all__ = ["Job", "run_local", "run_ray"]
 # Thread counts of the numerical libraries in each worker: one, the workers fill the cores.
 _SINGLE_THREAD = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 _worker: dict = {}  # a local worker's trials by teacher, set once by _start
+_PARENT_POLL = 0.2  # [s] how often a local worker checks that its parent still runs
 
 Job = tuple[str, int, Variation]  # (digest, teacher seed, variation)
 Models = dict[int, dict[str, np.ndarray]]  # model.npz's arrays by teacher seed
@@ -60,7 +64,7 @@ def run_ray(models: Models, jobs: Sequence[Job], address: str) -> Generator[dict
         import ray
     except ImportError:
         raise ImitateError(
-            "--ray needs Ray, which is not installed: pip install 'imitate[ray]'"
+            "--ray needs Ray, which is not installed: pip install 'imitate-humanoid[ray]'"
         ) from None
     if not ray.is_initialized():
         try:
@@ -81,8 +85,17 @@ def run_ray(models: Models, jobs: Sequence[Job], address: str) -> Generator[dict
 
 def _start(models: Models) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    threading.Thread(target=_exit_with, args=(os.getppid(),), daemon=True).start()
     os.environ.setdefault("MUJOCO_GL", "egl")
     _worker.update({teacher: Trial(arrays) for teacher, arrays in models.items()})
+
+
+def _exit_with(parent: int) -> None:
+    """Exit this worker at once when its ``parent`` is gone (killed: nobody reads its record,
+    and nobody terminates it), checking every :data:`_PARENT_POLL` seconds."""
+    while os.getppid() == parent:
+        time.sleep(_PARENT_POLL)
+    os._exit(1)
 
 
 def _run(job: tuple[str, int, dict]) -> dict:

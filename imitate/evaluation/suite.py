@@ -17,11 +17,20 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from imitate.envs.assembly import GRASP_RANGE, MAX_PARTICLES, OBSTACLE_SHAPES
+from imitate.defaults import (  # plain constants: `imitate eval --help` shows KEYS quickly
+    COLLISION_WEIGHT,
+    GRASP_RANGE,
+    MAX_ITER,
+    MAX_PARTICLES,
+    NULLSPACE_PUSH,
+    OBSTACLE_SHAPES,
+    PATH_LENGTH_WEIGHT,
+    SIMILARITIES,
+    SIMILARITY,
+    TABLE_X,
+    TABLE_Y,
+)
 from imitate.errors import ImitateError
-from imitate.models import objects
-from imitate.models.scene import TABLE_X, TABLE_Y
-from imitate.motion import SIMILARITIES, PlanConfig
 
 __all__ = ["KEYS", "SUITE_NAMES", "Key", "Suite", "load_suite", "named_suite"]
 
@@ -122,21 +131,21 @@ class Key:
         return self.low <= v <= self.high
 
 
-_BOTTLE, _GLASS = GRASP_RANGE[objects.BOTTLE], GRASP_RANGE[objects.GLASS]
+_BOTTLE, _GLASS = GRASP_RANGE["bottle"], GRASP_RANGE["glass"]
 KEYS: dict[str, Key] = {
     "variations": Key(100, "variations drawn when --n is not given", 1, 100_000, integer=True),
-    "collision_weight": Key(PlanConfig.collision_weight, "weight of the collision cost"),
+    "collision_weight": Key(COLLISION_WEIGHT, "weight of the collision cost"),
     "similarity": Key(
-        PlanConfig.similarity, "how the similarity cost weights the task over time (the run "
+        SIMILARITY, "how the similarity cost weights the task over time (the run "
         "setting of the same name)", choices=SIMILARITIES,
     ),
     "path_length_weight": Key(
-        (PlanConfig.path_length_weight,) * 2, "weight of the joint path-length cost (raised, "
+        (PATH_LENGTH_WEIGHT,) * 2, "weight of the joint path-length cost (raised, "
         "it competes with the task everywhere)", 0, 1e3,
     ),
-    "max_iter": Key(PlanConfig.max_iter, "optimizer iteration limit", 1, 10_000, integer=True),
+    "max_iter": Key(MAX_ITER, "optimizer iteration limit", 1, 10_000, integer=True),
     "nullspace_push": Key(
-        PlanConfig.nullspace_push, "whether the planner may push a plan that keeps less than its "
+        NULLSPACE_PUSH, "whether the planner may push a plan that keeps less than its "
         "margin once more through the task's null space (the default planner); false: the "
         "attractors alone, as in the paper",
     ),

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import os
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +24,7 @@ from imitate.errors import ImitateError
 from imitate.learning import LearnedModel
 from imitate.run import load_run
 from imitate.rundir import table
-from imitate.rundir.artifacts import load_json, load_npz, save_json
+from imitate.rundir.artifacts import load_json, load_npz, refuse_link, save_json
 from imitate.rundir.lock import locked
 from imitate.stages import provenance
 from imitate.stages.config import RunConfig, load_config
@@ -34,7 +35,7 @@ log = logging.getLogger(__name__)
 
 MAX_TEACHERS = 100
 MODEL = "model.npz"
-CODE = "code.json"  # the code digest the teacher's stages ran with
+CODE = table.CODE  # the code digest the teacher's stages ran with
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -82,8 +83,9 @@ def teachers(run_dir: Path, out: Path, n: int) -> list[Teacher]:
     learned under ``out/teachers/`` where missing or stale, else read.
 
     Raises:
-        ImitateError: the run has no usable ``config.json`` or ``model.npz``, or a teacher's
-            stage fails (its directory is left as it was).
+        ImitateError: the run has no usable ``config.json`` or ``model.npz``, a folder of a
+            teacher's run is a symbolic link, or a teacher's stage fails (its directory is left
+            as it was).
     """
     run_dir = Path(run_dir)
     # the run's own model needs no settings (a folder of a model.npz alone is evaluated too)
@@ -92,6 +94,8 @@ def teachers(run_dir: Path, out: Path, n: int) -> list[Teacher]:
     found = [_read(own, run_dir / MODEL)]
     for seed in teacher_seeds(own, n)[1:]:
         folder = Path(out) / "teachers" / f"seed-{seed}"
+        inside = os.path.abspath(folder).startswith(os.path.abspath(run_dir) + os.sep)
+        refuse_link(folder, run_dir if inside else out)  # eval/, teachers/, seed-S/
         assert config is not None  # loaded: there are other teachers (n > 1)
         _prepare(folder, dataclasses.replace(config, seed=seed))
         found.append(_read(seed, folder / MODEL))

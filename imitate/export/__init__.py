@@ -4,7 +4,7 @@
     imitate export runs/latest --format minari --out datasets/    # or hdf5, lerobot; --images
     imitate export runs/latest --format lerobot --from-eval runs/latest/eval/default-w10000-variance
 
-The formats' libraries are the optional extra ``pip install imitate[export]``. The export
+The formats' libraries are the optional extra ``pip install 'imitate-humanoid[export]'``. The export
 holds the run directory's lock and refuses a plan or model that no longer follows from the run
 (as the ``replay`` stage would); the output is written to a temporary directory of its own
 beside ``out`` and renamed when complete.
@@ -22,6 +22,7 @@ from pathlib import Path
 
 from imitate.errors import ImitateError
 from imitate.rundir import table
+from imitate.rundir.artifacts import refuse_link
 from imitate.rundir.lock import locked
 from imitate.stages import provenance
 
@@ -44,15 +45,17 @@ def export(run_dir: str | Path, format: str, out: str | Path | None = None,
         out: A directory that does not exist yet; ``None``: ``run_dir/export/<format>``, but
             for ``"minari"`` Minari's datasets root (``MINARI_DATASETS_PATH``, else
             ``~/.minari/datasets``), where the two datasets must not exist yet.
-        images: Also store both head-camera images at every step (the robot's in the replay, the
-            teacher's as the robot saw them), at the run's camera size.
+        images: Also store camera images at every step, at the run's camera size: the robot's
+            workspace camera in the replay (its hands, the bottle and the glass), the teacher's
+            demonstrations as the robot's eyes saw them.
         from_eval: An evaluation's folder (``RUN_DIR/eval/...``, of this run): the robot's
             episodes are then one per evaluated variation (:mod:`imitate.export.from_eval`),
             not the run's plan; ``"hdf5"`` or ``"lerobot"`` only (a Minari dataset has one env).
 
     Raises:
-        ImitateError: an unknown format, the format's library missing, ``out`` existing, a
-            missing or stale artifact (the message names the stage to re-run), an evaluation
+        ImitateError: an unknown format, the format's library missing, ``out`` existing or,
+            within the run directory, a symbolic link on the way to it, a missing or stale
+            artifact (the message names the stage to re-run), an evaluation
             that no longer follows from its models, or another command holding the run
             directory.
     """
@@ -66,7 +69,8 @@ def export(run_dir: str | Path, format: str, out: str | Path | None = None,
     missing = [name for name in _NEEDS[format] if importlib.util.find_spec(name) is None]
     if missing:
         raise ImitateError(
-            f"the {format} format needs {', '.join(missing)}: pip install 'imitate[export]'"
+            f"the {format} format needs {', '.join(missing)}: "
+            "pip install 'imitate-humanoid[export]'"
         )
     from imitate.export.episodes import Episode, robot_episode, teacher_episodes
     from imitate.export.from_eval import evaluated, evaluated_episodes
@@ -91,6 +95,8 @@ def export(run_dir: str | Path, format: str, out: str | Path | None = None,
         )
         if problems:
             raise ImitateError(f"{problems[0]} before exporting")
+        if out.is_relative_to(run.path.absolute()):  # no link between the run and its export
+            refuse_link(out, run.path.absolute())
         taken = [out / name for name in moved if (out / name).exists()]
         if taken:
             raise ImitateError(f"{taken[0]} exists; accepted: a path that does not exist yet" + (

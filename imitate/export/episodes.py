@@ -20,10 +20,12 @@ from dataclasses import dataclass
 from typing import Any, cast
 
 import gymnasium as gym
+import mujoco
 import numpy as np
 
 from imitate import ENV_ID
 from imitate.demos.segment import task_demo
+from imitate.envs.assembly import Obstacle
 from imitate.envs.observation import EYES, ObservationConfig, frames, session
 from imitate.envs.pouring import PouringEnv
 from imitate.envs.teacher_motion import script_demonstrations
@@ -35,11 +37,21 @@ from imitate.run import Run
 from imitate.rundir.artifacts import load_npz
 
 __all__ = [
-    "Episode", "Recorder", "image_kwargs", "recorded", "robot_episode", "teacher_episodes",
+    "Episode", "Recorder", "image_kwargs", "obstacle_vector", "recorded", "robot_episode",
+    "teacher_episodes",
 ]
 
 POSE = ("x", "y", "z", "qw", "qx", "qy", "qz")  # an object frame: position [m], quaternion wxyz
 OBJECTS = (objects.BOTTLE, objects.GLASS)
+# An obstacle or fixture as an observation: there (1) or not (0, all zeros), a box (1) or an
+# upright cylinder (0), its centre [m] and half extents [m] (a cylinder's: radius, radius, half
+# height); an evaluated variation's places for them, its obstacle and its fixtures.
+OBSTACLE = ("present", "box", "x", "y", "z", "half_x", "half_y", "half_z")
+PLACES = ("obstacle", "shelf", "plate")
+ENVIRONMENT = (*OBJECTS, *PLACES)  # the observations that are the environment's state
+# What ``Episode.states`` hold: MuJoCo's whole integration state (mj_getState's spec), enough to
+# continue the physics bit for bit from any step (mj_setState, then the step's action).
+STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 TASK = "pour from the bottle into the glass"
 
 
@@ -49,8 +61,8 @@ class Episode:
 
     Attributes:
         observations: Name -> ``(n + 1, ...)``: the reset's observation, then one per step;
-            vectors ``(n + 1, k)`` float64, images ``(n + 1, height, width, 3)`` uint8 (keys
-            :data:`imitate.envs.observation.EYES`).
+            vectors ``(n + 1, k)`` float64, images ``(n + 1, height, width, 3)`` uint8 (keyed
+            by camera, see :attr:`images`).
         actions: ``(n, k)`` float64.
         rewards: ``(n,)``.
         terminations, truncations: ``(n,)`` bool.
@@ -60,6 +72,8 @@ class Episode:
         env: The Gymnasium spec that recreates the env (``None``: not from an env).
         seed, options: The reset's seed and options (``None``: no reset).
         metadata: What the episode is beyond its env (``None``: nothing more); JSON-ready.
+        states: ``(n + 1, k)`` MuJoCo states (:data:`STATE_SPEC`) at each observation
+            (``None``: not from physics).
     """
 
     observations: dict[str, np.ndarray]
@@ -74,9 +88,15 @@ class Episode:
     seed: int | None = None
     options: dict | None = None
     metadata: dict | None = None
+    states: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.actions)
+
+    @property
+    def images(self) -> tuple[str, ...]:
+        """The observations that are images (uint8 ``(n + 1, height, width, 3)``)."""
+        return tuple(k for k, v in self.observations.items() if v.dtype == np.uint8)
 
 
 class Recorder(gym.Wrapper):
@@ -93,11 +113,13 @@ class Recorder(gym.Wrapper):
         self.infos: list[dict[str, Any]] = []
         self.actions: list[np.ndarray] = []
         self.steps: list[tuple[float, bool, bool]] = []  # reward, terminated, truncated
+        self.states: list[np.ndarray] = []
 
     def reset(self, *, seed=None, options=None):
         obs, info = self.env.reset(seed=seed, options=options)
         self.seed, self.options = seed, options
         self.observations, self.infos, self.actions, self.steps = [obs], [info], [], []
+        self.states = [self._state()]
         return obs, info
 
     def step(self, action):
@@ -106,7 +128,15 @@ class Recorder(gym.Wrapper):
         self.observations.append(obs)
         self.infos.append(info)
         self.steps.append((reward, terminated, truncated))
+        self.states.append(self._state())
         return obs, reward, terminated, truncated, info
+
+    def _state(self) -> np.ndarray:
+        """The env's MuJoCo state now, ``(k,)`` (:data:`STATE_SPEC`)."""
+        env = cast(PouringEnv, self.env.unwrapped)
+        state = np.empty(mujoco.mj_stateSize(env.model, STATE_SPEC))
+        mujoco.mj_getState(env.model, env.data, state, STATE_SPEC)
+        return state
 
     def __getattr__(self, name: str):
         if name.startswith("_"):
@@ -124,7 +154,8 @@ def robot_episode(run: Run, images: bool = False) -> Episode:
 
     Args:
         run: The run; needs its config, ``model.npz`` (the gaze) and ``plan.npz``.
-        images: Also record both head-camera images at every step.
+        images: Also record the env's camera images (``PouringEnv``'s default ``cameras``,
+            the workspace camera) at every step.
     """
     config = run.config
     kwargs: dict[str, Any] = {
@@ -138,7 +169,7 @@ def robot_episode(run: Run, images: bool = False) -> Episode:
 
 
 def image_kwargs(run: Run, images: bool) -> dict[str, Any]:
-    """``PouringEnv``'s kwargs for both head-camera images at the run's size, if ``images``."""
+    """``PouringEnv``'s kwargs for its camera images at the run's size, if ``images``."""
     if not images:
         return {}
     return {"obs_type": "state_pixels", "width": run.config.width, "height": run.config.height}
@@ -173,9 +204,10 @@ def recorded(
         for name, start, stop in zip(structure, bounds[:-1], bounds[1:], strict=True)
     }
     if kwargs.get("obs_type") == "state_pixels":
-        observations.update(
-            {eye: np.array([o["pixels"][eye] for o in recorder.observations]) for eye in EYES}
-        )
+        observations.update({
+            camera: np.array([o["pixels"][camera] for o in recorder.observations])
+            for camera in recorder.cameras
+        })
     names = {
         "qpos": humanoid.JOINTS, "qvel": humanoid.JOINTS,
         **{obj: POSE for obj in OBJECTS}, "action": humanoid.JOINTS,
@@ -187,6 +219,7 @@ def recorded(
         observations=observations, actions=np.array(recorder.actions), rewards=rewards,
         terminations=terminated, truncations=truncated, infos=_stacked(recorder.infos),
         names=names, dt=recorder.dt, env=spec, seed=recorder.seed, options=recorder.options,
+        states=np.array(recorder.states),
     )
 
 
@@ -196,7 +229,8 @@ def teacher_episodes(run: Run, images: bool = False) -> Iterator[Episode]:
     Observations: ``task`` ``(n + 1, 7)``, the task space (eq. 1) of the tracked objects as
     learning takes it; ``bottle`` and ``glass`` ``(n + 1, 7)``, the true object frames
     (position [m], quaternion wxyz); with ``images``, both eyes' images as the robot saw them.
-    Actions: ``(n, 14)`` the next frame's true ``bottle`` and ``glass``. Rewards are 0 (none is
+    Actions: ``(n, 14)`` the next frame's true ``bottle`` and ``glass``, named as those
+    observations are (``bottle.x``, ..., ``glass.qz``). Rewards are 0 (none is
     defined for the teacher); the last step terminates (the demonstration is complete). Infos:
     ``time``, the session time [s] of each frame.
     """
@@ -210,7 +244,7 @@ def teacher_episodes(run: Run, images: bool = False) -> Iterator[Episode]:
         ))
     names = {
         "task": TASK_DIMS, **{obj: POSE for obj in OBJECTS},
-        "action": tuple(f"next_{obj}_{c}" for obj in OBJECTS for c in POSE),
+        "action": tuple(f"{obj}.{c}" for obj in OBJECTS for c in POSE),
     }
     for demo in demos.segments:
         poses = motion.poses(demo.times)
@@ -232,6 +266,15 @@ def teacher_episodes(run: Run, images: bool = False) -> Iterator[Episode]:
             truncations=np.zeros(n, dtype=bool), infos={"time": demo.times}, names=names,
             dt=1.0 / config.fps,
         )
+
+
+def obstacle_vector(obstacle: Obstacle | None) -> np.ndarray:
+    """``obstacle`` (or a fixture) as an observation ``(8,)``, see :data:`OBSTACLE`; ``None``:
+    zeros."""
+    if obstacle is None:
+        return np.zeros(len(OBSTACLE))
+    size = obstacle.size if obstacle.shape == "box" else (obstacle.size[0], *obstacle.size)
+    return np.array([1.0, float(obstacle.shape == "box"), *obstacle.pos, *size])
 
 
 def _stacked(infos: list[dict]) -> dict[str, np.ndarray]:

@@ -4,6 +4,9 @@ An evaluation's records hold each variation's settings, not its plan or its step
 follow from the settings and the teacher's learned model: the variation is planned again with
 that model (checked against the record: the same clearance and iterations) and replayed in its
 perturbed physics from its first replay seed, recorded (:func:`imitate.export.episodes.recorded`).
+Its observations also hold the variation's obstacle and fixtures, ``obstacle``, ``shelf`` and
+``plate`` ``(n + 1, 8)`` (:data:`~imitate.export.episodes.OBSTACLE`, zeros where it has none), the
+same at every step: a policy sees what it must avoid.
 The episode's ``metadata`` says what it is: ``teacher``, ``variation`` (the id), ``settings``
 (the record's, :class:`~imitate.evaluation.variation.Variation`), ``outcome`` and ``pour_min``
 (the evaluation's, over all its replays and its plan's clearance), ``pour_fraction`` and
@@ -18,18 +21,19 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from imitate.errors import ImitateError
-from imitate.evaluation.evaluate import last_records
 from imitate.evaluation.suite import Suite
+from imitate.evaluation.suite_run import last_records
 from imitate.evaluation.trial import physics, plan_variation
 from imitate.evaluation.variation import Variation
-from imitate.export.episodes import Episode, image_kwargs, recorded
+from imitate.export.episodes import OBSTACLE, PLACES, Episode, image_kwargs, recorded
+from imitate.export.episodes import obstacle_vector as vector
 from imitate.learning import LearnedModel
 from imitate.run import Run
 from imitate.rundir.artifacts import load_json, load_npz
 from imitate.stages import provenance
+from imitate.stages.progress import bar as progress_bar
 
 __all__ = ["Evaluated", "evaluated", "evaluated_episodes", "replayed"]
 
@@ -87,15 +91,14 @@ def evaluated_episodes(
     run: Run, evaluation: Evaluated, images: bool = False, progress: bool | None = None
 ) -> Iterator[Episode]:
     """One robot episode per record of ``evaluation`` (see the module), in its order; with
-    ``images`` both head-camera images at the run's size. ``progress``: tqdm's ``disable``
-    inverted (``None``: on a terminal).
+    ``images`` the env's camera images at the run's size. ``progress``: a bar (``None``: on a
+    terminal, else log lines; see :func:`~imitate.stages.progress.bar`).
 
     Raises:
         ImitateError: a variation's plan differs from the evaluated one.
     """
     learned = {seed: LearnedModel.from_arrays(a) for seed, a in evaluation.models.items()}
-    for record in tqdm(evaluation.records, desc="export", unit="episode",
-                       disable=None if progress is None else not progress):
+    for record in progress_bar(evaluation.records, progress, desc="export", unit="episode"):
         variation = Variation.from_json(record["settings"])
         teacher = record["teacher"]
         gaze = evaluation.models[teacher]["gaze"]
@@ -119,12 +122,21 @@ def evaluated_episodes(
         episode = recorded(
             plan, physics(variation, **pixels), kwargs, variation.replay_seeds[0], options, gaze
         )
-        yield dataclasses.replace(episode, metadata={
-            "teacher": teacher, "variation": variation.id, "settings": record["settings"],
-            "outcome": record["outcome"], "pour_min": record["pour_min"],
-            "pour_fraction": float(episode.infos["pour_fraction"][-1]),
-            "poured": bool(episode.infos["is_success"][-1]),
-        })
+        places = {
+            place: np.tile(vector(getattr(variation, place)), (len(episode) + 1, 1))
+            for place in PLACES
+        }
+        yield dataclasses.replace(
+            episode,
+            observations={**episode.observations, **places},
+            names={**episode.names, **dict.fromkeys(PLACES, OBSTACLE)},
+            metadata={
+                "teacher": teacher, "variation": variation.id, "settings": record["settings"],
+                "outcome": record["outcome"], "pour_min": record["pour_min"],
+                "pour_fraction": float(episode.infos["pour_fraction"][-1]),
+                "poured": bool(episode.infos["is_success"][-1]),
+            },
+        )
 
 
 def replayed(metadata: dict, actions: np.ndarray) -> dict:

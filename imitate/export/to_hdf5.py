@@ -2,13 +2,18 @@
 demonstration).
 
 Each file: ``data/demo_N/obs/<key>`` and ``next_obs/<key>`` ``(num_samples, ...)``, ``actions``,
-``rewards``, ``dones`` (1 on the last step), ``infos/<key>`` (after each step); the attributes
+``rewards``, ``dones`` (1 on the last step), ``infos/<key>`` (after each step), ``states``
+``(num_samples, k)`` for the robot (MuJoCo's integration state at each ``obs``, see
+:data:`~imitate.export.episodes.STATE_SPEC`: ``mj_setState`` and the step's action continue the
+physics bit for bit; ``data.attrs["state_spec"]`` is the spec); the attributes
 ``data/demo_N.attrs["num_samples"]`` (and ``seed``, ``options`` as JSON where the episode has a
 reset, ``metadata`` as JSON where it has any, e.g. an evaluated variation's settings and
 outcome), ``data.attrs["total"]`` and ``data.attrs["env_args"]``: JSON ``{"env_name", "type",
 "env_kwargs"}`` with robomimic's gym type (2) and the ``gym.make`` arguments every demonstration
 shares (those of one variation are in its ``metadata``), or ``"env_name": null`` for the
-teacher. Images are gzip-compressed.
+teacher. ``mask/train`` and ``mask/valid`` hold robomimic's filter keys (demonstration names,
+bytes): a seeded tenth of the demonstrations (rounded down, as robomimic's ``split_train_val``)
+for validation, the rest for training. Images are gzip-compressed.
 """
 
 from __future__ import annotations
@@ -21,11 +26,12 @@ from typing import Any
 import h5py
 import numpy as np
 
-from imitate.export.episodes import Episode
+from imitate.export.episodes import STATE_SPEC, Episode
 
-__all__ = ["GYM_TYPE", "write"]
+__all__ = ["GYM_TYPE", "VALID_SHARE", "write"]
 
 GYM_TYPE = 2  # robomimic's EnvType.GYM_TYPE
+VALID_SHARE = 0.1  # of the demonstrations in mask/valid (robomimic's default val_ratio)
 
 
 def write(out: Path, robot: Iterable[Episode], teacher: Iterable[Episode]) -> None:
@@ -41,6 +47,8 @@ def _write(path: Path, episodes: Iterable[Episode]) -> None:
         for i, episode in enumerate(episodes):
             _write_demo(data.create_group(f"demo_{i}"), episode)
             total += len(episode)
+            if episode.states is not None and "state_spec" not in data.attrs:
+                data.attrs["state_spec"] = int(STATE_SPEC)
             if episode.env is not None:
                 env = episode.env
                 kwargs.append({**env.kwargs, "max_episode_steps": env.max_episode_steps})
@@ -50,6 +58,12 @@ def _write(path: Path, episodes: Iterable[Episode]) -> None:
             env_args = {"env_name": env.id, "type": GYM_TYPE, "env_kwargs": shared}
         data.attrs["total"] = total
         data.attrs["env_args"] = json.dumps(env_args)
+        names = np.array([f"demo_{i}" for i in range(len(data))], dtype="S")
+        valid = np.zeros(len(names), dtype=bool)
+        n_valid = int(VALID_SHARE * len(names))
+        valid[np.random.default_rng(0).permutation(len(names))[:n_valid]] = True
+        f.create_dataset("mask/train", data=names[~valid])
+        f.create_dataset("mask/valid", data=names[valid])
 
 
 def _write_demo(demo: h5py.Group, episode: Episode) -> None:
@@ -58,6 +72,8 @@ def _write_demo(demo: h5py.Group, episode: Episode) -> None:
         demo.create_dataset(f"obs/{key}", data=values[:-1], compression=compression)
         demo.create_dataset(f"next_obs/{key}", data=values[1:], compression=compression)
     demo.create_dataset("actions", data=episode.actions)
+    if episode.states is not None:
+        demo.create_dataset("states", data=episode.states[:-1])
     demo.create_dataset("rewards", data=episode.rewards)
     demo.create_dataset("dones", data=(episode.terminations | episode.truncations).astype(int))
     for key, values in episode.infos.items():

@@ -4,11 +4,13 @@
 Each dataset holds its episodes back to back in one file per kind:
 
 - ``data/chunk-000/file-000.parquet``: one row per step: ``observation.state``,
-  ``observation.environment_state`` (the bottle's and glass's frames), ``action``,
+  ``observation.environment_state`` (the bottle's and glass's frames; an evaluated variation's
+  obstacle and fixtures after them), ``action``,
   ``next.reward``, ``next.done``, ``next.success`` (robot), ``timestamp`` (from the episode's
   start), ``frame_index``, ``episode_index``, ``index`` (over the dataset), ``task_index``;
-- with ``--images``, ``videos/observation.images.<eye>/chunk-000/file-000.mp4`` (H.264), the
-  episodes' frames back to back;
+- with ``--images``, ``videos/observation.images.<camera>/chunk-000/file-000.mp4`` (H.264), the
+  episodes' frames back to back (the robot's: its workspace camera; the teacher's: the eyes that
+  watched it);
 - ``meta/info.json`` (features, fps, totals), ``meta/tasks.parquet`` (the task by its index,
   as pandas writes it), ``meta/episodes/chunk-000/file-000.parquet`` (one row per episode: its
   rows ``dataset_from_index..dataset_to_index``, its span of each video
@@ -17,6 +19,8 @@ Each dataset holds its episodes back to back in one file per kind:
   outcome), ``meta/stats.json`` (the statistics over all episodes).
 
 A row holds the observation before the step, so an episode's last observation is not stored.
+Both datasets name their features alike: ``<observation>.<component>`` (``bottle.x``, ...), and
+the teacher's actions (the next frame's objects) as its ``observation.environment_state``.
 """
 
 from __future__ import annotations
@@ -32,10 +36,9 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from imitate.envs.observation import EYES
 from imitate.envs.video import ENCODER
 from imitate.errors import ImitateError
-from imitate.export.episodes import OBJECTS, TASK, Episode
+from imitate.export.episodes import ENVIRONMENT, TASK, Episode
 
 __all__ = ["CODEBASE_VERSION", "DATA_PATH", "EPISODES_PATH", "VIDEO_PATH", "write"]
 
@@ -54,7 +57,7 @@ _VIDEO_INFO = {
 def write(out: Path, robot: Iterable[Episode], teacher: Iterable[Episode]) -> None:
     """Write the datasets ``out/robot`` and ``out/teacher``, an episode at a time."""
     _write_dataset(out / "robot", robot, robot_type="imitate_humanoid")
-    _write_dataset(out / "teacher", teacher, robot_type=None)
+    _write_dataset(out / "teacher", teacher, robot_type="imitate_teacher")
 
 
 def _write_dataset(root: Path, episodes: Iterable[Episode], robot_type: str | None) -> None:
@@ -120,10 +123,12 @@ def _frames(
     """The rows of ``episode`` by feature, and its videos by feature: ``(n, ...)`` each."""
     n = len(episode)
     obs = {k: v[:-1] for k, v in episode.observations.items()}
-    state = [k for k in obs if k not in OBJECTS and k not in EYES]
+    state, environment = _state_keys(episode)
     columns = {
         "observation.state": np.hstack([obs[k] for k in state]).astype(np.float32),
-        "observation.environment_state": np.hstack([obs[k] for k in OBJECTS]).astype(np.float32),
+        "observation.environment_state": np.hstack([obs[k] for k in environment]).astype(
+            np.float32
+        ),
         "action": episode.actions.astype(np.float32),
         "next.reward": episode.rewards.astype(np.float32),
         "next.done": episode.terminations | episode.truncations,
@@ -138,7 +143,7 @@ def _frames(
         "index": start + frame,
         "task_index": np.zeros(n, dtype=np.int64),
     })
-    videos = {f"observation.images.{eye}": obs[eye] for eye in EYES if eye in obs}
+    videos = {f"observation.images.{camera}": obs[camera] for camera in episode.images}
     for key, images in videos.items():
         height, width = images.shape[1:3]
         if height % 8 or width % 8:
@@ -151,11 +156,12 @@ def _frames(
 
 def _info(columns, videos, episode: Episode, fps: int, robot_type: str | None) -> dict:
     """``meta/info.json`` less its totals."""
-    obs = episode.observations
-    state = [k for k in obs if k not in OBJECTS and k not in EYES]
+    state, environment = _state_keys(episode)
     names = {
         "observation.state": [f"{k}.{n}" for k in state for n in episode.names[k]],
-        "observation.environment_state": [f"{k}.{n}" for k in OBJECTS for n in episode.names[k]],
+        "observation.environment_state": [
+            f"{k}.{n}" for k in environment for n in episode.names[k]
+        ],
         "action": list(episode.names["action"]),
     }
     features: dict[str, dict[str, Any]] = {}
@@ -176,6 +182,13 @@ def _info(columns, videos, episode: Episode, fps: int, robot_type: str | None) -
         "video_files_size_in_mb": 500, "fps": fps, "splits": {}, "data_path": DATA_PATH,
         "video_path": VIDEO_PATH if videos else None, "features": features,
     }
+
+
+def _state_keys(episode: Episode) -> tuple[list[str], list[str]]:
+    """The observations of ``observation.state`` and of ``observation.environment_state``."""
+    obs = episode.observations
+    environment = [k for k in ENVIRONMENT if k in obs]
+    return [k for k in obs if k not in environment and k not in episode.images], environment
 
 
 def _table(columns: dict[str, np.ndarray]) -> pa.Table:

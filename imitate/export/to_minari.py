@@ -2,12 +2,16 @@
 
 Under the root directory (Minari's ``MINARI_DATASETS_PATH``): :data:`ROBOT_ID`, whose env spec is
 ``imitate/Pouring-v0`` with the run's kwargs (``dataset.recover_environment()`` makes it), and
-:data:`TEACHER_ID`, which comes from no env (its spaces are stored, its env spec is not).
+:data:`TEACHER_ID`, which comes from no env (its spaces are stored, its env spec is not). Both
+carry ``requirements`` (this package's distribution and MuJoCo, pinned: the physics replays bit
+for bit only there; ``recover_environment()`` warns about others) and ``code_permalink`` (the
+distribution's ``Source`` link at its version tag, else its release on the package index).
 """
 
 from __future__ import annotations
 
 import contextlib
+import importlib.metadata
 import os
 import warnings
 from collections.abc import Iterable
@@ -16,29 +20,35 @@ from typing import Any
 
 import gymnasium as gym
 import minari
+import mujoco
 import numpy as np
 from minari.data_collector import EpisodeBuffer
 
-from imitate.envs.observation import EYES
+from imitate import __version__
 from imitate.export.episodes import Episode
 
-__all__ = ["ROBOT_ID", "TEACHER_ID", "write"]
+__all__ = ["DISTRIBUTION", "ROBOT_ID", "TEACHER_ID", "code_permalink", "write"]
 
 ROBOT_ID = "imitate/pouring/robot-v0"
 TEACHER_ID = "imitate/pouring/teacher-v0"
 _METADATA = {"author": "imitate", "algorithm_name": "imitate (Muehlig et al., ICRA 2009)"}
+DISTRIBUTION = "imitate-humanoid"  # pyproject.toml's project name (the import name is imitate)
 
 
 def write(root: Path, robot: Iterable[Episode], teacher: Iterable[Episode]) -> None:
     """Write both datasets under ``root``; the robot's episode is one (its env spec the
     dataset's)."""
     (episode,) = robot
+    metadata = {
+        **_METADATA, "code_permalink": code_permalink(),
+        "requirements": [f"{DISTRIBUTION}=={__version__}", f"mujoco=={mujoco.__version__}"],
+    }
     with _datasets_path(root), warnings.catch_warnings():
-        # Metadata this project has no value for (an e-mail address, a code link, an eval env).
-        warnings.filterwarnings("ignore", message=r"`(author_email|code_permalink|eval_env)`")
+        # Metadata this project has no value for (an e-mail address, an eval env).
+        warnings.filterwarnings("ignore", message=r"`(author_email|eval_env)`")
         warnings.filterwarnings("ignore", message="env_spec is None")  # the teacher has no env
         minari.create_dataset_from_buffers(
-            ROBOT_ID, [_buffer(episode)], env=episode.env, **_METADATA,
+            ROBOT_ID, [_buffer(episode)], env=episode.env, **metadata,
             description="The robot pours from the bottle into the glass: the optimized plan "
             "replayed in imitate/Pouring-v0. Actions: joint position targets [rad] (float64, as "
             "given to env.step); the last step is truncated by the spec's time limit.",
@@ -46,7 +56,7 @@ def write(root: Path, robot: Iterable[Episode], teacher: Iterable[Episode]) -> N
         episodes = iter(teacher)
         first = next(episodes)
         dataset = minari.create_dataset_from_buffers(
-            TEACHER_ID, [_buffer(first)], **_METADATA,
+            TEACHER_ID, [_buffer(first)], **metadata,
             observation_space=gym.spaces.Dict({
                 key: _space(value) for key, value in first.observations.items()
             }),
@@ -63,14 +73,27 @@ def _buffer(episode: Episode) -> EpisodeBuffer:
     observations: dict[str, Any] | np.ndarray
     observations = episode.observations
     if episode.env is not None:  # as the env returns them: a state vector, with images a dict
-        state = np.hstack([v for k, v in observations.items() if k not in EYES])
-        images = {eye: observations[eye] for eye in EYES if eye in observations}
+        state = np.hstack([v for k, v in observations.items() if k not in episode.images])
+        images = {camera: observations[camera] for camera in episode.images}
         observations = {"state": state, "pixels": images} if images else state
     return EpisodeBuffer(
         seed=episode.seed, options=episode.options, observations=observations,
         actions=episode.actions, rewards=episode.rewards, terminations=episode.terminations,
         truncations=episode.truncations, infos=episode.infos,
     )
+
+
+def code_permalink() -> str:
+    """The code that made the datasets: the installed distribution's ``Source`` project URL at
+    the version's tag ``v<version>``, or without one its release page on the package index."""
+    try:
+        urls = importlib.metadata.metadata(DISTRIBUTION).get_all("Project-URL") or []
+    except importlib.metadata.PackageNotFoundError:
+        urls = []
+    links = dict(url.split(", ", 1) for url in urls if ", " in url)
+    if "Source" in links:
+        return f"{links['Source'].rstrip('/')}/tree/v{__version__}"
+    return f"https://pypi.org/project/{DISTRIBUTION}/{__version__}/"
 
 
 def _space(values: np.ndarray) -> gym.spaces.Box:

@@ -10,6 +10,7 @@ by GMR (:func:`imitate.learning.gmr.gmr`).
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -59,7 +60,11 @@ class LearningConfig:
     seed: int = 0
 
 
-@dataclass(frozen=True)
+# Slack of the movement's span for predict's warning [s]: rounding at its ends is not outside.
+_SPAN_SLACK = 1e-9
+
+
+@dataclass(frozen=True, repr=False)
 class LearnedModel:
     """Output of :func:`learn`.
 
@@ -83,7 +88,9 @@ class LearnedModel:
 
     def predict(self, t: ArrayLike, covariance: str = "paper") -> tuple[np.ndarray, np.ndarray]:
         """GMR at times ``t`` [s], scalar or ``(T,)``, of the fitted GMM (not limited to
-        :attr:`times`).
+        :attr:`times`). Times outside the movement's span (:attr:`times`' first to last) give
+        the GMM's extrapolation, which the demonstrations never showed: a ``UserWarning`` says
+        so (``warnings.simplefilter("ignore", UserWarning)`` silences it).
 
         Args:
             t: Query times [s], finite.
@@ -103,7 +110,22 @@ class LearnedModel:
             raise ImitateError(
                 f"t must be times [s], a number or (T,) numbers; got {t!r}"
             ) from None
+        start, end = float(self.times[0]), float(self.times[-1])
+        outside = (times < start - _SPAN_SLACK) | (times > end + _SPAN_SLACK)
+        if outside.any():
+            warnings.warn(
+                f"predict at t = {times[outside][0]:g} s, outside the movement's {start:g}.."
+                f"{end:.3g} s: the GMM extrapolates there (the demonstrations never went there)",
+                UserWarning, stacklevel=2,
+            )
         return gmr(self.gmm, times, covariance=covariance)
+
+    def __repr__(self) -> str:
+        return (
+            f"LearnedModel({len(self.gmm.weights_)} components, {self.mean.shape[1]} task dims, "
+            f"{self.times[0]:g}..{self.times[-1]:.3g} s in {len(self.times)} steps, data "
+            f"{self.data.shape}, mean {self.mean.shape}, covariance {self.covariance.shape})"
+        )
 
     @property
     def variance(self) -> np.ndarray:
@@ -132,10 +154,24 @@ class LearnedModel:
         """The model stored by :meth:`to_arrays` under ``prefix``, without its alignment.
 
         Raises:
-            ImitateError: the GMM's parameters are inconsistent.
+            ImitateError: an array holds NaN or inf, or the GMM's parameters are
+                inconsistent; the message names the file where ``arrays`` came from one
+                (:class:`imitate.rundir.artifacts.Arrays`).
         """
         a = {name: arrays[prefix + name] for name in _ARRAYS}
-        gmm = GMM.from_parameters(a.pop("weights"), a.pop("means"), a.pop("covariances"))
+        path = getattr(arrays, "path", None)
+        try:
+            bad = [prefix + n for n, v in a.items()  # (bic_curve: drawn only, may hold inf)
+                   if n != "bic_curve" and not np.isfinite(np.asarray(v, float)).all()]
+            if bad:
+                raise ImitateError(f"{', '.join(bad)} must be finite (no NaN or inf)")
+            gmm = GMM.from_parameters(a.pop("weights"), a.pop("means"), a.pop("covariances"))
+        except (ImitateError, ValueError, TypeError) as err:
+            if path is None:
+                raise
+            raise ImitateError(
+                f"{path}: {err}; re-run `imitate learn {path.parent}` to write it"
+            ) from err
         return cls(gmm=gmm, alignment=None, **a)
 
 

@@ -12,7 +12,7 @@ import numpy as np
 __all__ = ["Plan"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Plan:
     """Result of :func:`imitate.motion.plan_from_model`.
 
@@ -60,6 +60,15 @@ class Plan:
     message: str
     n_iter: int
     n_evaluations: int
+
+    def __repr__(self) -> str:
+        done = "converged" if self.converged else "not converged"
+        return (
+            f"Plan({len(self.times)} steps over {self.times[0]:g}..{self.times[-1]:.3g} s, "
+            f"q {self.q.shape}, x {self.x.shape}, {len(self.attractors)} attractors, {done} "
+            f"after {self.n_iter} iterations, min_distance {1e3 * self.min_distance:.1f} mm, "
+            f"costs {sorted(self.costs)})"
+        )
 
     def task_error(self) -> np.ndarray:
         """``(T + 1, m)`` reached minus learned, ``phi(q_t) - mu_t``."""

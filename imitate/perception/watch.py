@@ -8,6 +8,8 @@ evaluation.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable
+
 import numpy as np
 
 from imitate.envs.observation import ObservationConfig, Session, frames, session, tracked_point
@@ -48,7 +50,7 @@ def watch(
     config: ObservationConfig,
     perception: PerceptionConfig | None = None,
     timing: dict | None = None,
-    progress: bool = False,
+    progress: bool | Callable[..., Iterable] = False,
 ) -> Observations:
     """Render the teacher's session from the robot's eyes and track the objects.
 
@@ -57,7 +59,8 @@ def watch(
         perception: tracker settings; :func:`imitate.perception.perception_config` by default.
         timing: if given, receives ``"render"`` and ``"track"`` (tracking and triangulation)
             totals [s] and ``"pairs"``.
-        progress: show a progress bar.
+        progress: show a progress bar (tqdm's); or tqdm's stand-in that wraps the pairs,
+            called as tqdm is.
 
     Returns:
         Tracks, camera matrices and ground truth.
@@ -66,11 +69,14 @@ def watch(
     sess = session(config)
     left, right = cameras(sess)
     timing = {} if timing is None else timing
-    pairs = frames(sess, timing)
+    pairs: Iterable = frames(sess, timing)
     if progress:
-        from tqdm import tqdm
+        if progress is True:
+            from tqdm import tqdm
 
-        pairs = tqdm(pairs, total=len(sess.times), desc="observe", unit="pair")
+            progress = tqdm
+        assert callable(progress)
+        pairs = progress(pairs, total=len(sess.times), desc="observe", unit="pair")
     tracks = track(StereoTracker(left, right, perception), pairs, sess.times, timing)
     timing["pairs"] = len(sess.times)
     return Observations(

@@ -9,9 +9,12 @@ SIGTERM wait for the renames to end; a rename that fails midway names what it re
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import re
 import secrets
+import shutil
 import zipfile
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
@@ -23,15 +26,18 @@ import numpy as np
 
 from imitate.errors import ImitateError
 from imitate.rundir import signals
-from imitate.rundir.table import REPORT, producer
+from imitate.rundir.table import MANIFEST, REPORT, own_names, producer
 
 __all__ = [
-    "Arrays", "Staging", "load_json", "load_npz", "refuse_link", "remove_temporary", "save_json",
-    "save_npz",
-    "staged", "write_atomic",
+    "Arrays", "Staging", "cut_commits", "leftovers", "load_json", "load_npz", "refuse_link",
+    "remove_temporary", "save_json", "save_npz", "staged", "write_atomic",
 ]
 
-TEMPORARY = ".*.partial*"  # glob of the temporary names (also those of earlier versions)
+# a temporary file (_temporary): .NAME.PID-HEX8.partial.SUFFIX, SUFFIX that of NAME
+_TEMPORARY = re.compile(r"\.(?P<name>.+)\.\d+-[0-9a-f]{8}\.partial(?P<suffix>(\.[^.]*)?)")
+# an export's temporary folder (tempfile.mkdtemp's 8 characters)
+_EXPORT_TEMPORARY = re.compile(r"\.[a-z0-9]+\.[a-z0-9_]{8}\.partial")
+EXPORT = "export"  # the exports' folder in a run directory
 
 
 class Staging:
@@ -78,8 +84,9 @@ class Staging:
 
         Raises:
             ImitateError: a destination that cannot be written (its folder a file or a link,
-                itself a folder or a link), and nothing was renamed; or a rename failed, and the
-                message names the files replaced and those not.
+                one that cannot be made or is not writable, itself a folder or a link), and
+                nothing was renamed; or a rename failed, and the message names the files
+                replaced and those not.
         """
         order = sorted(self._pending, key=lambda path: path == self.last)
         for path in order:
@@ -87,12 +94,13 @@ class Staging:
             if path.is_dir() or (path.parent.exists() and not path.parent.is_dir()):
                 where = path if path.is_dir() else path.parent
                 raise ImitateError(f"{where} is in the way of {path.name}: remove it")
+        for folder in dict.fromkeys(path.parent for path in order):
+            _writable(folder)
         for path in order:
             _flush(self._pending[path])
         with signals.held():
             for i, path in enumerate(order):
                 try:
-                    path.parent.mkdir(parents=True, exist_ok=True)
                     os.replace(self._pending[path], path)
                 except OSError as err:
                     raise ImitateError(self._cut_short(order, i, err)) from err
@@ -168,29 +176,98 @@ def write_atomic(path: Path, write: Callable[[Path], object]) -> Path:
     return path
 
 
-def refuse_link(path: Path) -> None:
-    """Raise ``ImitateError`` if ``path`` or its folder is a symbolic link: a run directory's
-    files are written and read where they are, never through a link to elsewhere."""
-    for link in (path, path.parent):
+def refuse_link(path: Path, root: Path | None = None) -> None:
+    """Raise ``ImitateError`` if ``path`` or a folder between it and ``root`` (without
+    ``root``: its own folder) is a symbolic link: a run directory's files are written and read
+    where they are, never through a link to elsewhere (``root`` itself may be one: the user
+    chose it)."""
+    path = Path(os.path.abspath(path))
+    if root is None:
+        parts: tuple[Path, ...] = (path, path.parent)
+    else:
+        root = Path(os.path.abspath(root))
+        parts = tuple(p for p in (path, *path.parents) if p.is_relative_to(root) and p != root)
+    for link in parts:
         if link.is_symlink():
             raise ImitateError(
                 f"{link} is a symbolic link; imitate writes nothing through it: remove it"
             )
 
 
-def remove_temporary(directory: Path) -> list[Path]:
-    """Delete the temporary files that killed writers left in ``directory`` and its immediate
-    sub-directories (only safe while no one writes there; symbolic links are not followed);
-    returns them."""
-    directory = Path(directory)
-    folders = [directory, *(p for p in directory.iterdir() if p.is_dir() and not p.is_symlink())]
-    left = [
-        p for folder in folders for p in folder.glob(TEMPORARY)
-        if p.is_file() and not p.is_symlink()
-    ]
+def leftovers(run_dir: Path) -> list[Path]:
+    """What killed commands left in the run directory ``run_dir``: the temporary files of
+    imitate's own names (:func:`_temporary` of an artifact of :mod:`imitate.rundir.table`, in
+    the run directory and the sub-folders a stage writes) and a killed export's temporary
+    folders (``export/.FORMAT.XXXXXXXX.partial``); symbolic links are not followed."""
+    run_dir = Path(run_dir)
+    found = []
+    for folder, names in _own_names().items():
+        where = run_dir / folder
+        if where.is_symlink() or not where.is_dir():
+            continue
+        for path in where.iterdir():
+            match = _TEMPORARY.fullmatch(path.name)
+            if (match and match["name"] in names and match["suffix"] == Path(match["name"]).suffix
+                    and path.is_file() and not path.is_symlink()):
+                found.append(path)
+    export = run_dir / EXPORT
+    if export.is_dir() and not export.is_symlink():
+        found += [
+            p for p in export.iterdir()
+            if _EXPORT_TEMPORARY.fullmatch(p.name) and p.is_dir() and not p.is_symlink()
+        ]
+    return sorted(found)
+
+
+def remove_temporary(run_dir: Path) -> list[Path]:
+    """Delete the :func:`leftovers` of the run directory ``run_dir`` (only safe while no one
+    writes there: under its lock); returns them."""
+    left = leftovers(run_dir)
     for path in left:
-        path.unlink(missing_ok=True)
+        if path.is_dir():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
     return left
+
+
+def cut_commits(run_dir: Path, left: list[Path]) -> list[str]:
+    """Of the :func:`leftovers` ``left`` in ``run_dir``, the commits cut short between their
+    renames (a kill, a power cut): one line per stage, naming the files replaced and the
+    command that makes the stage's files again. A staged manifest that is left names the
+    stage's outputs and their digests; the commit was cut if a file in place is that output
+    while the manifest in place records another."""
+    run_dir = Path(run_dir)
+    try:
+        current = json.loads((run_dir / MANIFEST).read_text())
+    except (OSError, ValueError, RecursionError):
+        current = {}
+    found = []
+    for path in left:
+        match = _TEMPORARY.fullmatch(path.name)
+        if not match or match["name"] != MANIFEST:
+            continue
+        try:
+            staged_manifest = json.loads(path.read_text())
+            records = {
+                name: dict(record["outputs"]) for name, record in staged_manifest.items()
+            }
+        except (OSError, ValueError, RecursionError, TypeError, KeyError, AttributeError):
+            continue
+        for stage, outputs in records.items():
+            before = current.get(stage) if isinstance(current, dict) else None
+            before = before.get("outputs", {}) if isinstance(before, dict) else {}
+            replaced = [
+                name for name, sha in outputs.items()
+                if sha != before.get(name) and _sha256(run_dir / name) == sha
+            ]
+            if replaced:
+                found.append(
+                    f"{run_dir}: the commit of stage {stage} was cut short: {', '.join(replaced)} "
+                    f"{'is' if len(replaced) == 1 else 'are'} new, its other files and "
+                    f"{MANIFEST} as before; run `imitate {stage} {run_dir}` again"
+                )
+    return found
 
 
 def save_npz(path: Path, arrays: Mapping[str, Any]) -> Path:
@@ -261,6 +338,42 @@ def _unreadable(path: Path, err: PermissionError) -> ImitateError:
         f"{path} cannot be read by this user ({err.strerror}); give it read permission "
         f"(e.g. chmod u+r {path}) or run as its owner"
     )
+
+
+def _own_names() -> dict[str, set[str]]:
+    """The names of the artifacts imitate writes, by folder relative to a run directory
+    (``""``: the run directory, where a stage also stages those of its sub-folders)."""
+    by_folder: dict[str, set[str]] = {"": set()}
+    for name in own_names():
+        folder, _, base = name.rpartition("/")
+        by_folder.setdefault(folder, set()).add(base)
+        by_folder[""].add(base)
+    return by_folder
+
+
+def _sha256(path: Path) -> str | None:
+    """sha256 (hex) of a regular file's bytes, ``None`` if there is none to read."""
+    try:
+        return None if path.is_symlink() else hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+def _writable(folder: Path) -> None:
+    """Make ``folder`` (and its parents) if missing; raise ``ImitateError`` if that fails or
+    this user cannot create files in it (before a commit's first rename)."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ImitateError(
+            f"cannot make folder {folder} ({err.strerror or err}); nothing was replaced: free "
+            f"space or fix its permissions, then run the command again"
+        ) from err
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ImitateError(
+            f"{folder} is not writable; nothing was replaced: fix its permissions (e.g. chmod "
+            f"u+w {folder}), then run the command again"
+        )
 
 
 def _flush(path: Path) -> None:

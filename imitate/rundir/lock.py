@@ -3,14 +3,16 @@
 The lock is an exclusive, non-blocking ``flock`` on ``RUN/.lock``, held for a whole command; the
 file records its holder (pid, host, command, start) for the error a second command gets. The
 kernel releases a ``flock`` when its holder exits or is killed, so a ``.lock`` left behind by a
-killed process is no obstacle: the next command takes it over. Whoever holds the lock may also
-delete the temporary files that killed writers left behind (nobody else writes there).
+killed process is no obstacle: the next command takes it over. Whoever holds the lock of a run
+directory may also delete the temporary files that killed writers left behind (nobody else
+writes there).
 """
 
 from __future__ import annotations
 
 import fcntl
 import json
+import logging
 import os
 import socket
 import stat
@@ -20,9 +22,12 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from imitate.errors import ImitateError
-from imitate.rundir.artifacts import remove_temporary
+from imitate.rundir.artifacts import cut_commits, leftovers, remove_temporary
+from imitate.rundir.table import MANIFEST
 
 __all__ = ["LOCK", "left_by_imitate", "locked"]
+
+log = logging.getLogger(__name__)
 
 LOCK = ".lock"
 
@@ -30,18 +35,24 @@ LOCK = ".lock"
 @contextmanager
 def locked(run_dir: Path, command: str, create: bool = False) -> Iterator[Path]:
     """Hold the lock of ``run_dir`` for the block, the directory made first if ``create`` (and
-    removed again if the block leaves it empty); leftover temporary files are deleted.
+    removed again if the block leaves it empty). In a run directory (``manifest.json``, or the
+    lock record of an ``imitate`` command) what killed commands left is deleted first
+    (:func:`~imitate.rundir.artifacts.leftovers`: imitate's own temporary names only), with a
+    warning for a commit they cut short; nothing in another folder.
 
     Raises:
-        ImitateError: another process holds the lock (the message names it), or ``run_dir`` is
-            missing (without ``create``), not a directory, or not writable.
+        ImitateError: another process holds the lock (the message names it), ``run_dir`` is
+            missing (without ``create``), not a directory, or not writable, or its ``.lock`` is
+            a link, hard or symbolic, or no regular file.
     """
     run_dir = Path(run_dir)
     made = _directory(run_dir, create)
     try:
+        ours = (run_dir / MANIFEST).is_file() or left_by_imitate(run_dir)  # before our record
         fd = _acquire(run_dir / LOCK, command)
         try:
-            remove_temporary(run_dir)
+            if ours:
+                _sweep(run_dir)
             yield run_dir
         finally:
             (run_dir / LOCK).unlink(missing_ok=True)  # still ours: unlinked before the release
@@ -63,6 +74,17 @@ def left_by_imitate(run_dir: Path) -> bool:
     except (OSError, ValueError):
         return False
     return isinstance(record, dict) and str(record.get("command", "")).startswith("imitate ")
+
+
+def _sweep(run_dir: Path) -> None:
+    """Delete the leftovers of killed commands in the run directory ``run_dir``, warning of a
+    commit they cut short (its staged files are the only trace of it)."""
+    left = leftovers(run_dir)
+    for line in cut_commits(run_dir, left):
+        log.warning(line)
+    remove_temporary(run_dir)
+    if left:
+        log.debug("removed %d temporary files of killed commands from %s", len(left), run_dir)
 
 
 def _directory(run_dir: Path, create: bool) -> bool:
@@ -97,9 +119,16 @@ def _acquire(path: Path, command: str) -> int:
             raise ImitateError(
                 f"cannot lock run directory {path.parent} ({err.strerror}); it must be writable"
             ) from None
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
+        found = os.fstat(fd)
+        if not stat.S_ISREG(found.st_mode):
             os.close(fd)
             raise ImitateError(f"{path} is not a regular file; remove it")
+        if found.st_nlink != 1:  # a hard link to a file elsewhere: never written through
+            os.close(fd)
+            raise ImitateError(
+                f"{path} is a hard link ({found.st_nlink} names of one file); imitate writes "
+                f"through none in a run directory: remove it (rm {path})"
+            )
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

@@ -29,7 +29,9 @@ CAPTIONS = {  # figures/<name>.png: what it shows
                             "steps where eq. 21 leaves a dimension less than 10 % of its weight "
                             "(near its largest variance, where the weight is 0): the plan is "
                             "nearly free there, and low collision weights clear the chest by "
-                            "moving there first.",
+                            "moving there first. The plans may leave the ±2σ band there: the "
+                            "band shows where the demonstrations varied, not a bound on the "
+                            "plan, and where the weight is low little pulls the plan back.",
     "costs": "Total cost per optimizer iteration, for each weight of the sweep.",
 }
 VIDEO_CAPTION = (
@@ -148,7 +150,7 @@ def eval_page(summary: dict, failures: list[str], links: list[str], title: str) 
             _media("video", path, _failure(path)) for path in failures
         ) + "</div>"))
     body += [
-        _section("Suite", _table((escape(k), _value(v)) for k, v in summary["suite"].items())),
+        _section("Suite", _table(_suite_rows(summary["suite"], n))),
         _section("Files", _links(links + failures)),
     ]
     return _page(f"imitate eval {title}", body)
@@ -211,6 +213,11 @@ def _headline(report: dict) -> list[tuple[str, str]]:
             ("pour phase error", f"{1e3 * opt['pour_phase_err_m']:.1f} mm, "
              f"{opt['pour_phase_err_deg']:.2f}°"),
         ]
+        rows.append(("optimizer", "converged" if opt["converged"] else (
+            f"not converged: stopped at its limit of {opt['iterations']} iterations with the "
+            "best plan found, whose cost could still fall a little; the plan is what the "
+            "replay above tested (<code>--max-iter</code> raises the limit)"
+        )))
     if learning:
         k, bic, fast, full = (escape(str(learning[name])) for name in (
             "n_components", "bic", "n_components_fast_bic", "n_components_full_bic"))
@@ -230,17 +237,47 @@ def _timings(timings: dict) -> str:
     return _table(rows, ("stage", "seconds"))
 
 
+SWEEP_NOTES = (
+    "The setting <code>sweep</code> holds fractions of <code>collision_weight</code> "
+    "({weight:g}); each row's weight is its fraction times it. The chosen weight is in bold.",
+    "<b>min distance</b>: the smallest signed distance of the plan's kinematics between parts "
+    "that must not touch (negative: the held objects pass into the body). The plan moves "
+    "through the parts as if they were not there; in physics the contacts push back, so a plan "
+    "that passes tens of millimetres into the chest shows only a few millimetres of "
+    "penetration in the replay (Fig. 8, and the headline's <i>min distance, physics</i>).",
+    "<b>max deviation</b>: the largest distance of the plan's relative position from the "
+    "weight-0 plan's. <b>change in high-variance steps</b>: the share of the squared change "
+    "from the weight-0 plan that falls in the steps whose GMR position variance is above its "
+    "median, which are half of the steps by definition: 50 % is no preference, 100 % is every "
+    "change where the demonstrations varied.",
+)
+
+
+def _suite_rows(suite: dict, n: int) -> list[tuple[str, str]]:
+    """The suite's keys and values, ``variations`` as the ``n`` that ran (``--n`` replaces the
+    suite's count)."""
+    return [
+        (escape(k), f"{n} ran (--n; the suite's own {v})" if k == "variations" and v != n
+         else _value(v))
+        for k, v in suite.items()
+    ]
+
+
 def _sweep(opt: dict) -> str:
-    """The Fig. 9 sweep, one row per collision weight; the chosen one in bold."""
+    """The Fig. 9 sweep, one row per collision weight (its fraction of the collision weight
+    and the weight); the chosen one in bold; what the columns mean below."""
+    chosen_weight = opt["collision_weight"]
     rows = [
-        (_n(e["weight"], "g"), _n(_mm(e["min_distance_m"])), _n(1e3 * e["max_deviation_m"], ".1f"),
+        (_n(e["weight"] / chosen_weight if chosen_weight else 0.0, "g"), _n(e["weight"], "g"),
+         _n(_mm(e["min_distance_m"])), _n(1e3 * e["max_deviation_m"], ".1f"),
          _n(100 * e["change_high_variance_share"], ".0f"))
         for e in opt["sweep"]
     ]
-    header = ("weight", "min distance", "max deviation from weight 0 [mm]",
+    header = ("sweep", "weight", "min distance, plan", "max deviation from weight 0 [mm]",
               "change in high-variance steps [%]")
-    chosen = [e["weight"] == opt["collision_weight"] for e in opt["sweep"]]
-    return _table(rows, header, chosen)
+    chosen = [e["weight"] == chosen_weight for e in opt["sweep"]]
+    notes = "".join(f"<p>{note.format(weight=chosen_weight)}</p>" for note in SWEEP_NOTES)
+    return _table(rows, header, chosen) + notes
 
 
 def _all_numbers(report: dict) -> str:

@@ -14,7 +14,9 @@ from typing import Any
 
 from imitate.errors import ImitateError
 
-__all__ = ["REPORT_KEYS", "REPORT_SCHEMA", "check_schema", "markdown"]
+__all__ = [
+    "KINDS", "REPORT_KEYS", "REPORT_SCHEMA", "check_schema", "check_values", "markdown",
+]
 
 REPORT_SCHEMA = 1  # report["schema"]
 
@@ -187,6 +189,88 @@ def check_schema(report: Any, path: Path) -> dict:
             f"{REPORT_SCHEMA}: run the run again with it, or delete {path.name} to start a new one"
         )
     return report
+
+
+# The kind of each key whose unit is "-" (the others are numbers, or null where not measured).
+KINDS: dict[str, type | tuple[type, ...]] = {
+    "seed": int, "demos.detected": int, "demos.expected": int, "perception.long_gaps": int,
+    "learning.source": str, "learning.bic": str, "learning.n_components": int,
+    "learning.n_components_fast_bic": int, "learning.n_components_full_bic": int,
+    "learning.bridged_samples": int, "optimization.collision_weight": (int, float),
+    "optimization.similarity": str, "optimization.sigma_max_scale": (int, float),
+    "optimization.iterations": int, "optimization.converged": bool,
+    "optimization.closest_pair": list, "optimization.message": str,
+    "optimization.sweep[].weight": (int, float), "replay.pour_fractions": list,
+    "replay.spilled": int, "replay.outcome": str, "replay.success": bool, "video.frames": int,
+    "artifacts.<name>": str,
+}
+
+
+_MISSING = object()  # a declared key not in its section
+
+
+def check_values(report: dict, path: Path) -> None:
+    """Raise ``ImitateError`` naming ``path``, the key and its value if a section of ``report``
+    (read from ``path``) lacks a key :data:`REPORT_KEYS` declares for it (a stage writes its
+    sections whole, and the page and the summary read them so) or holds one of another kind
+    (a number where the unit is one, :data:`KINDS` where it is ``-``); keys it does not declare
+    are left alone."""
+    for key in REPORT_KEYS:
+        kind = KINDS.get(key, (int, float, type(None)))
+        section, _, rest = key.partition(".")
+        if key == "schema" or not rest:
+            if key in report and not _of_kind(report[key], kind):
+                raise _wrong(path, key, report[key], kind)
+            continue
+        for name, value in _values(report.get(section), rest, section):
+            if value is _MISSING:
+                raise ImitateError(
+                    f"{path}: {name} is missing; delete it to start a new report"
+                )
+            if not _of_kind(value, kind):
+                raise _wrong(path, name, value, kind)
+
+
+def _values(node: Any, key: str, at: str) -> list[tuple[str, Any]]:
+    """``(dotted name, value)`` of ``key`` (``a.b``, ``a[].b``, ``<name>``) under ``node``
+    (none if ``node`` is no object; :data:`_MISSING` where a name is not in an object)."""
+    head, _, rest = key.partition(".")
+    if not isinstance(node, dict):
+        return []
+    if head.startswith("<"):
+        children = list(node.items())
+    elif head.endswith("[]"):
+        items = node.get(head[:-2])
+        if not isinstance(items, list):
+            return []
+        return [
+            found for i, item in enumerate(items)
+            for found in _values(item, rest, f"{at}.{head[:-2]}[{i}]")
+        ]
+    elif head not in node:
+        return [(f"{at}.{head}", _MISSING)]
+    else:
+        children = [(head, node[head])]
+    if not rest:
+        return [(f"{at}.{name}", value) for name, value in children]
+    return [found for name, value in children for found in _values(value, rest, f"{at}.{name}")]
+
+
+def _of_kind(value: Any, kind: type | tuple[type, ...]) -> bool:
+    kinds = kind if isinstance(kind, tuple) else (kind,)
+    return isinstance(value, kinds) and (bool in kinds or not isinstance(value, bool))
+
+
+def _wrong(path: Path, name: str, value: Any, kind: type | tuple[type, ...]) -> ImitateError:
+    kinds = kind if isinstance(kind, tuple) else (kind,)
+    words = {int: "a whole number", float: "a number", str: "text", bool: "true or false",
+             list: "a list", type(None): "null"}
+    accepted = " or ".join(dict.fromkeys(words[k] for k in kinds if k is not int or float
+                                         not in kinds))
+    shown = repr(value) if len(repr(value)) <= 80 else repr(value)[:77] + "..."
+    return ImitateError(
+        f"{path}: {name}={shown} not accepted: {accepted}; delete it to start a new report"
+    )
 
 
 def markdown() -> str:

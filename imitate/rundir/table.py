@@ -15,12 +15,15 @@ from dataclasses import dataclass
 from imitate.errors import ImitateError
 
 __all__ = [
-    "FIGURES", "NAMES", "PAGE", "REPORT", "RUN_HELP", "STAGES", "Stage", "find",
-    "producer",
+    "CODE", "CONFIG", "FIGURES", "MANIFEST", "NAMES", "PAGE", "REPORT", "RUN_HELP", "STAGES",
+    "Stage", "find", "own_names", "producer",
 ]
 
 REPORT = "report.json"  # every stage merges its sections into it
 PAGE = "report.html"  # the report and the settings as a page (imitate.rundir.page), with the report
+CONFIG = "config.json"  # the run's settings, written by every stage
+MANIFEST = "manifest.json"  # what each artifact was made from (imitate.stages.provenance)
+CODE = "code.json"  # a teacher's run: the code its stages ran with (imitate.evaluation.teachers)
 FIGURES = (
     "observation", "fig4_gmm_dtw", "fig5_bic", "gmr", "fig8_snapshots", "fig9_collision_sweep",
     "costs",
@@ -118,6 +121,14 @@ def find(name: str) -> Stage:
         if s.name == name:
             return s
     raise ImitateError(f"stage {name!r} unknown; accepted: {NAMES}")
+
+
+def own_names() -> tuple[str, ...]:
+    """Every file imitate writes in a run directory, paths relative to it: the stages'
+    artifacts, the settings, the report and its page, the manifest and a teacher's code
+    record."""
+    return (*dict.fromkeys(n for s in STAGES for n in s.writes), CONFIG, REPORT, PAGE, MANIFEST,
+            CODE)
 
 
 def producer(artifact: str) -> str:

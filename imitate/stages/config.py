@@ -11,17 +11,18 @@ import dataclasses
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from imitate.demos.segment import StillnessConfig
-from imitate.envs import assembly
-from imitate.envs.teacher_motion import TEACHER_VARIATIONS, TeacherConfig
+from imitate import defaults
 from imitate.errors import ImitateError
-from imitate.learning.bic import BIC_METHODS, DEFAULT_BIC
-from imitate.motion import SIMILARITIES, PlanConfig
 from imitate.rundir.artifacts import load_json
+
+if TYPE_CHECKING:  # loaded on use: the command line's help reads the declarations only
+    from imitate.envs import assembly
+    from imitate.envs.teacher_motion import TeacherConfig
+    from imitate.motion import PlanConfig
 
 __all__ = ["RunConfig", "Setting", "load_config", "parse_obstacle", "settings"]
 
@@ -138,6 +139,8 @@ def parse_obstacle(text: str) -> assembly.Obstacle | None:
     Raises:
         ImitateError: another form, or an obstacle off the table.
     """
+    from imitate.envs import assembly
+
     if text.lower() == "none":
         return None
     try:
@@ -174,42 +177,43 @@ class RunConfig:
     )
     fps: float = _setting(30.0, "camera rate [Hz]", stage="observe", flag="--fps", low=5, high=120)
     teacher_variation: str = _setting(
-        TeacherConfig.variation, "where the teacher's demonstrations vary: aligned (by "
+        defaults.TEACHER_VARIATION, "where the teacher's demonstrations vary: aligned (by "
         "centimetres in the swing, by millimetres in the pour: low variance where the task is, "
         "as the paper assumes) or misaligned (the swing the same every time, the pour's position "
         "spread across the glass by centimetres: low variance where the task is not, a test "
         "of that premise)", stage="observe", flag="--teacher-variation",
-        choices=TEACHER_VARIATIONS,
+        choices=defaults.TEACHER_VARIATIONS,
     )
     k_max: int = _setting(
         30, "largest number of GMM components tried", stage="learn", flag="--k-max", low=1,
         high=50,
     )
     smoothing: float = _setting(
-        StillnessConfig.smoothing, "Savitzky-Golay window over the tracks before learning [s]",
+        defaults.SMOOTHING, "Savitzky-Golay window over the tracks before learning [s]",
         stage="learn", flag="--smoothing", low=0, high=1,
     )
     bic: str = _setting(
-        DEFAULT_BIC, "choose the number of components by the full BIC (EM for every K) or the "
-        "paper's fast K-means heuristic", stage="learn", flag="--bic", choices=BIC_METHODS,
+        defaults.DEFAULT_BIC, "choose the number of components by the full BIC (EM for every "
+        "K) or the paper's fast K-means heuristic", stage="learn", flag="--bic",
+        choices=defaults.BIC_METHODS,
     )
     oracle: bool = _setting(
         False, "learn from ground-truth poses instead of perception", stage="learn",
         flag="--oracle",
     )
     collision_weight: float = _setting(
-        PlanConfig.collision_weight, "weight of the collision cost", stage="optimize",
+        defaults.COLLISION_WEIGHT, "weight of the collision cost", stage="optimize",
         flag="--collision-weight", low=0, high=MAX_WEIGHT,
     )
     similarity: str = _setting(
-        PlanConfig.similarity, "how the similarity cost weights the task dimensions over time: "
+        defaults.SIMILARITY, "how the similarity cost weights the task dimensions over time: "
         "variance (eq. 21: stiff where the demonstrations agree), uniform (constant), inverted "
         "(stiff where they varied: a negative control) or precision (the GMR precision with its "
         "cross-covariances); each alternative has eq. 21's total weight", stage="optimize",
-        flag="--similarity", choices=SIMILARITIES,
+        flag="--similarity", choices=defaults.SIMILARITIES,
     )
     sigma_max_scale: float = _setting(
-        PlanConfig.sigma_max_scale, "eq. 21's sigma_max as a multiple of each dimension's "
+        defaults.SIGMA_MAX_SCALE, "eq. 21's sigma_max as a multiple of each dimension's "
         "largest GMR variance: 1 (the paper's) leaves the plan free at the peak-variance step, "
         "above 1 every step keeps a weight", stage="optimize", flag="--sigma-max-scale",
         low=0.1, high=100,
@@ -219,34 +223,34 @@ class RunConfig:
         "collision_weight", stage="optimize", low=0, high=1,
     )
     push: bool = _setting(
-        PlanConfig.nullspace_push, "where the attractors alone leave less than the collision "
+        defaults.NULLSPACE_PUSH, "where the attractors alone leave less than the collision "
         "margin, optimize once more with a null-space push per attractor (the body's "
         "redundancy, not in the paper); --no-push keeps the attractors' plan (the paper's)",
         stage="optimize", flag="--push",
     )
     max_iter: int = _setting(
-        PlanConfig.max_iter, "optimizer iteration limit", stage="optimize", flag="--max-iter",
+        defaults.MAX_ITER, "optimizer iteration limit", stage="optimize", flag="--max-iter",
         low=1, high=10_000,
     )
     bottle_grasp: float = _setting(
-        assembly.SceneConfig.bottle_grasp,
+        defaults.BOTTLE_GRASP,
         "where the robot holds the bottle, height above its bottom [m]", stage="optimize",
         flag="--bottle-grasp",
     )
     glass_grasp: float = _setting(
-        assembly.SceneConfig.glass_grasp,
+        defaults.GLASS_GRASP,
         "where the robot holds the glass, height above its bottom [m]", stage="optimize",
         flag="--glass-grasp",
     )
     obstacle: assembly.Obstacle | None = _setting(
         None, f"{_OBSTACLE_FORMS}; it stands on the table (footprint on the top, bottom at most "
-        f"{assembly.OBSTACLE_MAX_LIFT:g} m above it), clear of the robot and the objects it "
+        f"{defaults.OBSTACLE_MAX_LIFT:g} m above it), clear of the robot and the objects it "
         f"holds at the start.",
         stage="optimize", flag="--obstacle", parse=parse_obstacle, metavar="SHAPE:POS:SIZE",
     )
     particles: int = _setting(
         60, "liquid spheres in the bottle", stage="replay", flag="--particles", low=1,
-        high=assembly.MAX_PARTICLES,
+        high=defaults.MAX_PARTICLES,
     )
     video_width: int = _setting(
         640, "video width [px]", stage="figures", flag="--video-width", low=64, high=1920,
@@ -261,11 +265,13 @@ class RunConfig:
         stage="replay", low=1, high=60,
     )
     teacher_speedup: float = _setting(
-        2.0, "the teacher's part of the video plays this many times faster", stage="figures",
-        low=1, high=10,
+        4.0, "the teacher's part of the video plays this many times faster (its pauses between "
+        "demonstrations faster still)", stage="figures", low=1, high=10,
     )
 
     def __post_init__(self):
+        from imitate.envs import assembly
+
         if isinstance(self.obstacle, dict):  # from config.json
             values = {k: tuple(v) if isinstance(v, list) else v for k, v in self.obstacle.items()}
             object.__setattr__(self, "obstacle", assembly.Obstacle(**values))
@@ -280,12 +286,14 @@ class RunConfig:
         a minute (for tests)."""
         values = dict(
             n_demos=3, width=320, height=240, fps=20.0, k_max=10, max_iter=30, particles=30,
-            video_width=320, video_height=240, video_fps=10.0, teacher_speedup=3.0,
+            video_width=320, video_height=240, video_fps=10.0,
         )
         return cls(**{**values, **overrides})
 
     def scene(self, **overrides) -> assembly.SceneConfig:
         """The robot's scene (objects in its hands)."""
+        from imitate.envs import assembly
+
         values = dict(
             particles=self.particles,
             obstacles=(self.obstacle,) if self.obstacle else (),
@@ -296,6 +304,8 @@ class RunConfig:
 
     def plan_config(self) -> PlanConfig:
         """The planner's settings of the run (the optimize stage's, at its collision weight)."""
+        from imitate.motion import PlanConfig
+
         return PlanConfig(
             collision_weight=self.collision_weight, max_iter=self.max_iter,
             similarity=self.similarity, sigma_max_scale=self.sigma_max_scale,
@@ -304,6 +314,8 @@ class RunConfig:
 
     def teacher(self) -> TeacherConfig:
         """The teacher's demonstrations."""
+        from imitate.envs.teacher_motion import TeacherConfig
+
         return TeacherConfig(n_demos=self.n_demos, seed=self.seed, variation=self.teacher_variation)
 
     def to_json(self) -> dict[str, Any]:
@@ -344,7 +356,7 @@ def load_config(run_dir: Path) -> RunConfig:
     values = load_json(path)
     if not isinstance(values, dict):
         raise ImitateError(
-            f"{path} holds {values!r:.40}, not an object of settings; re-run "
+            f"{path} holds a JSON {_json_kind_of(values)}, not an object of settings; re-run "
             f"`imitate observe {run_dir}` to write it"
         )
     defaults = {name: default for name, _, default in settings()}
@@ -357,6 +369,12 @@ def load_config(run_dir: Path) -> RunConfig:
         return RunConfig.from_json(values)
     except ImitateError as err:
         raise ImitateError(f"{path}: {err}") from None
+
+
+def _json_kind_of(value: Any) -> str:
+    """``value``'s JSON kind (``"list"``, ``"string"``...), not its content (it may be secret)."""
+    kinds = {list: "list", str: "string", bool: "boolean", type(None): "null"}
+    return kinds.get(type(value), "number")
 
 
 def _json_fits(value: Any, default: Any) -> bool:

@@ -8,7 +8,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from imitate.envs.assembly import build_model
 from imitate.envs.teacher_motion import script_demonstrations
@@ -21,7 +20,7 @@ from imitate.perception import Observations, Tracks, load_observations
 from imitate.rundir import table
 from imitate.rundir.artifacts import load_npz
 from imitate.stages.config import RunConfig
-from imitate.stages.progress import bars_off
+from imitate.stages.progress import bar
 from imitate.stages.replay import STATE_NAMES
 
 SNAPSHOT_SIZE = (480, 360)  # Fig. 8's panels [px]
@@ -30,6 +29,9 @@ TEACHER_CAPTION = "teacher demonstrates ({speedup:g}x); inset: robot's eye, trac
 ROBOT_CAPTION = "robot reproduces (collision weight {weight:g})"
 FREE_CAPTION = "robot reproduces without the collision cost (weight 0): into its chest"
 FREE_AFTER = 1.0  # [s] of the weight-0 replay shown after its plan comes closest
+# The teacher's still pauses between demonstrations play this many times faster (at least
+# teacher_speedup): a quarter of the session, they would be a quarter of the video's frames.
+PAUSE_SPEEDUP = 8.0
 # The video's frames render in two threads at once, each with its own renderer: one kept about
 # 1.6 of the 2-core CPU's cores busy (Mesa). More do not pay on a GPU: on an H100 machine (16
 # cores) the frames took 2.3 s in one thread, 2.1 s in two and 10.8 s in four.
@@ -83,7 +85,7 @@ def run(run_dir: Path, config: RunConfig) -> dict:
                 run_dir / "video.mp4", _video_frames(config, states, observations, plan),
                 config.video_fps,
             )
-            for name in tqdm(table.FIGURES, desc="figures", unit="figure", disable=bars_off()):
+            for name in bar(table.FIGURES, desc="figures", unit="figure"):
                 plots.save_png(pngs[name].result(), run_dir / "figures" / f"{name}.png")
         finally:
             for future in pngs.values():
@@ -93,8 +95,9 @@ def run(run_dir: Path, config: RunConfig) -> dict:
 
 def _check_states(states: dict[str, np.ndarray], config: RunConfig, path: Path) -> None:
     """Raise ``ImitateError`` unless the recorded states fit the run's scene (``(n, nq)``
-    joint positions, ``(n, nmocap, 3)`` and ``(n, nmocap, 4)`` mocap poses)."""
-    model = build_model(config.scene())
+    joint positions, ``(n, nmocap, 3)`` and ``(n, nmocap, 4)`` mocap poses), with the teacher
+    mannequin if the replay had it (its mocap poses)."""
+    model = build_model(config.scene(teacher=states["mocap_pos"].shape[1] > 0))
     shapes = {"qpos": (model.nq,), "mocap_pos": (model.nmocap, 3), "mocap_quat": (model.nmocap, 4)}
     for name in (*STATE_NAMES, *(f"sweep0_{name}" for name in STATE_NAMES)):
         found, wanted = states[name].shape, shapes[name.removeprefix("sweep0_")]
@@ -114,14 +117,19 @@ def _snapshots(config: RunConfig, states: dict[str, np.ndarray], plan: dict, n: 
     at = np.sort(np.r_[np.linspace(0.1, 0.9, n - 1) * times[-1], closest])
     index = np.round((at + float(states["plan_start"])) / float(states["state_dt"])).astype(int)
     index = np.minimum(index, len(states["qpos"]) - 1)
-    lowest = float(plan["sweep_weights"][0])
+    weights = (float(plan["sweep_weights"][0]), config.collision_weight)
+    # both rows with one renderer (making one costs about as much as five snapshots on a CPU)
+    shown = {
+        name: np.concatenate([states[prefix + name][index] for prefix in ("sweep0_", "")])
+        for name in STATE_NAMES
+    }
+    images = list(replay_frames(config.scene(), shown, *SNAPSHOT_SIZE, shadows=True, quick=True))
+    marks = [_collision(d, pair) for d, pair in penetrations(config.scene(), shown)]
     rows = []
-    for prefix, weight in (("sweep0_", lowest), ("", config.collision_weight)):
-        shown = {name: states[prefix + name][index] for name in STATE_NAMES}
-        images = list(replay_frames(config.scene(), shown, *SNAPSHOT_SIZE, shadows=True))
-        marks = [_collision(d, pair) for d, pair in penetrations(config.scene(), shown)]
+    for row, weight in enumerate(weights):
         cost = "without collision cost" if weight == 0 else "with collision cost"
-        rows.append((f"{cost} (collision weight {weight:g})", images, marks))
+        part = slice(row * len(index), (row + 1) * len(index))
+        rows.append((f"{cost} (collision weight {weight:g})", images[part], marks[part]))
     return rows, at
 
 
@@ -141,40 +149,55 @@ def _video_frames(
     config: RunConfig, states: dict[str, np.ndarray], observations: Observations, plan: dict
 ):
     """The teacher (the robot's eye view and its tracked objects inset), then the robot without
-    the collision cost (the sweep's weight-0 plan, until ``FREE_AFTER`` after it comes closest),
-    then with it."""
+    the collision cost (the sweep's weight-0 plan, from its start until ``FREE_AFTER`` after it
+    comes closest), then with it."""
     size = (config.video_width, config.video_height)
     motion = script_demonstrations(config.teacher())
-    times = np.arange(0.0, motion.duration, config.teacher_speedup / config.video_fps)
+    times = _teacher_times(
+        motion.boundaries, motion.duration, config.teacher_speedup / config.video_fps,
+        max(PAUSE_SPEEDUP, config.teacher_speedup) / config.video_fps,
+    )
     tracks = observations.tracks
     teacher = captioned(
         teacher_frames(
             motion, times, *size, marks=_tracked_axes(tracks, times),
             projection=observations.projections[0], image_size=observations.image_size,
-            threads=VIDEO_THREADS,
+            threads=VIDEO_THREADS, quick=True,
         ),
         TEACHER_CAPTION.format(speedup=config.teacher_speedup),
     )
     closest = plan["times"][np.argmin(plan["sweep_clearance"][0])] - plan["times"][0]
-    free = int((float(states["plan_start"]) + closest + FREE_AFTER) / float(states["state_dt"]))
-    robot = [
-        captioned(
-            replay_frames(
-                config.scene(), {name: states[prefix + name][:end] for name in STATE_NAMES},
-                *size, threads=VIDEO_THREADS,
-            ),
-            caption,
-        )
-        for prefix, caption, end in (
-            ("sweep0_", FREE_CAPTION, free),
-            ("", ROBOT_CAPTION.format(weight=config.collision_weight), None),
-        )
-    ]
-    total = len(times) + len(states["sweep0_qpos"][:free]) + len(states["qpos"])
-    return tqdm(
-        itertools.chain(teacher, *robot), desc="video", unit="frame", total=total,
-        disable=bars_off(),
+    start, dt = float(states["plan_start"]), float(states["state_dt"])
+    # the weight-0 part from the plan's start (the robot stands still before it, as the last
+    # part shows), until FREE_AFTER after it comes closest
+    shown = slice(int(round(start / dt)), int((start + closest + FREE_AFTER) / dt))
+    free = len(states["sweep0_qpos"][shown])
+    # both robot parts in one sequence: their renderers are made once
+    robot = replay_frames(
+        config.scene(),
+        {name: np.concatenate([states["sweep0_" + name][shown], states[name]])
+         for name in STATE_NAMES},
+        *size, threads=VIDEO_THREADS, quick=True,
     )
+    parts = (
+        teacher, captioned(itertools.islice(robot, free), FREE_CAPTION),
+        captioned(robot, ROBOT_CAPTION.format(weight=config.collision_weight)),
+    )
+    total = len(times) + free + len(states["qpos"])
+    return bar(itertools.chain(*parts), desc="video", unit="frame", total=total)
+
+
+def _teacher_times(
+    boundaries: np.ndarray, duration: float, step: float, pause_step: float
+) -> np.ndarray:
+    """The instants [s] of the teacher's frames: every ``step`` within the demonstrations
+    (``boundaries``, ``(n, 2)`` [s]), every ``pause_step`` in the pauses between them."""
+    times, t = [], 0.0
+    while t < duration:
+        times.append(t)
+        moving = np.any((boundaries[:, 0] <= t) & (t < boundaries[:, 1]))
+        t += step if moving else pause_step
+    return np.array(times)
 
 
 def _tracked_axes(tracks: Tracks, times: np.ndarray) -> np.ndarray:

@@ -4,7 +4,6 @@ stillness cuts the demonstrations (``observations.npz``, ``demos.npz``)."""
 from __future__ import annotations
 
 import logging
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +14,7 @@ from imitate.perception import save_observations
 from imitate.perception.accuracy import demo_counts, tracking_errors
 from imitate.perception.watch import watch
 from imitate.stages.config import RunConfig
+from imitate.stages.progress import bar
 
 log = logging.getLogger(__name__)
 
@@ -26,8 +26,7 @@ def run(run_dir: Path, config: RunConfig) -> dict:
         fps=config.fps, width=config.width, height=config.height,
     )
     timing: dict[str, float] = {}
-    progress = log.isEnabledFor(logging.INFO) and sys.stderr.isatty()
-    observations = watch(watching, timing=timing, progress=progress)
+    observations = watch(watching, timing=timing, progress=bar)
     demos = segment(observations.tracks, StillnessConfig())
     save_observations(run_dir / "observations.npz", observations)
     save_demos(run_dir / "demos.npz", demos, observations.tracks)

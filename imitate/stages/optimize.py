@@ -7,7 +7,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from imitate.learning import LearnedModel
 from imitate.models import humanoid
@@ -16,7 +15,7 @@ from imitate.motion.metrics import deviation, pour_phase_error
 from imitate.motion.replay import planning_task
 from imitate.rundir.artifacts import load_npz, save_npz
 from imitate.stages.config import RunConfig
-from imitate.stages.progress import bars_off
+from imitate.stages.progress import bar
 
 
 def run(run_dir: Path, config: RunConfig) -> dict:
@@ -27,7 +26,7 @@ def run(run_dir: Path, config: RunConfig) -> dict:
     chosen = config.collision_weight
     weights = sorted({chosen * s for s in config.sweep} | {chosen})
     plans, seconds = {}, {}
-    for w in tqdm(weights, desc="optimize", unit="plan", disable=bars_off()):
+    for w in bar(weights, desc="optimize", unit="plan"):
         start = time.perf_counter()
         plans[w] = plan_from_model(
             task, model, q0=humanoid.rest_pose(),

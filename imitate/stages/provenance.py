@@ -29,7 +29,7 @@ from imitate.stages.config import RunConfig, settings
 
 __all__ = ["MANIFEST", "code_digest", "digest", "load", "outdated", "recorded", "stale"]
 
-MANIFEST = "manifest.json"
+MANIFEST = table.MANIFEST
 
 
 def load(run_dir: Path) -> dict[str, dict]:
@@ -104,15 +104,21 @@ def digest(path: Path) -> str:
 def code_digest() -> str:
     """sha256 (hex) of the code that makes results: every file of the packages ``imitate``,
     ``imitate.envs`` and ``imitate.models`` (sources, MJCF) but compiled caches, by path
-    relative to its package."""
+    relative to its package. The same for an editable install and a wheel of the same files."""
     import imitate.envs  # binds imitate too
     import imitate.models
 
+    packages = (imitate, imitate.envs, imitate.models)
+    assert all(p.__file__ is not None for p in packages)  # regular packages, not namespace ones
+    roots = [Path(str(p.__file__)).parent for p in packages]
     h = hashlib.sha256()
-    for package in (imitate, imitate.envs, imitate.models):
-        assert package.__file__ is not None  # regular packages, not namespace ones
-        root = Path(package.__file__).parent
+    for package, root in zip(packages, roots, strict=True):
+        # A wheel puts envs/ and models/ inside imitate/ (the clone keeps them beside it): each
+        # file counts once, under its own package, so both installs give one digest.
+        nested = [r for r in roots if r != root and r.is_relative_to(root)]
         for path in sorted(root.rglob("*")):
+            if any(path.is_relative_to(r) for r in nested):
+                continue
             if path.is_file() and "__pycache__" not in path.parts:
                 h.update(f"{package.__name__}/{path.relative_to(root).as_posix()}".encode())
                 h.update(hashlib.sha256(path.read_bytes()).digest())
@@ -123,17 +129,27 @@ def outdated(
     run_dir: Path, config: RunConfig, manifest: dict[str, dict],
     staged: Mapping[str, Path] | None = None,
 ) -> dict[str, str]:
-    """The stages whose files in ``run_dir`` no longer follow from the run: made from an input
-    that changed since, or with other settings than ``config``'s. By stage name, why (``"made
-    from another plan.npz"``). ``staged``: files written but not yet in place (relative path ->
-    where they are now)."""
+    """The stages whose files in ``run_dir`` no longer follow from the run: not the files the
+    manifest records (a commit cut short between its renames, or changed since), made from an
+    input that changed since, or with other settings than ``config``'s. By stage name, why
+    (``"made from another plan.npz"``). ``staged``: files written but not yet in place
+    (relative path -> where they are now)."""
     current = _current(Path(run_dir), staged)
     found = {}
     for s in table.STAGES:
         rec = manifest.get(s.name)
-        if rec is None or not any(current(f) for f in rec["outputs"]):
+        present = [f for f in s.writes if f != table.CONFIG and current(f)]
+        if rec is None:
+            if present:
+                found[s.name] = f"{present[0]} is not recorded in {MANIFEST}"
             continue
-        why = _drift(s, rec, _settings(s, config), current)
+        if not any(current(f) for f in rec["outputs"]):
+            continue
+        differ = [f for f in rec["outputs"] if current(f) not in (None, rec["outputs"][f])]
+        why = (
+            f"{differ[0]} is not the file it wrote (a commit cut short, or changed since)"
+            if differ else _drift(s, rec, _settings(s, config), current)
+        )
         if why:
             found[s.name] = why
     return found

@@ -10,17 +10,17 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from imitate.envs.outcome import outcome
 from imitate.envs.pour_geometry import PourGeometry
 from imitate.envs.pouring import PouringEnv
 from imitate.envs.video import StateRecorder
+from imitate.errors import ImitateError
 from imitate.motion import Plan
 from imitate.motion.replay import replay
 from imitate.rundir.artifacts import load_npz, save_npz
 from imitate.stages.config import RunConfig
-from imitate.stages.progress import bars_off
+from imitate.stages.progress import bar
 
 log = logging.getLogger(__name__)
 
@@ -43,11 +43,11 @@ def run(run_dir: Path, config: RunConfig) -> dict:
     jobs, gaze = _replay_jobs(run_dir, config)
     with (
         ThreadPoolExecutor(min(len(jobs), os.cpu_count() or 1)) as pool,
-        tqdm(total=len(jobs), desc="replay", unit="replay", disable=bars_off()) as bar,
+        bar(total=len(jobs), desc="replay", unit="replay") as progress,
     ):
         futures = [pool.submit(_physics, p, config, gaze, seed) for p, seed in jobs]
         for _ in as_completed(futures):
-            bar.update()
+            progress.update()
         replayed = [future.result() for future in futures]
     result, states, state_dt, geometry = replayed[0]
     pours = [r.pour_fraction for r, *_ in replayed[:POUR_REPLAYS]]
@@ -87,8 +87,21 @@ def run(run_dir: Path, config: RunConfig) -> dict:
 
 def _replay_jobs(run_dir: Path, config: RunConfig) -> tuple[list[tuple[Plan, int]], np.ndarray]:
     """The replay stage's replays as (plan, seed): the plan from ``POUR_REPLAYS`` seeds, then the
-    sweep's smallest collision weight's plan; and the learned gaze ``(3, 3)``."""
-    arrays = load_npz(run_dir / "plan.npz", required=(*Plan.array_names(), "sweep_q", "sweep_x"))
+    sweep's smallest collision weight's plan; and the learned gaze ``(3, 3)``.
+
+    Raises:
+        ImitateError: ``plan.npz`` is missing, corrupt, or holds NaN or inf where it drives
+            the robot."""
+    path = run_dir / "plan.npz"
+    driven = (*Plan.array_names(), "sweep_q", "sweep_x")
+    arrays = load_npz(path, required=driven)
+    bad = [name for name in driven if name != "min_distance"  # inf: nothing within range
+           and arrays[name].dtype.kind in "fc" and not np.isfinite(arrays[name]).all()]
+    if bad:
+        raise ImitateError(
+            f"{path} holds NaN or inf in {', '.join(bad[:3])}{' and more' if bad[3:] else ''}: "
+            f"a plan must be finite; re-run `imitate optimize {run_dir}`"
+        )
     plan = Plan.from_arrays(arrays)
     gaze = load_npz(run_dir / "model.npz", required=("gaze",))["gaze"]
     q_free = arrays["sweep_q"][0]
@@ -103,7 +116,7 @@ def _physics(plan: Plan, config: RunConfig, gaze: np.ndarray, seed: int):
     """``plan`` replayed in a fresh ``PouringEnv`` from ``seed``: the result, the recorded
     states (:meth:`StateRecorder.arrays`), their spacing [s] and where the stream met the glass
     (:meth:`PourGeometry.summary`)."""
-    env = PouringEnv(particles=config.particles, obstacles=config.scene().obstacles)
+    env = PouringEnv(particles=config.particles, obstacles=config.scene().obstacles, teacher=True)
     recorder = StateRecorder(every=max(1, round(1.0 / (config.video_fps * env.dt))))
     geometry = PourGeometry()
 

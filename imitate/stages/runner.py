@@ -16,7 +16,7 @@ from typing import Any
 from imitate.errors import ImitateError
 from imitate.rundir import page, table
 from imitate.rundir.artifacts import load_json, refuse_link, save_json, staged
-from imitate.rundir.schema import REPORT_SCHEMA, check_schema
+from imitate.rundir.schema import REPORT_SCHEMA, check_schema, check_values
 from imitate.stages import provenance
 from imitate.stages.config import RunConfig
 
@@ -90,22 +90,32 @@ def _report(
 
 
 def _previous_report(run_dir: Path) -> dict:
-    """``report.json`` of ``run_dir`` (empty if none yet).
+    """``report.json`` of ``run_dir`` (empty if none yet), checked as the page will read it.
 
     Raises:
-        ImitateError: it is unreadable, or not an object of sections.
+        ImitateError: it is unreadable, not an object of sections, holds a value of another
+            kind than the key's (:func:`~imitate.rundir.schema.check_values`), or lacks one
+            the page shows.
     """
     path = run_dir / table.REPORT
     if not path.exists():
         return {}
     report = check_schema(load_json(path), path)
-    names = ("timings", *(name for s in table.STAGES for name in s.sections))
+    names = ("timings", "artifacts", *(name for s in table.STAGES for name in s.sections))
     if any(
         not isinstance(report.get(name, {}), dict) for name in names
     ):
         raise ImitateError(
             f"{path} is not a report (an object of sections); delete it to start a new report"
         )
+    check_values(report, path)
+    try:
+        page.run_page(report, {}, str(run_dir))
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as err:
+        raise ImitateError(
+            f"{path} is not a report the page can show ({type(err).__name__}: {err}); delete "
+            f"it to start a new report"
+        ) from err
     return report
 
 

@@ -1,8 +1,18 @@
-"""The parts of a run's stages measured one at a time: what bounds each stage on a machine.
+"""The default run's stage timings and the figures' share of them; or the parts of a run's stages
+measured one at a time (``--parts``): what bounds each stage on a machine.
 
-    python scripts/bench/bench_stages.py [RUN_DIR] [--parts observe replay video] [--threads 1 2 4]
+    python scripts/bench/bench_stages.py [--repeat N] [--quick]
+    python scripts/bench/bench_stages.py --parts observe replay video [RUN_DIR] [--threads 1 2 4]
 
-On the run ``RUN_DIR`` (default ``runs/latest``; its config, plan and replay):
+Without ``--parts``: ``imitate run`` (the default settings, ``--quick`` if given) ``--repeat``
+times (default 1), each in a new temporary folder, in a child process whose progress goes to a
+file (the stages as a redirected ``imitate run`` runs them), after ``python -m imitate.warmup``
+(numba's kernels in its cache: no stage compiles). Prints each stage's seconds (the report's
+``timings``; the median over the repeats), the total, the figures' share of it, the video's
+frames and the load average before and after. ``PYTHONPATH=DIR`` runs another tree's ``imitate``
+(its path is printed).
+
+With ``--parts``, on the run ``RUN_DIR`` (default ``runs/latest``; its config, plan and replay):
 
 - observe: the session's stereo pairs rendered in this thread (kept in memory: 1.7 GB for the
   default 905 pairs), tracked from memory with OpenCV's own threads and with one (as
@@ -20,7 +30,12 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import json
 import os
+import statistics
+import subprocess
+import sys
+import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -105,20 +120,71 @@ def video(run_dir: Path, config, threads) -> None:
 
 
 PARTS = {"observe": observe, "replay": replay, "video": video}
+STAGES = ("observe", "learn", "optimize", "replay", "figures")
+
+
+def load() -> str:
+    return " ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
+def stages(repeat: int, quick: bool) -> None:
+    """``imitate run`` ``repeat`` times in child processes (in a temporary folder, so that
+    ``PYTHONPATH`` or the installed package decides which ``imitate``); the table of its stage
+    timings."""
+    with tempfile.TemporaryDirectory(prefix="bench_stages-") as tmp:
+        where = subprocess.run(
+            [sys.executable, "-c", "import imitate; print(imitate.__file__)"],
+            capture_output=True, text=True, check=True, cwd=tmp,
+        ).stdout.strip()
+        subprocess.run([sys.executable, "-m", "imitate.warmup"], check=True, cwd=tmp,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        before, timings, frames = load(), {stage: [] for stage in STAGES}, []
+        for k in range(repeat):
+            out = Path(tmp, f"run{k}")
+            log = Path(tmp, f"run{k}.log")
+            with open(log, "w") as stderr:
+                done = subprocess.run(
+                    [sys.executable, "-m", "imitate", "run", "--out", str(out),
+                     *(["--quick"] if quick else [])],
+                    check=False, stdout=subprocess.DEVNULL, stderr=stderr, cwd=tmp,
+                )
+            if done.returncode:
+                sys.exit(f"imitate run failed ({done.returncode}):\n{log.read_text()[-2000:]}")
+            report = json.loads((out / "report.json").read_text())
+            for stage in STAGES:
+                timings[stage].append(report["timings"][stage])
+            frames.append(report["video"]["frames"])
+    seconds = {stage: statistics.median(t) for stage, t in timings.items()}
+    total = sum(seconds.values())
+    print(f"imitate run{' --quick' if quick else ''} ({where}), {repeat} time(s); "
+          f"{os.cpu_count()} cores; load average before {before}, after {load()}")
+    print(f"{'stage':<10} {'seconds':>8}" + ("   each run" if repeat > 1 else ""))
+    for stage in STAGES:
+        each = "   " + " ".join(f"{t:.1f}" for t in timings[stage]) if repeat > 1 else ""
+        print(f"{stage:<10} {seconds[stage]:8.1f}{each}")
+    print(f"{'total':<10} {total:8.1f}")
+    print(f"figures' share {seconds['figures'] / total:.0%} (video {frames[0]} frames)")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("run_dir", nargs="?", type=Path, default=Path("runs/latest"))
-    parser.add_argument("--parts", nargs="+", choices=list(PARTS), default=list(PARTS))
+    parser.add_argument("run_dir", nargs="?", type=Path, default=Path("runs/latest"),
+                        help="with --parts: the run measured (default runs/latest)")
+    parser.add_argument("--parts", nargs="+", choices=list(PARTS),
+                        help="measure these parts of RUN_DIR's stages instead of a whole run")
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2, 4],
-                        help="the video's thread counts")
+                        help="the video's thread counts (--parts video)")
+    parser.add_argument("--repeat", type=int, default=1, help="runs of the stages (median)")
+    parser.add_argument("--quick", action="store_true", help="imitate run --quick")
     args = parser.parse_args()
-    if min(args.threads) < 1:
-        parser.error(f"--threads {args.threads} not accepted: counts of at least 1")
+    if min(args.threads) < 1 or args.repeat < 1:
+        parser.error(f"--threads {args.threads} / --repeat {args.repeat} not accepted: counts "
+                     "of at least 1")
+    if not args.parts:
+        stages(args.repeat, args.quick)
+        return
     config = load_config(args.run_dir)
-    print(f"{args.run_dir}; {os.cpu_count()} cores, load average "
-          + " ".join(f"{x:.2f}" for x in os.getloadavg()))
+    print(f"{args.run_dir}; {os.cpu_count()} cores, load average {load()}")
     print(f"{'part':56s} {'wall [s]':>8s} {'cpu [s]':>8s}")
     for part in args.parts:
         PARTS[part](args.run_dir, config, args.threads)

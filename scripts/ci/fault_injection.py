@@ -11,10 +11,11 @@ temporary files and the lock left in it, the ffmpeg children still running when 
 exited, and a verdict against what the README promises (a stage that does not finish changes
 nothing; one line on stderr; nothing outside the run directory is written or deleted; one command
 at a time in a run directory, ``eval`` included). A kill checks that it landed mid-stage: the
-command had printed its ``== stage`` line (or begun its video) and was still running. One case is
-instrumented: a wrapper around ``imitate.cli.main`` sends SIGTERM just before each rename of a
-stage's commit in turn, which must wait for the whole commit. The error lines follow the table.
-Takes about four minutes on two cores (``--fast``: about twenty seconds).
+command had printed its ``== stage`` line (or begun its video) and was still running. Two cases
+are instrumented: a wrapper around ``imitate.cli.main`` sends SIGTERM just before each rename of a
+stage's commit in turn, which must wait for the whole commit, and SIGKILL before one rename of
+figures' commit, which the next command must report. The error lines follow the table.
+Takes about six minutes on two cores (``--fast``: about a minute).
 """
 
 from __future__ import annotations
@@ -56,6 +57,8 @@ def replace_and_terminate(src, dst):
 os.replace = replace_and_terminate
 sys.exit(main(["-q", *sys.argv[3:], run_dir]))
 """
+# the same, sending SIGKILL instead: the commit is cut between two renames
+KILL_AT_RENAME = SIGTERM_AT_RENAME.replace("signal.SIGTERM", "signal.SIGKILL")
 
 
 @dataclass
@@ -224,7 +227,14 @@ def finish(case: str, process: subprocess.Popen, run_dir: Path, before: dict[str
     """Wait for ``process``, then describe ``run_dir``."""
     rest = process.stderr.read().splitlines()
     status = process.wait()
-    lines = [line for line in [*seen, *rest] if line.strip() and not line.startswith("== ")]
+    return describe(case, status, [*seen, *rest], run_dir, before)
+
+
+def describe(case: str, status: int | str | None, lines: list[str], run_dir: Path,
+             before: dict[str, str]) -> Outcome:
+    """A row: ``run_dir`` now against ``before``, after a command that exited with ``status``
+    and printed ``lines`` on stderr."""
+    lines = [line for line in lines if line.strip() and not line.startswith("== ")]
     folders = [run_dir, *(p for p in run_dir.iterdir() if p.is_dir() and not p.is_symlink())]
     return Outcome(
         case, status, lines, changes(before, snapshot(run_dir)),
@@ -645,6 +655,152 @@ def eval_against_stage(base: Path, work: Path) -> list[Outcome]:
     }
     o.status = f"{o.status}/{stage.returncode}"
     return [o]
+
+
+@case("sweep-foreign", fast=True)
+def sweep_foreign(base: Path, work: Path) -> list[Outcome]:
+    """`learn` pointed at a user's folder holding `.thesis.partial.tex` and
+    `notes/.todo.partial.md` (review N-x2): exit 1, one line, both files kept (the lock's sweep
+    runs in run directories only, on imitate's own temporary names)."""
+    folder = fresh(work / "sweep-foreign")
+    (folder / "notes").mkdir()
+    (folder / ".thesis.partial.tex").write_text("draft\n")
+    (folder / "notes" / ".todo.partial.md").write_text("x\n")
+    before, kept = snapshot(folder), listing(folder)
+    o = finish("sweep-foreign (learn in a user's folder of .*.partial* files)",
+               start("learn", str(folder)), folder, before, [])
+    o.checks = {**one_line(o, 1), "the user's files kept": listing(folder) == kept}
+    return [o]
+
+
+@case("hardlink-lock", fast=True)
+def hardlink_lock(base: Path, work: Path) -> list[Outcome]:
+    """`learn` with R/.lock a hard link to a user's file (review N-x1): exit 1, one line, the
+    run unchanged, the file's content as it was."""
+    run_dir = copy(base, work, "hardlink-lock")
+    victim = work / "hardlink-lock-notes.txt"
+    victim.write_text("notes\n")
+    os.link(victim, run_dir / ".lock")
+    before = snapshot(run_dir)
+    o = finish("hardlink-lock (R/.lock a hard link to a user's file; learn)",
+               start("learn", str(run_dir)), run_dir, before, [])
+    o.checks = {**one_line(o, 1), "the user's file as it was": victim.read_text() == "notes\n"}
+    return [o]
+
+
+@case("symlink-eval", fast=True)
+def symlink_eval(base: Path, work: Path) -> list[Outcome]:
+    """`eval` with R/eval a symbolic link to an outside folder (review S4): exit 1, one line,
+    nothing written outside."""
+    run_dir = copy(base, work, "symlink-eval")
+    outside = fresh(work / "symlink-eval-outside")
+    (run_dir / "eval").symlink_to(outside, target_is_directory=True)
+    before = snapshot(run_dir)
+    o = finish("symlink-eval (R/eval a link to an outside folder)",
+               start(*eval_args(run_dir, work, n=1, videos=0)), run_dir, before, [])
+    o.checks = {**one_line(o, 1), "nothing written outside": listing(outside) == {}}
+    return [o]
+
+
+@case("symlink-export", fast=True)
+def symlink_export(base: Path, work: Path) -> list[Outcome]:
+    """`export --format hdf5` with R/export a symbolic link to an outside folder (review S10):
+    exit 1, one line, nothing written outside."""
+    run_dir = copy(base, work, "symlink-export")
+    outside = fresh(work / "symlink-export-outside")
+    (run_dir / "export").symlink_to(outside, target_is_directory=True)
+    before = snapshot(run_dir)
+    o = finish("symlink-export (R/export a link to an outside folder)",
+               start("export", str(run_dir), "--format", "hdf5"), run_dir, before, [])
+    o.checks = {**one_line(o, 1), "nothing written outside": listing(outside) == {}}
+    return [o]
+
+
+@case("eval-out-foreign", fast=True)
+def eval_out_foreign(base: Path, work: Path) -> list[Outcome]:
+    """`eval --out F`, F a user's folder holding report.html and summary.json (review N-x3):
+    exit 1, one line, both files kept."""
+    run_dir = copy(base, work, "eval-out-foreign")
+    folder = fresh(work / "eval-out-foreign-F")
+    (folder / "report.html").write_text("mine\n")
+    (folder / "summary.json").write_text('{"mine": 1}\n')
+    before, kept = snapshot(run_dir), listing(folder)
+    o = finish("eval-out-foreign (eval --out a user's folder)",
+               start(*eval_args(run_dir, work, n=1, videos=0), "--out", str(folder)), run_dir,
+               before, [])
+    o.checks = {**one_line(o, 1), "the user's files kept": listing(folder) == kept}
+    return [o]
+
+
+@case("commit-kill-figures")
+def commit_kill_figures(base: Path, work: Path) -> list[Outcome]:
+    """kill -9 just before the second rename into R of `figures --video-width 160
+    --video-height 120`'s commit (instrumented; review N-d1: the new video and figures in place,
+    config.json and the manifest old), then `replay`: replay exits 0 with a warning naming the
+    cut commit of stage figures and `imitate figures`, and its page marks them out of date."""
+    run_dir = copy(base, work, "commit-kill-figures")
+    before = snapshot(run_dir)
+    process = subprocess.Popen(
+        [sys.executable, "-c", KILL_AT_RENAME, "2", str(run_dir), "figures", "--video-width",
+         "160", "--video-height", "120"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+        text=True,
+    )
+    killed = finish("commit-kill-figures", process, run_dir, before, [])
+    nxt = run("replay", str(run_dir))
+    o = describe("commit-kill-figures (kill -9 in figures' commit; replay)",
+                 f"{killed.status}/{nxt.returncode}", nxt.stderr.splitlines(), run_dir, before)
+    warned = [line for line in o.errors if "the commit of stage figures was cut short" in line]
+    page = (run_dir / "report.html").read_text()
+    o.checks = {
+        "killed mid-commit": killed.status == -9 and "video.mp4" in killed.changed
+        and not {"config.json", "manifest.json"} & set(killed.changed),
+        "replay exit 0": nxt.returncode == 0,
+        "warned of the cut commit": len(warned) == 1 and f"imitate figures {run_dir}" in warned[0],
+        "page: figures out of date": "Out of date: video.mp4" in page,
+        "temporary files swept": not o.temporary, "no lock held": o.lock != "HELD",
+    }
+    return [o]
+
+
+@case("kill-eval-workers")
+def kill_eval_workers(base: Path, work: Path) -> list[Outcome]:
+    """kill -9 of `eval --n 3 --workers 1` once its first record is written (review E2): its
+    worker exits within 3 s by itself, printing nothing (no BrokenPipeError traceback)."""
+    run_dir = copy(base, work, "kill-eval-workers")
+    before = snapshot(run_dir)
+    process = start(*eval_args(run_dir, work, n=3, videos=0))
+    saw = wait_for_file(run_dir, "eval/*/results.jsonl", process)
+    end = time.monotonic() + 120
+    while time.monotonic() < end and process.poll() is None and not any(
+        path.stat().st_size for path in run_dir.glob("eval/*/results.jsonl")
+    ):
+        time.sleep(0.05)
+    workers = children(process.pid)
+    running = process.poll() is None
+    if running:
+        os.kill(process.pid, signal.SIGKILL)
+    process.wait()
+    time.sleep(3.0)
+    left = [pid for pid in workers if Path(f"/proc/{pid}").exists()]
+    o = finish("kill-eval-workers (kill -9 of eval after its first record)", process, run_dir,
+               before, [])
+    o.checks = {"sent mid-evaluation": saw and running and bool(workers),
+                "workers gone within 3 s": not left,
+                "no traceback": not any("Traceback" in line for line in o.errors)}
+    return [o]
+
+
+def children(pid: int) -> list[int]:
+    """The pids of the running child processes of ``pid``."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        if int(fields[1]) == pid:
+            found.append(int(stat.parent.name))
+    return found
 
 
 # ---------------------------------------------------------------------------------------------

@@ -21,7 +21,7 @@ import numpy as np
 
 from imitate.envs.outcome import SUCCESS_FRACTION
 from imitate.errors import ImitateError
-from imitate.evaluation.evaluate import last_records
+from imitate.evaluation.suite_run import last_records
 
 
 def _state(r: dict) -> str:

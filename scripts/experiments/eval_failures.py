@@ -16,8 +16,8 @@ import sys
 from pathlib import Path
 
 from imitate.errors import ImitateError
-from imitate.evaluation.evaluate import last_records
 from imitate.evaluation.report import place
+from imitate.evaluation.suite_run import last_records
 
 
 def main() -> None:

@@ -25,7 +25,7 @@ from scipy import stats
 
 from imitate.envs.outcome import SUCCESS_FRACTION
 from imitate.errors import ImitateError
-from imitate.evaluation.evaluate import last_records
+from imitate.evaluation.suite_run import last_records
 
 GEOMETRY = (
     "stream_inside_share", "stream_offset_median_m", "stream_centre_offset_m",

@@ -28,7 +28,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from imitate.envs.outcome import OUTCOMES
 from imitate.errors import ImitateError
@@ -43,10 +42,12 @@ from imitate.rundir import page
 from imitate.rundir.artifacts import load_json, refuse_link, save_json
 from imitate.rundir.lock import locked
 from imitate.stages import provenance
+from imitate.stages.config import MAX_WEIGHT
+from imitate.stages.progress import bar as progress_bar
 
 __all__ = [
-    "Draw", "check_counts", "default_out", "draw_jobs", "evaluate", "last_records",
-    "read_records", "run_jobs",
+    "Draw", "check_counts", "check_folder", "check_weight", "default_out", "draw_jobs",
+    "evaluate", "last_records", "read_records", "run_jobs",
 ]
 
 RESULTS = "results.jsonl"
@@ -71,18 +72,21 @@ def evaluate(
     ``workers`` local processes (default: every core) or on Ray (``ray``: an address or
     ``"auto"``); videos of the first ``videos`` failures; into ``out`` (default
     :func:`default_out` of ``run_dir``, the suite's ``name`` and its settings). ``progress``:
-    tqdm's ``disable`` inverted (``None``: on a terminal). Returns the summary.
+    a bar (``None``: on a terminal, else log lines; see :func:`~imitate.stages.progress.bar`).
+    Returns the summary.
 
     Raises:
-        ImitateError: a missing or corrupt model, ``n``, ``workers`` or ``n_teachers`` out of
-            range, Ray unusable, or another command holds the run directory (its lock, taken
+        ImitateError: a missing or corrupt model, ``n``, ``workers``, ``n_teachers`` or the
+            suite's ``collision_weight`` out of range, Ray unusable, ``out`` refused
+            (:func:`check_folder`), or another command holds the run directory (its lock, taken
             for the whole evaluation).
     """
     run_dir = check_run(run_dir)
     with locked(run_dir, f"imitate eval {run_dir}"):
         out = default_out(run_dir, name, suite) if out is None else Path(out)
         n, workers = check_counts(suite, n, workers)
-        refuse_link(out / RESULTS)
+        check_weight(suite)
+        check_folder(out, run_dir)
         out.mkdir(parents=True, exist_ok=True)
         models = teachers(run_dir, run_dir / "eval", n_teachers)
         drawn = draw_jobs(models, suite, seed, n)
@@ -103,9 +107,10 @@ def evaluate(
         learned = {t.seed: LearnedModel.from_arrays(t.arrays) for t in models}
         gaze = {t.seed: t.arrays["gaze"] for t in models}
         failures = [r for r in ordered if r["outcome"] != "success"][:videos]
-        for record in tqdm(failures, desc="failure videos", unit="video", disable=not progress):
+        for record in progress_bar(failures, progress, desc="failure videos", unit="video"):
             name = f"{record['id']:04d}-{record['outcome']}.mp4"
             video = out / "failures" / record["digest"] / name
+            refuse_link(video, out)
             if not video.exists():
                 t = record["teacher"]
                 failure_video(video, learned[t], gaze[t], record)
@@ -117,6 +122,58 @@ def default_out(run_dir: Path, name: str, suite: Suite) -> Path:
     """The evaluation's folder unless told: ``run_dir/eval/<name>-w<collision_weight>-<similarity>``
     (e.g. ``eval/default-w10000-variance``), one per suite, weight and weighting."""
     return Path(run_dir) / "eval" / f"{name}-w{suite['collision_weight']:g}-{suite['similarity']}"
+
+
+def check_folder(out: Path, run_dir: Path) -> None:
+    """Refuse ``out`` as an evaluation's folder unless it is missing, empty or an
+    evaluation's (``results.jsonl``, or an evaluation's ``summary.json``), and a real folder:
+    no symbolic link in it or between it and ``run_dir`` when within it, no file in the way.
+
+    Raises:
+        ImitateError: one line naming the path and what to do.
+    """
+    out, run_dir = Path(out), Path(run_dir)
+    inside = os.path.abspath(out).startswith(os.path.abspath(run_dir) + os.sep)
+    refuse_link(out / RESULTS, run_dir if inside else out)
+    for part in (out, *out.parents):
+        if part.exists() and not part.is_dir():
+            raise ImitateError(
+                f"{part} is a file, in the way of the evaluation's folder {out}: remove it or "
+                "give another --out"
+            )
+    if not out.is_dir() or (out / RESULTS).exists() or _is_summary(out / "summary.json"):
+        return
+    names = sorted(entry.name for entry in out.iterdir())
+    if names:
+        more = f" and {len(names) - 3} more" if len(names) > 3 else ""
+        raise ImitateError(
+            f"{out} holds {', '.join(names[:3])}{more} but no evaluation ({RESULTS}, or the "
+            f"summary.json of one), and eval would replace files there; give a new or empty "
+            f"folder as --out"
+        )
+
+
+def _is_summary(path: Path) -> bool:
+    """Whether ``path`` is an evaluation's ``summary.json`` (an object with its digest)."""
+    try:
+        summary = json.loads(path.read_bytes()[:10_000_000])
+    except (OSError, ValueError, RecursionError):
+        return False
+    return isinstance(summary, dict) and "suite_digest" in summary
+
+
+def check_weight(suite: Suite) -> None:
+    """Refuse a ``collision_weight`` above what a run accepts (larger ones overflow).
+
+    Raises:
+        ImitateError: it is above :data:`imitate.stages.config.MAX_WEIGHT`.
+    """
+    weight = suite["collision_weight"]
+    if weight > MAX_WEIGHT:
+        raise ImitateError(
+            f"collision_weight={weight:g} not accepted: a value in 0..{MAX_WEIGHT:g} (as "
+            f"`imitate run --collision-weight`)"
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -192,9 +249,8 @@ def run_jobs(
     ) if jobs else (record for record in no_records)  # closable, as the workers' iterators
     _end_line(results)
     # closing: an interruption stops the workers before it propagates
-    with closing(finished), open(results, "a") as f, tqdm(
-        total=total, initial=total - len(jobs), desc="eval", unit="variation",
-        disable=None if progress is None else not progress,
+    with closing(finished), open(results, "a") as f, progress_bar(
+        show=progress, total=total, initial=total - len(jobs), desc="eval", unit="variation",
     ) as bar:
         for record in finished:
             f.write(json.dumps(record) + "\n")
@@ -221,17 +277,18 @@ def combined_digest(digests: Sequence[str]) -> str:
 
 def read_records(path: Path, digests: str | Collection[str]) -> list[dict]:
     """The records of ``path`` (``results.jsonl``) under ``digests`` (one or several), the last
-    one per digest and id; a line cut short by an interruption, or not a record (an ``id`` that
-    is no whole number >= 0, an ``outcome`` not of :data:`~imitate.envs.outcome.OUTCOMES`: file
-    names are made of them), is skipped, so its variation runs again."""
+    one per digest and id; a line cut short by an interruption, not UTF-8, or not a record
+    (:func:`_is_record`: an ``id`` that is no whole number >= 0, an ``outcome`` not of
+    :data:`~imitate.envs.outcome.OUTCOMES`, as file names are made of them; a number the
+    summary reads missing), is skipped, so its variation runs again."""
     wanted = {digests} if isinstance(digests, str) else set(digests)
     records = {}
     if not path.exists():
         return []
-    for line in path.read_text().splitlines():
+    for line in path.read_bytes().splitlines():
         try:
-            record = json.loads(line)
-        except (json.JSONDecodeError, RecursionError):
+            record = json.loads(line.decode())
+        except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):
             continue
         if _is_record(record) and record["digest"] in wanted:
             records[(record["digest"], record["id"])] = record
@@ -239,12 +296,32 @@ def read_records(path: Path, digests: str | Collection[str]) -> list[dict]:
 
 
 def _is_record(record: object) -> bool:
-    """Whether ``record`` has the form of a variation's record where file names read it."""
-    return (
+    """Whether ``record`` has the form of a variation's record where file names, the summary,
+    the outcome figure and the failure videos read it."""
+    if not (
         isinstance(record, dict) and isinstance(record.get("digest"), str)
         and type(record.get("id")) is int and record["id"] >= 0
-        and record.get("outcome") in OUTCOMES
-    )
+        and record.get("outcome") in OUTCOMES and type(record.get("teacher")) is int
+        and all(_is_number(record.get(k)) for k in (
+            "seconds", "pour_mean", "pour_min", "physics_min_distance_m", "clearance_gap_m"))
+        and isinstance(record.get("plan"), dict)
+        and _is_number(record["plan"].get("min_distance_m"))
+        and isinstance(record.get("replays"), list) and record["replays"]
+        and all(isinstance(r, dict) and _is_number(r.get("min_distance_m"))
+                and _is_number(r.get("pour_fraction")) for r in record["replays"])
+        and isinstance(record.get("settings"), dict)
+        and isinstance(record["settings"].get("in_path"), bool)
+    ):
+        return False
+    try:
+        Variation.from_json(record["settings"])
+    except (TypeError, ValueError, KeyError, AttributeError, ImitateError):
+        return False
+    return True
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
 
 
 def last_records(out: Path) -> list[dict]:

@@ -1,0 +1,39 @@
+"""The defaults and choices the command line shows, as plain constants: importing this module
+loads neither MuJoCo, numba, SciPy nor matplotlib, so that ``imitate CMD --help`` is quick.
+
+Each equals the value of the module that uses it (``tests/test_cli.py`` compares them).
+"""
+
+__all__ = [
+    "BIC_METHODS", "BOTTLE_GRASP", "COLLISION_WEIGHT", "DEFAULT_BIC", "EXPORT_FORMATS",
+    "GLASS_GRASP", "GRASP_RANGE", "MAX_ITER", "MAX_PARTICLES", "NULLSPACE_PUSH",
+    "OBSTACLE_MAX_LIFT", "OBSTACLE_SHAPES", "PATH_LENGTH_WEIGHT", "SIGMA_MAX_SCALE", "SIMILARITIES",
+    "SIMILARITY", "SMOOTHING", "TABLE_X", "TABLE_Y", "TEACHER_VARIATION", "TEACHER_VARIATIONS",
+]
+
+# the teacher (imitate.envs.teacher_motion: TEACHER_VARIATIONS, TeacherConfig.variation)
+TEACHER_VARIATIONS = ("aligned", "misaligned")
+TEACHER_VARIATION = "aligned"
+# learning (imitate.demos.segment: StillnessConfig.smoothing [s]; imitate.learning.bic)
+SMOOTHING = 0.3
+BIC_METHODS = ("full", "fast")
+DEFAULT_BIC = "full"
+# the planner (imitate.motion: SIMILARITIES, PlanConfig)
+SIMILARITIES = ("variance", "uniform", "inverted", "precision", "inverse_variance", "oracle")
+SIMILARITY = "variance"
+COLLISION_WEIGHT = 10000.0
+SIGMA_MAX_SCALE = 1.0
+NULLSPACE_PUSH = True
+MAX_ITER = 100
+PATH_LENGTH_WEIGHT = 0.01
+# the scene (imitate.envs.assembly; imitate.models.scene), lengths [m]
+BOTTLE_GRASP = 0.09
+GLASS_GRASP = 0.05
+GRASP_RANGE = {"bottle": (0.05, 0.13), "glass": (0.03, 0.08)}  # above each object's bottom
+OBSTACLE_SHAPES = ("box", "cylinder")
+OBSTACLE_MAX_LIFT = 0.5
+MAX_PARTICLES = 120
+TABLE_X = (0.4, 1.16)
+TABLE_Y = (-0.55, 0.55)
+# imitate.export.FORMATS
+EXPORT_FORMATS = ("minari", "hdf5", "lerobot")

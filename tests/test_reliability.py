@@ -1,0 +1,217 @@
+"""The repros of the reliability review of 2026-11-28 (issue 45): nothing of the user's is
+touched (the temp sweep, links on the way to eval and export, a hard-linked lock, eval --out),
+a commit cut short is found, and values read from files give one line, not a traceback."""
+
+from __future__ import annotations
+
+import errno
+import hashlib
+import json
+import logging
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from imitate.cli import main
+from imitate.errors import ImitateError
+from imitate.rundir.artifacts import Staging, leftovers
+from imitate.rundir.lock import LOCK, locked
+from imitate.rundir.schema import KINDS, REPORT_KEYS, check_values
+from imitate.stages import provenance
+from imitate.stages.config import load_config
+
+TEMP = "{name}.4242-0123abcd.partial{suffix}"  # a killed writer's temporary name of NAME
+
+
+def temp(name: str) -> str:
+    return "." + TEMP.format(name=name, suffix=Path(name).suffix)
+
+
+def one_error_line(err: str, command: str) -> str:
+    """The only line of ``err`` besides ``== stage`` and warnings; it must be an error."""
+    lines = [line for line in err.splitlines() if not line.startswith(("== ", "warning: "))]
+    assert len(lines) == 1 and lines[0].startswith(f"imitate {command}: error: "), err
+    return lines[0]
+
+
+def _sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+# --- the sweep (N-x2, N-d2) --------------------------------------------------------------------
+
+
+def _users_files(folder: Path) -> dict[Path, str]:
+    (folder / "notes").mkdir(parents=True)
+    files = {
+        folder / ".thesis.partial.tex": "draft\n", folder / "notes" / ".todo.partial.md": "x\n",
+        folder / temp("notes.txt"): "imitate's form, but no name imitate writes\n",
+    }
+    for path, text in files.items():
+        path.write_text(text)
+    return files
+
+
+def test_a_folder_that_holds_no_run_is_not_swept(tmp_path, capsys):
+    files = _users_files(tmp_path / "F")
+    assert main(["learn", str(tmp_path / "F")]) == 1
+    assert "config.json is missing" in one_error_line(capsys.readouterr().err, "learn")
+    assert {p: p.read_text() for p in files} == files
+
+
+def test_a_run_directory_is_swept_of_imitates_own_temporary_names_only(tmp_path, caplog):
+    run_dir = tmp_path / "R"
+    files = _users_files(run_dir)
+    (run_dir / "manifest.json").write_text("{}\n")
+    (run_dir / "figures").mkdir()
+    (run_dir / "export" / ".hdf5.ab_c1234.partial").mkdir(parents=True)  # a killed export's
+    (run_dir / "export" / ".hdf5.ab_c1234.partial" / "robot.hdf5").write_bytes(b"x")
+    (run_dir / "export" / ".myds.partial").mkdir()  # a user's
+    ours = [run_dir / temp("model.npz"), run_dir / temp("observation.png"),
+            run_dir / "figures" / temp("gmr.png"), run_dir / temp("report.html")]
+    for path in ours:
+        path.write_bytes(b"half")
+    assert set(leftovers(run_dir)) == {*ours, run_dir / "export" / ".hdf5.ab_c1234.partial"}
+    with caplog.at_level(logging.DEBUG, "imitate"), locked(run_dir, "imitate test"):
+        pass
+    assert not any(p.exists() for p in ours)
+    assert not (run_dir / "export" / ".hdf5.ab_c1234.partial").exists()
+    assert (run_dir / "export" / ".myds.partial").is_dir()
+    assert {p: p.read_text() for p in files} == files
+    assert "cut short" not in caplog.text  # staged files of a stage killed before its commit
+
+
+# --- the lock (N-x1) ---------------------------------------------------------------------------
+
+
+def test_a_hard_linked_lock_is_refused_and_its_other_name_untouched(tmp_path, capsys):
+    run_dir = tmp_path / "R"
+    run_dir.mkdir()
+    notes = tmp_path / "notes.txt"
+    notes.write_text("notes\n")
+    os.link(notes, run_dir / LOCK)
+    assert main(["learn", str(run_dir)]) == 1
+    line = one_error_line(capsys.readouterr().err, "learn")
+    assert "is a hard link" in line and f"rm {run_dir / LOCK}" in line
+    assert notes.read_text() == "notes\n" and os.stat(notes).st_nlink == 2
+
+
+# --- the commit (N-d1, N-c4, D8) ---------------------------------------------------------------
+
+
+def test_the_commit_makes_every_folder_before_its_first_rename(tmp_path, monkeypatch):
+    old = tmp_path / "video.mp4"
+    old.write_text("old")
+    staging = Staging(tmp_path)
+    for name in ("video.mp4", "figures/gmr.png"):
+        staging.write(tmp_path / name, lambda tmp: tmp.write_text("new"))
+    mkdir = Path.mkdir
+
+    def no_inode_left(self, *args, **kwargs):
+        if self.name == "figures":
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return mkdir(self, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "mkdir", no_inode_left)
+    with pytest.raises(ImitateError, match="cannot make folder .*figures .*nothing was replaced"):
+        staging.commit()
+    assert old.read_text() == "old"
+    staging.discard()
+
+
+def test_a_commit_cut_short_is_reported_by_the_next_command_and_marked_out_of_date(
+    run_dir, caplog
+):
+    """As a kill -9 after the first rename of `figures`' commit leaves it (the fault-injection
+    case `commit-kill-figures` does it for real): the new video in place, the rest as before, the
+    staged manifest among the temporary files."""
+    manifest = json.loads((run_dir / "manifest.json").read_text())
+    (run_dir / "video.mp4").write_bytes(b"the new video")
+    staged = json.loads(json.dumps(manifest))
+    staged["figures"]["outputs"]["video.mp4"] = _sha(run_dir / "video.mp4")
+    (run_dir / temp("manifest.json")).write_text(json.dumps(staged))
+    (run_dir / temp("config.json")).write_text("{}")
+    with caplog.at_level(logging.WARNING, "imitate"), locked(run_dir, "imitate test"):
+        pass
+    assert "the commit of stage figures was cut short: video.mp4 is new" in caplog.text
+    assert f"run `imitate figures {run_dir}` again" in caplog.text
+    assert not leftovers(run_dir)
+    later = provenance.outdated(run_dir, load_config(run_dir), provenance.load(run_dir))
+    assert later == {"figures": "video.mp4 is not the file it wrote (a commit cut short, or "
+                                "changed since)"}
+
+
+# --- links on the way to what eval and export write (S4, S10) ----------------------------------
+
+
+def test_a_link_on_the_way_to_the_export_is_refused(run_dir, tmp_path, capsys):
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (run_dir / "export").symlink_to(outside, target_is_directory=True)
+    assert main(["export", str(run_dir), "--format", "hdf5"]) == 1
+    line = one_error_line(capsys.readouterr().err, "export")
+    assert f"{run_dir / 'export'} is a symbolic link" in line
+    assert not any(outside.iterdir())
+
+
+# --- values read from files (N-e3, N-e5) -------------------------------------------------------
+
+
+@pytest.mark.parametrize(("section", "change", "named"), [
+    ("perception", {"pos_err_mm_median": "abc"}, "perception.pos_err_mm_median='abc'"),
+    ("timings", {"learn": "abc"}, "timings.learn='abc'"),
+    ("perception", None, "perception.pos_err_mm_median is missing"),
+])
+def test_a_report_value_of_the_wrong_kind_is_one_line(run_dir, section, change, named, capsys):
+    report = json.loads((run_dir / "report.json").read_text())
+    report[section] = {} if change is None else {**report[section], **change}
+    (run_dir / "report.json").write_text(json.dumps(report))
+    assert main(["optimize", str(run_dir)]) == 1
+    line = one_error_line(capsys.readouterr().err, "optimize")
+    assert named in line and "delete it to start a new report" in line
+
+
+def test_every_report_key_without_a_unit_has_a_kind(quick_run):
+    assert {k for k, (unit, _) in REPORT_KEYS.items() if unit == "-"} - {"schema"} <= set(KINDS)
+    check_values(json.loads((quick_run / "report.json").read_text()), quick_run / "report.json")
+
+
+def test_replay_of_a_plan_of_nan_is_one_line(run_dir, capsys):
+    with np.load(run_dir / "plan.npz") as npz:
+        arrays = {k: np.full_like(npz[k], np.nan) if npz[k].dtype.kind == "f" else npz[k]
+                  for k in npz.files}
+    np.savez(run_dir / "plan.npz", **arrays)
+    assert main(["replay", "--force", str(run_dir)]) == 1
+    line = one_error_line(capsys.readouterr().err, "replay")
+    assert "plan.npz holds NaN or inf in times" in line and "imitate optimize" in line
+
+
+# --- flags (E15, E13) --------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("command", ["eval", "compare"])
+def test_a_negative_seed_is_refused_by_every_command(tmp_path, command, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main([command, str(tmp_path), "--seed", "-1"])
+    assert exit_.value.code == 2
+    assert "argument --seed: -1 not accepted: a whole number >= 0" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["observe", str(tmp_path / "new"), "--seed", "-1"])
+    assert "seed=-1 not accepted" in capsys.readouterr().err
+
+
+def test_a_collision_weight_run_refuses_is_refused_by_eval_too(tmp_path, capsys):
+    assert main(["eval", str(tmp_path), "--collision-weight", "1e300"]) == 1
+    line = one_error_line(capsys.readouterr().err, "eval")
+    assert "collision_weight=1e+300 not accepted: a value in 0..1e+06" in line
+
+
+def test_a_config_that_is_no_object_is_refused_without_quoting_it(tmp_path):
+    """Review I4: a config.json linked to another file's secret list."""
+    (tmp_path / "secret.json").write_text('["TOP-SECRET-TOKEN-abcdef0123456789", 1]')
+    (tmp_path / "config.json").symlink_to(tmp_path / "secret.json")
+    with pytest.raises(ImitateError, match="holds a JSON list, not an object") as err:
+        load_config(tmp_path)
+    assert "SECRET" not in str(err.value)
