@@ -11,7 +11,10 @@ multisampling and reflections, which cost most of a frame's time there (the run'
 from __future__ import annotations
 
 import dataclasses
+import errno
+import os
 from collections.abc import Iterable, Iterator
+from contextlib import closing
 from pathlib import Path
 from typing import Any
 
@@ -295,13 +298,21 @@ def write_video(path: Path, frames: Iterable[np.ndarray], fps: float) -> int:
 
     def write(tmp: Path) -> None:
         nonlocal count
-        writer = imageio.get_writer(tmp, fps=fps, macro_block_size=8, **ENCODER)
         try:
-            for frame in frames:
-                writer.append_data(frame)
-                count += 1
-        finally:
-            writer.close()
+            with closing(imageio.get_writer(tmp, fps=fps, macro_block_size=8, **ENCODER)) as w:
+                for frame in frames:
+                    w.append_data(frame)
+                    count += 1
+        except OSError as err:  # ffmpeg stopped: its broken pipe would hide a full disk
+            if _full(tmp.parent):
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path)) from err
+            raise
 
     write_atomic(path, write)
     return count
+
+
+def _full(folder: Path) -> bool:
+    """Whether the file system of ``folder`` has no block or no inode left for this user."""
+    fs = os.statvfs(folder)
+    return fs.f_bavail == 0 or fs.f_favail == 0

@@ -6,7 +6,7 @@ Each equals the value of the module that uses it (``tests/test_cli.py`` compares
 
 __all__ = [
     "BIC_METHODS", "BOTTLE_GRASP", "COLLISION_WEIGHT", "DEFAULT_BIC", "EXPORT_FORMATS",
-    "GLASS_GRASP", "GRASP_RANGE", "MAX_ITER", "MAX_PARTICLES", "NULLSPACE_PUSH",
+    "GLASS_GRASP", "GRASP_RANGE", "MAX_ITER", "MAX_WEIGHT", "MAX_PARTICLES", "NULLSPACE_PUSH",
     "OBSTACLE_MAX_LIFT", "OBSTACLE_SHAPES", "PATH_LENGTH_WEIGHT", "SIGMA_MAX_SCALE", "SIMILARITIES",
     "SIMILARITY", "SMOOTHING", "TABLE_X", "TABLE_Y", "TEACHER_VARIATION", "TEACHER_VARIATIONS",
 ]
@@ -22,6 +22,9 @@ DEFAULT_BIC = "full"
 SIMILARITIES = ("variance", "uniform", "inverted", "precision", "inverse_variance", "oracle")
 SIMILARITY = "variance"
 COLLISION_WEIGHT = 10000.0
+# Largest collision weight, 100 times the default: it keeps the weighted costs and the
+# optimizer's arithmetic far from overflow (runs, suites and sweeps alike).
+MAX_WEIGHT = 1e6
 SIGMA_MAX_SCALE = 1.0
 NULLSPACE_PUSH = True
 MAX_ITER = 100

@@ -109,7 +109,7 @@ def announce_first_compile() -> None:
                 f"{function.__qualname__} now; about {seconds} s in all, once: later processes "
                 f"load them from the cache; `python -m imitate.warmup` compiles them ahead)"
             )
-            if logging.getLogger("imitate").hasHandlers():
+            if log.isEnabledFor(logging.INFO) and log.hasHandlers():
                 log.info(line)
             else:
                 print(line, file=sys.stderr, flush=True)

@@ -351,3 +351,10 @@ def test_first_compile_outside_the_warm_up_says_so(tmp_path):
     again = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                            check=True, env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)})
     assert "numba compiles" not in again.stderr  # loaded from the cache
+
+
+def test_an_error_keeps_a_paths_spaces_on_one_line(tmp_path, capsys):
+    folder = tmp_path / "run with  two spaces"
+    assert main(["learn", str(folder)]) == 1
+    (line,) = capsys.readouterr().err.splitlines()
+    assert line.startswith("imitate learn: error: ") and f"`imitate run --out {folder}`" in line

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from imitate.cli import build_parser, config_for, main
+from imitate.defaults import MAX_WEIGHT
 from imitate.envs.teacher_motion import TeacherConfig
 from imitate.envs.video import write_video
 from imitate.errors import ImitateError
 from imitate.rundir import table
 from imitate.stages import provenance
 from imitate.stages.config import (
-    MAX_WEIGHT,
     VIDEO_BLOCK,
     RunConfig,
     load_config,

@@ -443,6 +443,10 @@ def test_eval_out_refuses_a_folder_holding_no_evaluation(tmp_path, model_arrays,
     assert "give a new or empty folder as --out" in line
     assert sorted(p.name for p in folder.iterdir()) == ["report.html", "summary.json"]
     assert (folder / "report.html").read_text() == "mine"
+    (folder / "results.jsonl").write_text('{"loss": 0.1}\n')  # a common name, not an eval's
+    assert main(_tiny_eval(run_dir, tmp_path, "--out", str(folder))) == 1
+    assert "but no evaluation" in _one_line(capsys.readouterr().err)
+    assert (folder / "results.jsonl").read_text() == '{"loss": 0.1}\n'
 
 
 def test_a_file_in_the_way_of_the_evaluation_is_named(tmp_path, model_arrays, capsys):

@@ -226,3 +226,8 @@ def test_lint_checks_the_projects_files_only(tmp_path):
     listed = {Path(line).relative_to(tmp_path).as_posix()
               for line in result.stdout.splitlines() if line.startswith(str(tmp_path))}
     assert listed == {"pyproject.toml", "imitate/new.py", "tests/test_new.py"}, result.stdout
+
+
+def test_citation_names_this_version():
+    versions = re.findall(r"^version: (\S+)$", (ROOT / "CITATION.cff").read_text(), re.M)
+    assert versions == [imitate.__version__]

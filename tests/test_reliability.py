@@ -61,6 +61,28 @@ def test_a_folder_that_holds_no_run_is_not_swept(tmp_path, capsys):
     assert {p: p.read_text() for p in files} == files
 
 
+def test_a_lock_file_of_the_users_is_neither_written_nor_deleted(tmp_path, capsys):
+    folder = tmp_path / "F"
+    folder.mkdir()
+    (folder / LOCK).write_text("my notes\n")
+    assert main(["learn", str(folder)]) == 1
+    assert "holds no record of an imitate command" in one_error_line(
+        capsys.readouterr().err, "learn"
+    )
+    assert (folder / LOCK).read_text() == "my notes\n"
+
+
+def test_a_run_directory_reached_through_a_link_is_swept(tmp_path):
+    run_dir = tmp_path / "R"
+    run_dir.mkdir()
+    (run_dir / "manifest.json").write_text("{}\n")
+    (run_dir / temp("model.npz")).write_bytes(b"half")
+    (tmp_path / "latest").symlink_to(run_dir)
+    with locked(tmp_path / "latest", "imitate test"):
+        pass
+    assert not (run_dir / temp("model.npz")).exists()
+
+
 def test_a_run_directory_is_swept_of_imitates_own_temporary_names_only(tmp_path, caplog):
     run_dir = tmp_path / "R"
     files = _users_files(run_dir)
@@ -202,10 +224,13 @@ def test_a_negative_seed_is_refused_by_every_command(tmp_path, command, capsys):
     assert "seed=-1 not accepted" in capsys.readouterr().err
 
 
-def test_a_collision_weight_run_refuses_is_refused_by_eval_too(tmp_path, capsys):
+def test_a_collision_weight_run_refuses_is_refused_by_eval_and_compare_too(tmp_path, capsys):
     assert main(["eval", str(tmp_path), "--collision-weight", "1e300"]) == 1
     line = one_error_line(capsys.readouterr().err, "eval")
-    assert "collision_weight=1e+300 not accepted: a value in 0..1e+06" in line
+    assert "collision_weight=1e+300 not accepted: a number in 0..1e+06" in line
+    assert main(["compare", str(tmp_path), "--sweep", "collision_weight=1,1e300"]) == 1
+    line = one_error_line(capsys.readouterr().err, "compare")
+    assert "collision_weight 1e+300 is outside 0..1e+06" in line
 
 
 def test_a_config_that_is_no_object_is_refused_without_quoting_it(tmp_path):

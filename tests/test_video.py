@@ -190,3 +190,24 @@ def test_the_teachers_pauses_play_faster_than_the_demonstrations():
     moving = ((times[:-1] >= 1.0) & (times[:-1] < 2.0)) | ((times[:-1] >= 3.0) & (times[:-1] < 4.0))
     assert np.allclose(steps[moving], 0.1) and np.allclose(steps[~moving], 0.5)
     assert times[0] == 0.0 and times[-1] < 5.0 and moving.sum() == 20
+
+
+def test_a_full_disk_is_named_not_hidden_by_ffmpegs_broken_pipe(tmp_path, monkeypatch):
+    """Review N-c2: ffmpeg stops when the disk fills, and its broken pipe is all one sees."""
+    import os
+
+    from imitate.envs import video
+
+    def frames():
+        yield np.zeros((16, 16, 3), np.uint8)
+        raise BrokenPipeError(32, "Broken pipe")  # as imageio's writer when ffmpeg has died
+
+    full = os.statvfs_result((4096, 4096, 100, 0, 0, 100, 0, 0, 0, 255))
+    monkeypatch.setattr(video.os, "statvfs", lambda folder: full)
+    with pytest.raises(OSError, match=r"No space left on device.*v\.mp4") as error:
+        video.write_video(tmp_path / "v.mp4", frames(), fps=10)
+    assert error.value.errno == 28
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.undo()
+    with pytest.raises(BrokenPipeError):  # space left: the error as it came
+        video.write_video(tmp_path / "v.mp4", frames(), fps=10)

@@ -442,14 +442,12 @@ def _eval(args: argparse.Namespace) -> int:
     """``imitate eval`` or ``imitate compare`` of ``args.run_dir``; prints its summary."""
     from imitate import evaluation  # MuJoCo and the planner: once the arguments are fine
     from imitate.evaluation import compare
-    from imitate.evaluation.suite_run import check_weight
 
     kept = "the finished variations are kept; run it again to go on"
     try:
         name, suite = evaluation.named_suite(args.suite)
         if args.weight is not None:
             suite = suite.replace(collision_weight=args.weight)
-        check_weight(suite)  # as run caps it: larger weights overflow
         if args.command == "eval" and args.weighting is not None:
             suite = suite.replace(similarity=args.weighting)
         if args.command == "eval":

@@ -13,6 +13,7 @@ import atexit
 import logging
 import logging.handlers
 import os
+import re
 import shutil
 import signal
 import sys
@@ -135,8 +136,10 @@ def stopped(how: str, stage: str | None, run_dir: Path, saved: bool = False) -> 
 
 
 def fail(command: str, message: str, status: int) -> int:
-    """Print ``message`` as the command's one-line error; returns ``status``."""
-    print(f"imitate {command}: error: {' '.join(message.split())}", file=sys.stderr)
+    """Print ``message`` as the command's one-line error, its line breaks joined by a space
+    (other spaces kept: a path's two spaces stay two); returns ``status``."""
+    line = re.sub(r"[ \t]*[\r\n]+[ \t]*", " ", message.strip())
+    print(f"imitate {command}: error: {line}", file=sys.stderr)
     return status
 
 

@@ -22,6 +22,7 @@ from imitate.defaults import (  # plain constants: `imitate eval --help` shows K
     GRASP_RANGE,
     MAX_ITER,
     MAX_PARTICLES,
+    MAX_WEIGHT,
     NULLSPACE_PUSH,
     OBSTACLE_SHAPES,
     PATH_LENGTH_WEIGHT,
@@ -134,7 +135,7 @@ class Key:
 _BOTTLE, _GLASS = GRASP_RANGE["bottle"], GRASP_RANGE["glass"]
 KEYS: dict[str, Key] = {
     "variations": Key(100, "variations drawn when --n is not given", 1, 100_000, integer=True),
-    "collision_weight": Key(COLLISION_WEIGHT, "weight of the collision cost"),
+    "collision_weight": Key(COLLISION_WEIGHT, "weight of the collision cost", high=MAX_WEIGHT),
     "similarity": Key(
         SIMILARITY, "how the similarity cost weights the task over time (the run "
         "setting of the same name)", choices=SIMILARITIES,

@@ -22,7 +22,7 @@ import hashlib
 import json
 import os
 import time
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Iterator, Sequence
 from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,11 +42,10 @@ from imitate.rundir import page
 from imitate.rundir.artifacts import load_json, refuse_link, save_json
 from imitate.rundir.lock import locked
 from imitate.stages import provenance
-from imitate.stages.config import MAX_WEIGHT
 from imitate.stages.progress import bar as progress_bar
 
 __all__ = [
-    "Draw", "check_counts", "check_folder", "check_weight", "default_out", "draw_jobs",
+    "Draw", "check_counts", "check_folder", "default_out", "draw_jobs",
     "evaluate", "last_records", "read_records", "run_jobs",
 ]
 
@@ -76,8 +75,8 @@ def evaluate(
     Returns the summary.
 
     Raises:
-        ImitateError: a missing or corrupt model, ``n``, ``workers``, ``n_teachers`` or the
-            suite's ``collision_weight`` out of range, Ray unusable, ``out`` refused
+        ImitateError: a missing or corrupt model, ``n``, ``workers`` or ``n_teachers`` out
+            of range, Ray unusable, ``out`` refused
             (:func:`check_folder`), or another command holds the run directory (its lock, taken
             for the whole evaluation).
     """
@@ -85,7 +84,6 @@ def evaluate(
     with locked(run_dir, f"imitate eval {run_dir}"):
         out = default_out(run_dir, name, suite) if out is None else Path(out)
         n, workers = check_counts(suite, n, workers)
-        check_weight(suite)
         check_folder(out, run_dir)
         out.mkdir(parents=True, exist_ok=True)
         models = teachers(run_dir, run_dir / "eval", n_teachers)
@@ -126,7 +124,8 @@ def default_out(run_dir: Path, name: str, suite: Suite) -> Path:
 
 def check_folder(out: Path, run_dir: Path) -> None:
     """Refuse ``out`` as an evaluation's folder unless it is missing, empty or an
-    evaluation's (``results.jsonl``, or an evaluation's ``summary.json``), and a real folder:
+    evaluation's (a ``results.jsonl`` empty or with records, or an evaluation's
+    ``summary.json``; not a hard link), and a real folder:
     no symbolic link in it or between it and ``run_dir`` when within it, no file in the way.
 
     Raises:
@@ -141,7 +140,13 @@ def check_folder(out: Path, run_dir: Path) -> None:
                 f"{part} is a file, in the way of the evaluation's folder {out}: remove it or "
                 "give another --out"
             )
-    if not out.is_dir() or (out / RESULTS).exists() or _is_summary(out / "summary.json"):
+    results = out / RESULTS
+    if results.exists() and results.stat().st_nlink != 1:
+        raise ImitateError(
+            f"{results} is a hard link; eval appends to none: remove it or give another --out"
+        )
+    ours = results.exists() and (results.stat().st_size == 0 or next(_records(results), None))
+    if not out.is_dir() or ours or _is_summary(out / "summary.json"):
         return
     names = sorted(entry.name for entry in out.iterdir())
     if names:
@@ -160,20 +165,6 @@ def _is_summary(path: Path) -> bool:
     except (OSError, ValueError, RecursionError):
         return False
     return isinstance(summary, dict) and "suite_digest" in summary
-
-
-def check_weight(suite: Suite) -> None:
-    """Refuse a ``collision_weight`` above what a run accepts (larger ones overflow).
-
-    Raises:
-        ImitateError: it is above :data:`imitate.stages.config.MAX_WEIGHT`.
-    """
-    weight = suite["collision_weight"]
-    if weight > MAX_WEIGHT:
-        raise ImitateError(
-            f"collision_weight={weight:g} not accepted: a value in 0..{MAX_WEIGHT:g} (as "
-            f"`imitate run --collision-weight`)"
-        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -282,17 +273,21 @@ def read_records(path: Path, digests: str | Collection[str]) -> list[dict]:
     :data:`~imitate.envs.outcome.OUTCOMES`, as file names are made of them; a number the
     summary reads missing), is skipped, so its variation runs again."""
     wanted = {digests} if isinstance(digests, str) else set(digests)
-    records = {}
+    records = {(r["digest"], r["id"]): r for r in _records(path) if r["digest"] in wanted}
+    return list(records.values())
+
+
+def _records(path: Path) -> Iterator[dict]:
+    """The lines of ``path`` that are records (:func:`_is_record`), in order; none if missing."""
     if not path.exists():
-        return []
+        return
     for line in path.read_bytes().splitlines():
         try:
             record = json.loads(line.decode())
         except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):
             continue
-        if _is_record(record) and record["digest"] in wanted:
-            records[(record["digest"], record["id"])] = record
-    return list(records.values())
+        if _is_record(record):
+            yield record
 
 
 def _is_record(record: object) -> bool:

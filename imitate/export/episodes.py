@@ -169,10 +169,14 @@ def robot_episode(run: Run, images: bool = False) -> Episode:
 
 
 def image_kwargs(run: Run, images: bool) -> dict[str, Any]:
-    """``PouringEnv``'s kwargs for its camera images at the run's size, if ``images``."""
+    """``PouringEnv``'s kwargs for its camera images at the run's size, if ``images``; the
+    cameras and the teacher's absence named, so that a dataset's env spec keeps them."""
     if not images:
         return {}
-    return {"obs_type": "state_pixels", "width": run.config.width, "height": run.config.height}
+    return {
+        "obs_type": "state_pixels", "width": run.config.width, "height": run.config.height,
+        "cameras": [humanoid.WORKSPACE], "teacher": False,
+    }
 
 
 def recorded(

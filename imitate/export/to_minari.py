@@ -5,13 +5,12 @@ Under the root directory (Minari's ``MINARI_DATASETS_PATH``): :data:`ROBOT_ID`, 
 :data:`TEACHER_ID`, which comes from no env (its spaces are stored, its env spec is not). Both
 carry ``requirements`` (this package's distribution and MuJoCo, pinned: the physics replays bit
 for bit only there; ``recover_environment()`` warns about others) and ``code_permalink`` (the
-distribution's ``Source`` link at its version tag, else its release on the package index).
+distribution's release on the package index, whose sdist holds the code of that version).
 """
 
 from __future__ import annotations
 
 import contextlib
-import importlib.metadata
 import os
 import warnings
 from collections.abc import Iterable
@@ -84,15 +83,7 @@ def _buffer(episode: Episode) -> EpisodeBuffer:
 
 
 def code_permalink() -> str:
-    """The code that made the datasets: the installed distribution's ``Source`` project URL at
-    the version's tag ``v<version>``, or without one its release page on the package index."""
-    try:
-        urls = importlib.metadata.metadata(DISTRIBUTION).get_all("Project-URL") or []
-    except importlib.metadata.PackageNotFoundError:
-        urls = []
-    links = dict(url.split(", ", 1) for url in urls if ", " in url)
-    if "Source" in links:
-        return f"{links['Source'].rstrip('/')}/tree/v{__version__}"
+    """The code that made the datasets: this version's release page on the package index."""
     return f"https://pypi.org/project/{DISTRIBUTION}/{__version__}/"
 
 

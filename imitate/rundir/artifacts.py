@@ -203,7 +203,7 @@ def leftovers(run_dir: Path) -> list[Path]:
     found = []
     for folder, names in _own_names().items():
         where = run_dir / folder
-        if where.is_symlink() or not where.is_dir():
+        if (folder and where.is_symlink()) or not where.is_dir():  # the run directory may be one
             continue
         for path in where.iterdir():
             match = _TEMPORARY.fullmatch(path.name)
@@ -219,10 +219,10 @@ def leftovers(run_dir: Path) -> list[Path]:
     return sorted(found)
 
 
-def remove_temporary(run_dir: Path) -> list[Path]:
+def remove_temporary(run_dir: Path, left: list[Path] | None = None) -> list[Path]:
     """Delete the :func:`leftovers` of the run directory ``run_dir`` (only safe while no one
-    writes there: under its lock); returns them."""
-    left = leftovers(run_dir)
+    writes there: under its lock), or ``left`` of them if given; returns them."""
+    left = leftovers(run_dir) if left is None else left
     for path in left:
         if path.is_dir():
             shutil.rmtree(path, ignore_errors=True)
@@ -259,7 +259,8 @@ def cut_commits(run_dir: Path, left: list[Path]) -> list[str]:
             before = before.get("outputs", {}) if isinstance(before, dict) else {}
             replaced = [
                 name for name, sha in outputs.items()
-                if sha != before.get(name) and _sha256(run_dir / name) == sha
+                if name in own_names() and sha != before.get(name)
+                and _sha256(run_dir / name) == sha
             ]
             if replaced:
                 found.append(

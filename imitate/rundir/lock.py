@@ -43,7 +43,7 @@ def locked(run_dir: Path, command: str, create: bool = False) -> Iterator[Path]:
     Raises:
         ImitateError: another process holds the lock (the message names it), ``run_dir`` is
             missing (without ``create``), not a directory, or not writable, or its ``.lock`` is
-            a link, hard or symbolic, or no regular file.
+            a link, hard or symbolic, no regular file, or a file of someone else's.
     """
     run_dir = Path(run_dir)
     made = _directory(run_dir, create)
@@ -70,10 +70,10 @@ def left_by_imitate(run_dir: Path) -> bool:
         return False
     try:
         with open(path, "rb") as file:
-            record = json.loads(file.read(4096))
-    except (OSError, ValueError):
+            record = _record(file.read(4096))
+    except OSError:
         return False
-    return isinstance(record, dict) and str(record.get("command", "")).startswith("imitate ")
+    return record is not None and str(record["command"]).startswith("imitate ")
 
 
 def _sweep(run_dir: Path) -> None:
@@ -82,7 +82,7 @@ def _sweep(run_dir: Path) -> None:
     left = leftovers(run_dir)
     for line in cut_commits(run_dir, left):
         log.warning(line)
-    remove_temporary(run_dir)
+    remove_temporary(run_dir, left)
     if left:
         log.debug("removed %d temporary files of killed commands from %s", len(left), run_dir)
 
@@ -141,6 +141,13 @@ def _acquire(path: Path, command: str) -> int:
         if _same_file(fd, path):
             break
         os.close(fd)  # its holder unlinked it between our open and flock: lock the new one
+    text = os.pread(fd, 4096, 0)
+    if text and _record(text) is None:  # a file of the user's that is named .lock
+        os.close(fd)
+        raise ImitateError(
+            f"{path} holds no record of an imitate command; imitate would replace it: move it "
+            f"away or give another folder"
+        )
     record = {
         "pid": os.getpid(), "host": socket.gethostname(), "command": command,
         "since": time.strftime("%Y-%m-%d %H:%M:%S"),
@@ -148,6 +155,15 @@ def _acquire(path: Path, command: str) -> int:
     os.ftruncate(fd, 0)
     os.pwrite(fd, json.dumps(record).encode(), 0)
     return fd
+
+
+def _record(text: bytes) -> dict | None:
+    """The holder record that ``text`` is (:func:`_acquire` writes it), else None."""
+    try:
+        record = json.loads(text)
+    except (ValueError, RecursionError):
+        return None
+    return record if isinstance(record, dict) and {"pid", "command"} <= record.keys() else None
 
 
 def _same_file(fd: int, path: Path) -> bool:

@@ -120,9 +120,6 @@ def _setting(default: Any, help: str, **declaration: Any) -> Any:
     return field(default=default, metadata={"setting": Setting(help, **declaration)})
 
 
-# Largest collision weight, 100 times the default of 10000: it keeps the weighted costs and
-# the optimizer's arithmetic far from overflow.
-MAX_WEIGHT = 1e6
 # Video sizes are multiples of the encoder's macro block [px] (``envs/video.py``'s
 # ``write_video``): others would be padded up to one.
 VIDEO_BLOCK = 8
@@ -203,7 +200,7 @@ class RunConfig:
     )
     collision_weight: float = _setting(
         defaults.COLLISION_WEIGHT, "weight of the collision cost", stage="optimize",
-        flag="--collision-weight", low=0, high=MAX_WEIGHT,
+        flag="--collision-weight", low=0, high=defaults.MAX_WEIGHT,
     )
     similarity: str = _setting(
         defaults.SIMILARITY, "how the similarity cost weights the task dimensions over time: "

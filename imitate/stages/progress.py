@@ -19,11 +19,12 @@ LINE_INTERVAL = 10.0
 
 def bar(iterable=None, show: bool | None = None, **kwargs) -> tqdm:
     """A progress bar over ``iterable`` (tqdm's arguments: ``total``, ``desc``, ``unit``):
-    tqdm's on a terminal, elsewhere a :class:`Lines` of it; nothing below INFO. ``show``:
+    tqdm's on a terminal, elsewhere a :class:`Lines` of it; none where the ``imitate`` logger's
+    level is set above INFO (``imitate -q``). ``show``:
     ``True`` tqdm's bar anywhere, ``False`` none, ``None`` as said."""
     if show is not None:
         return tqdm(iterable, disable=not show, **kwargs)
-    if not log.isEnabledFor(logging.INFO):
+    if log.level > logging.INFO:  # set so (imitate -q); the library's callers leave it unset
         return tqdm(iterable, disable=True, **kwargs)
     if sys.stderr.isatty():
         return tqdm(iterable, **kwargs)

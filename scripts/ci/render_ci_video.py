@@ -28,7 +28,9 @@ CAPTION = "CI video"
 
 def render(out: Path, width: int, height: int, seconds: float, fps: int) -> int:
     """Write the video to ``out`` (atomically); returns the number of frames."""
-    env = PouringEnv(render_mode="rgb_array", width=width, height=height, particles=40)
+    env = PouringEnv(
+        render_mode="rgb_array", width=width, height=height, particles=40, teacher=True
+    )
     env.reset(seed=0)
     rest = env.data.ctrl.copy()
     joint_index = {name: humanoid.JOINTS.index(name) for name in WAVING_JOINTS}
