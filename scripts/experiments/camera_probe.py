@@ -127,7 +127,8 @@ def probe(run, n_episodes: int) -> None:
               f"{options['bottle_grasp']:.3f} / {options['glass_grasp']:.3f} m, "
               f"{len(x)} frames, pour {data[-1][2][-1]:.2f}")
     folds = [list(range(k, min(k + 2, n_episodes))) for k in range(0, n_episodes, 2)]
-    for t, (target, unit) in enumerate((("bottle tilt", "deg"), ("pour fraction", "1"))):
+    targets = (("bottle tilt", "deg", " deg"), ("pour fraction", "of the bottle's liquid", ""))
+    for t, (target, unit, unit_suffix) in enumerate(targets):
         rows = []
         for held in folds:
             train = [d for j, d in enumerate(data) if j not in held]
@@ -144,7 +145,7 @@ def probe(run, n_episodes: int) -> None:
             f"{a:.3g}/{b:.3g}" for a, b in zip(rmse, base, strict=True)
         ))
         print(f"  over {len(folds)} folds of 2 held-out episodes: probe RMSE {rmse.mean():.3g} "
-              f"against the mean's {base.mean():.3g} {unit}, R^2 {r2.mean():.3f} "
+              f"against the mean's {base.mean():.3g}{unit_suffix}, R^2 {r2.mean():.3f} "
               f"(min {r2.min():.3f}); the probe wins in {np.sum(rmse < base)} of {len(folds)}")
 
 
