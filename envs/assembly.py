@@ -16,15 +16,16 @@ from numbers import Real
 import mujoco
 import numpy as np
 
+from imitate import defaults
 from imitate.errors import ImitateError
 from imitate.models import humanoid, model_path, objects, scene, teacher
 
 HOLDERS = ("robot", "teacher")
-OBSTACLE_SHAPES = ("box", "cylinder")
-MAX_PARTICLES = 120  # what fits in the bottle below its shoulder
+OBSTACLE_SHAPES = defaults.OBSTACLE_SHAPES
+MAX_PARTICLES = defaults.MAX_PARTICLES  # what fits in the bottle below its shoulder
 # Highest an obstacle's bottom may float above the table top [m]: up to the robot's shoulders.
-OBSTACLE_MAX_LIFT = 0.5
-GRASP_RANGE = {objects.BOTTLE: (0.05, 0.13), objects.GLASS: (0.03, 0.08)}  # [m] from the bottom
+OBSTACLE_MAX_LIFT = defaults.OBSTACLE_MAX_LIFT
+GRASP_RANGE = defaults.GRASP_RANGE  # [m] above each object's bottom, by object name
 # Which hand (and grip site) holds which object, for each holder.
 GRASPS = {
     "robot": {
@@ -146,8 +147,8 @@ class SceneConfig:
     particles: int = 60
     obstacles: tuple[Obstacle, ...] = field(default_factory=tuple)
     holder: str = "robot"
-    bottle_grasp: float = 0.09
-    glass_grasp: float = 0.05
+    bottle_grasp: float = defaults.BOTTLE_GRASP
+    glass_grasp: float = defaults.GLASS_GRASP
 
     def __post_init__(self):
         if not isinstance(self.teacher, bool | np.bool_):

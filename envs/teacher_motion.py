@@ -27,6 +27,7 @@ import numpy as np
 from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
 from scipy.spatial.transform import Rotation
 
+from imitate import defaults
 from imitate.envs.assembly import GRASPS, SceneConfig, build_model, fill_bottle, hold
 from imitate.errors import ImitateError
 from imitate.models import humanoid, objects, scene, teacher
@@ -185,7 +186,7 @@ _POUR_ROWS = (4, 5)  # the glass keeps its offset from the nominal while the bot
 #   as much in the swing as in the pour (GMR position standard deviation 14 mm in both), so
 #   eq. 21 could not tell them apart. The glass's own position (outside the task space), the
 #   time warps and the tremor vary as in "aligned".
-TEACHER_VARIATIONS = ("aligned", "misaligned")
+TEACHER_VARIATIONS = defaults.TEACHER_VARIATIONS
 _TASK_COLUMNS = slice(3, 8)  # glass tilt, mouth - rim (3), bottle tilt: what moves the task space
 _POUR_AXIS = 5  # the mouth's world y (in the waypoints' columns): along the stream
 _WARP_GRID = 2001  # samples of a demonstration's time warp
@@ -230,7 +231,7 @@ class TeacherConfig:
     speed_variation: float = 0.25
     tremor: float = 0.0004
     tremor_angle: float = np.radians(0.15)
-    variation: str = "aligned"
+    variation: str = defaults.TEACHER_VARIATION
     pour_offset: float = 0.025
     seed: int = 0
 

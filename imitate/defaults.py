@@ -1,8 +1,11 @@
 """The defaults and choices the command line shows, as plain constants: importing this module
 loads neither MuJoCo, numba, SciPy nor matplotlib, so that ``imitate CMD --help`` is quick.
 
-Each equals the value of the module that uses it (``tests/test_cli.py`` compares them).
+The modules that use them take them from here (the table's extent from
+:mod:`imitate.models.scene`, as light).
 """
+
+from imitate.models.scene import TABLE_X, TABLE_Y
 
 __all__ = [
     "BIC_METHODS", "BOTTLE_GRASP", "COLLISION_WEIGHT", "DEFAULT_BIC", "EXPORT_FORMATS",
@@ -29,14 +32,12 @@ SIGMA_MAX_SCALE = 1.0
 NULLSPACE_PUSH = True
 MAX_ITER = 100
 PATH_LENGTH_WEIGHT = 0.01
-# the scene (imitate.envs.assembly; imitate.models.scene), lengths [m]
+# the scene (imitate.envs.assembly), lengths [m]
 BOTTLE_GRASP = 0.09
 GLASS_GRASP = 0.05
 GRASP_RANGE = {"bottle": (0.05, 0.13), "glass": (0.03, 0.08)}  # above each object's bottom
 OBSTACLE_SHAPES = ("box", "cylinder")
 OBSTACLE_MAX_LIFT = 0.5
 MAX_PARTICLES = 120
-TABLE_X = (0.4, 1.16)
-TABLE_Y = (-0.55, 0.55)
 # imitate.export.FORMATS
 EXPORT_FORMATS = ("minari", "hdf5", "lerobot")

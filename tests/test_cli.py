@@ -287,36 +287,6 @@ def test_help_loads_no_heavy_module(command):
     assert done.stderr.strip().splitlines()[-1] == "[]"
 
 
-def test_plain_settings_equal_the_values_their_modules_use():
-    from imitate import defaults as plain
-    from imitate.demos.segment import StillnessConfig
-    from imitate.envs import assembly
-    from imitate.envs.teacher_motion import TEACHER_VARIATIONS, TeacherConfig
-    from imitate.export import FORMATS
-    from imitate.learning.bic import BIC_METHODS, DEFAULT_BIC
-    from imitate.models import objects
-    from imitate.models.scene import TABLE_X, TABLE_Y
-    from imitate.motion import SIMILARITIES, PlanConfig
-
-    plan, scene = PlanConfig(), assembly.SceneConfig()
-    assert (plain.TEACHER_VARIATIONS, plain.TEACHER_VARIATION) == (
-        TEACHER_VARIATIONS, TeacherConfig.variation)
-    assert (plain.SMOOTHING, plain.BIC_METHODS, plain.DEFAULT_BIC) == (
-        StillnessConfig.smoothing, BIC_METHODS, DEFAULT_BIC)
-    assert plain.SIMILARITIES == SIMILARITIES
-    assert (plain.SIMILARITY, plain.COLLISION_WEIGHT, plain.SIGMA_MAX_SCALE, plain.NULLSPACE_PUSH,
-            plain.MAX_ITER, plain.PATH_LENGTH_WEIGHT) == (
-        plan.similarity, plan.collision_weight, plan.sigma_max_scale, plan.nullspace_push,
-        plan.max_iter, plan.path_length_weight)
-    assert (plain.BOTTLE_GRASP, plain.GLASS_GRASP) == (scene.bottle_grasp, scene.glass_grasp)
-    assert plain.GRASP_RANGE == {
-        "bottle": assembly.GRASP_RANGE[objects.BOTTLE], "glass": assembly.GRASP_RANGE[objects.GLASS]
-    }
-    assert (plain.OBSTACLE_SHAPES, plain.OBSTACLE_MAX_LIFT, plain.MAX_PARTICLES) == (
-        assembly.OBSTACLE_SHAPES, assembly.OBSTACLE_MAX_LIFT, assembly.MAX_PARTICLES)
-    assert (plain.TABLE_X, plain.TABLE_Y, plain.EXPORT_FORMATS) == (TABLE_X, TABLE_Y, FORMATS)
-
-
 def test_progress_off_a_terminal_is_log_lines(caplog, capsys, monkeypatch):
     """Where stderr is not a terminal (as under pytest), a bar is INFO lines, no bar drawing,
     none at the end of a work shorter than the lines' interval; below INFO (``-q``) nothing."""

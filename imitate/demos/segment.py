@@ -29,6 +29,7 @@ import numpy as np
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
 from scipy.signal import savgol_filter
 
+from imitate import defaults
 from imitate.errors import ImitateError
 from imitate.models.objects import BOTTLE, GLASS, SHAPES
 from imitate.motion.taskspace import task_space
@@ -56,7 +57,7 @@ class StillnessConfig:
     still_range: float = 0.012
     still_turn: float = np.radians(3.0)
     min_moving: float = 1.0
-    smoothing: float = 0.3
+    smoothing: float = defaults.SMOOTHING
     onset_distance: float = 0.003
 
     def __post_init__(self):

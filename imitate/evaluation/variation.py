@@ -23,6 +23,7 @@ from dataclasses import asdict, dataclass
 import mujoco
 import numpy as np
 
+from imitate import defaults
 from imitate.envs.assembly import Fixture, Obstacle, SceneConfig, check_clearance
 from imitate.errors import ImitateError
 from imitate.evaluation.suite import Suite
@@ -92,7 +93,7 @@ class Variation:
     path_length_weight: float
     similarity: str
     max_iter: int
-    nullspace_push: bool = True
+    nullspace_push: bool = defaults.NULLSPACE_PUSH
     limit_margin: float = 0.0
     shelf: Fixture | None = None
     shelf_gap: float | None = None

@@ -20,6 +20,7 @@ import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 
+from imitate import defaults
 from imitate.errors import ImitateError
 from imitate.rundir import table
 from imitate.rundir.artifacts import refuse_link
@@ -28,7 +29,7 @@ from imitate.stages import provenance
 
 __all__ = ["FORMATS", "export"]
 
-FORMATS = ("minari", "hdf5", "lerobot")
+FORMATS = defaults.EXPORT_FORMATS
 _NEEDS = {"minari": ("minari", "h5py"), "hdf5": ("h5py",), "lerobot": ("pyarrow",)}
 
 

@@ -14,7 +14,7 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
-from imitate import numba_cache
+from imitate import defaults, numba_cache
 from imitate._validation import check_n_components, check_samples
 from imitate.errors import ImitateError
 from imitate.learning._em import (
@@ -33,8 +33,8 @@ __all__ = ["BIC_METHODS", "DEFAULT_BIC", "BicSweep", "bic_sweep"]
 
 # "full": EM for every K; "fast": the paper's heuristic, the mixture taken from the K-means
 # clusters without EM (section IV-B.1).
-BIC_METHODS = ("full", "fast")
-DEFAULT_BIC = "full"
+BIC_METHODS = defaults.BIC_METHODS
+DEFAULT_BIC = defaults.DEFAULT_BIC
 # The fast sweep's K-means, the paper's "fast K-Means clustering": one chain (not the best of
 # n_init), stopped once the centres' summed squared shift is below 1 % of the mean variance
 # (100x scikit-learn's tolerance): the clusters have settled to a tenth of the data's spread.

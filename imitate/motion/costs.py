@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from imitate import defaults
 from imitate.errors import ImitateError
 from imitate.motion.control import JointLimitCost, Rollout
 from imitate.motion.kinematics import Distances
@@ -43,7 +44,7 @@ __all__ = [
 
 # How W_t is made from the learned model (:func:`weighting`): eq. 21, the default, and the
 # alternatives the paper's claim is tested against.
-SIMILARITIES = ("variance", "uniform", "inverted", "precision", "inverse_variance", "oracle")
+SIMILARITIES = defaults.SIMILARITIES
 # The task dimensions' tolerances in eq. 1's order (1 cm, 1 cm, 1 cm, 2 deg, 0.05, 2 deg, 0.05):
 # the error that, held for 1 s at zero variance, costs 1 (eq. 21's ``w_max = 1 / tolerance^2``
 # unless set), and the variance floor of the precision weightings.

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 
+from imitate import defaults
 from imitate.errors import ImitateError
 from imitate.motion.control import ControlConfig
 from imitate.motion.costs import SIMILARITIES
@@ -58,22 +59,22 @@ class PlanConfig:
     omega_per_interval: float = 2.0
     w_max: tuple[float, ...] | None = None
     sigma_max: tuple[float, ...] | None = None
-    sigma_max_scale: float = 1.0
-    similarity: str = "variance"
+    sigma_max_scale: float = defaults.SIGMA_MAX_SCALE
+    similarity: str = defaults.SIMILARITY
     similarity_weight: float = 1.0
-    collision_weight: float = 10000.0
+    collision_weight: float = defaults.COLLISION_WEIGHT
     joint_limit_weight: float = 1.0
-    path_length_weight: float = 0.01
+    path_length_weight: float = defaults.PATH_LENGTH_WEIGHT
     joint_acceleration_weight: float = 3.0
     max_joint_acceleration: float = 20.0
     margin: float = 0.011
     epsilon: float = 0.004
     optimizer: str = "rprop"
-    max_iter: int = 100
+    max_iter: int = defaults.MAX_ITER
     tol: float = 1e-2
     patience: int = 5
     rprop_step: float = 0.1
-    nullspace_push: bool = True
+    nullspace_push: bool = defaults.NULLSPACE_PUSH
     control: ControlConfig = field(default_factory=ControlConfig)
 
     def __post_init__(self):

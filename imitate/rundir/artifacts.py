@@ -29,8 +29,8 @@ from imitate.rundir import signals
 from imitate.rundir.table import MANIFEST, REPORT, own_names, producer
 
 __all__ = [
-    "Arrays", "Staging", "cut_commits", "leftovers", "load_json", "load_npz", "refuse_link",
-    "remove_temporary", "save_json", "save_npz", "staged", "write_atomic",
+    "Arrays", "Staging", "cut_commits", "digest", "leftovers", "load_json", "load_npz",
+    "refuse_link", "remove_temporary", "save_json", "save_npz", "staged", "write_atomic",
 ]
 
 # a temporary file (_temporary): .NAME.PID-HEX8.partial.SUFFIX, SUFFIX that of NAME
@@ -352,10 +352,15 @@ def _own_names() -> dict[str, set[str]]:
     return by_folder
 
 
+def digest(path: Path) -> str:
+    """sha256 of the file's bytes, hex (what the manifest records)."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
 def _sha256(path: Path) -> str | None:
-    """sha256 (hex) of a regular file's bytes, ``None`` if there is none to read."""
+    """:func:`digest` of a regular file, ``None`` if there is none to read."""
     try:
-        return None if path.is_symlink() else hashlib.sha256(path.read_bytes()).hexdigest()
+        return None if path.is_symlink() else digest(path)
     except OSError:
         return None
 

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from imitate.errors import ImitateError
 from imitate.rundir import table
-from imitate.rundir.artifacts import load_json
+from imitate.rundir.artifacts import digest, load_json
 from imitate.stages.config import RunConfig, settings
 
 __all__ = ["MANIFEST", "code_digest", "digest", "load", "outdated", "recorded", "stale"]
@@ -94,11 +94,6 @@ def stale(
         if problem:
             problems.append(f"{problem}; re-run `imitate {s.name} {run_dir}`")
     return problems
-
-
-def digest(path: Path) -> str:
-    """sha256 of the file's bytes, hex."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def code_digest() -> str:
