@@ -467,3 +467,26 @@ def test_a_model_of_nan_names_its_file(tmp_path, model_arrays, name):
     save_npz(tmp_path / "model.npz", arrays)
     with pytest.raises(ImitateError, match=f"model.npz: {name} must be finite .*imitate learn"):
         LearnedModel.from_arrays(load_npz(tmp_path / "model.npz"))
+
+
+def test_a_run_directory_this_user_cannot_write_is_evaluated_into_out(
+    tmp_path, model_arrays, monkeypatch, caplog
+):
+    """Review N-b4: read-only media or a shared run (the tests run as root, who may write
+    anywhere: the directory is made unwritable for os.access, as for another user)."""
+    from imitate.rundir import lock
+
+    run_dir = _run_dir(tmp_path / "run", model_arrays)
+    before = sorted(p.name for p in run_dir.iterdir())
+    unwritable = os.path.abspath(run_dir)
+    access = os.access
+    monkeypatch.setattr(lock.os, "access", lambda path, mode, **kw: (
+        os.path.abspath(path) != unwritable and access(path, mode, **kw)
+    ))
+    with caplog.at_level("INFO", "imitate"):
+        assert main(_tiny_eval(run_dir, tmp_path, "--out", str(tmp_path / "ev"))) == 0
+    assert "is read-only for this user: read without its lock" in caplog.text
+    assert (tmp_path / "ev" / RESULTS).exists()
+    assert sorted(p.name for p in run_dir.iterdir()) == before  # no .lock, no eval/
+    with lock.locked(run_dir, "imitate learn"):  # a command that writes there takes it
+        assert (run_dir / lock.LOCK).exists()

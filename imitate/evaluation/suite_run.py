@@ -78,11 +78,14 @@ def evaluate(
         ImitateError: a missing or corrupt model, ``n``, ``workers`` or ``n_teachers`` out
             of range, Ray unusable, ``out`` refused
             (:func:`check_folder`), or another command holds the run directory (its lock, taken
-            for the whole evaluation).
+            for the whole evaluation; not where nothing is written in a directory this user
+            cannot write: ``out`` elsewhere, one teacher).
     """
     run_dir = check_run(run_dir)
-    with locked(run_dir, f"imitate eval {run_dir}"):
-        out = default_out(run_dir, name, suite) if out is None else Path(out)
+    out = default_out(run_dir, name, suite) if out is None else Path(out)
+    inside = os.path.abspath(out).startswith(os.path.abspath(run_dir) + os.sep)
+    reading = not inside and n_teachers == 1  # nothing written in the run directory
+    with locked(run_dir, f"imitate eval {run_dir}", reading=reading):
         n, workers = check_counts(suite, n, workers)
         check_folder(out, run_dir)
         out.mkdir(parents=True, exist_ok=True)

@@ -90,7 +90,8 @@ def export(run_dir: str | Path, format: str, out: str | Path | None = None,
         out = (Path(out) if out is not None else run.path / "export" / format).absolute()
         moved = ("",)  # the whole folder
     write = importlib.import_module(f"imitate.export.to_{format}").write
-    with locked(run.path, f"imitate export {run.path}"):
+    reading = not out.is_relative_to(run.path.absolute())  # writes nothing in the run
+    with locked(run.path, f"imitate export {run.path}", reading=reading):
         problems = provenance.stale(
             run.path, table.find("replay"), run.config, provenance.load(run.path)
         )

@@ -33,12 +33,17 @@ LOCK = ".lock"
 
 
 @contextmanager
-def locked(run_dir: Path, command: str, create: bool = False) -> Iterator[Path]:
+def locked(
+    run_dir: Path, command: str, create: bool = False, reading: bool = False
+) -> Iterator[Path]:
     """Hold the lock of ``run_dir`` for the block, the directory made first if ``create`` (and
     removed again if the block leaves it empty). In a run directory (``manifest.json``, or the
     lock record of an ``imitate`` command) what killed commands left is deleted first
     (:func:`~imitate.rundir.artifacts.leftovers`: imitate's own temporary names only), with a
-    warning for a commit they cut short; nothing in another folder.
+    warning for a commit they cut short; nothing in another folder. ``reading``: the block
+    writes nothing in ``run_dir``, so a directory this user cannot write (read-only media, a
+    shared run) is read without its lock, said in a line: no command of this user can write
+    there either.
 
     Raises:
         ImitateError: another process holds the lock (the message names it), ``run_dir`` is
@@ -47,6 +52,10 @@ def locked(run_dir: Path, command: str, create: bool = False) -> Iterator[Path]:
     """
     run_dir = Path(run_dir)
     made = _directory(run_dir, create)
+    if reading and not os.access(run_dir, os.W_OK | os.X_OK):
+        log.info("%s is read-only for this user: read without its lock", run_dir)
+        yield run_dir
+        return
     try:
         ours = (run_dir / MANIFEST).is_file() or left_by_imitate(run_dir)  # before our record
         fd = _acquire(run_dir / LOCK, command)
