@@ -240,3 +240,14 @@ def test_a_config_that_is_no_object_is_refused_without_quoting_it(tmp_path):
     with pytest.raises(ImitateError, match="holds a JSON list, not an object") as err:
         load_config(tmp_path)
     assert "SECRET" not in str(err.value)
+
+
+def test_an_unknown_setting_is_named_within_a_line_of_reasonable_length(tmp_path):
+    """Review N-e4: a config.json key of a megabyte was echoed whole."""
+    from imitate.stages.config import RunConfig
+
+    values = {**RunConfig().to_json(), "x" * 1_000_000: 1, **{f"k{i}": 0 for i in range(9)}}
+    with pytest.raises(ImitateError) as error:
+        RunConfig.from_json(values)
+    message = str(error.value)
+    assert len(message) < 2000 and "['k0', 'k1', 'k2', 'k3', 'k4'] and 5 more" in message

@@ -325,8 +325,10 @@ class RunConfig:
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(values) - names)
         if unknown:
+            shown = [name if len(name) <= 40 else f"{name[:40]}..." for name in unknown[:5]]
+            more = f" and {len(unknown) - 5} more" if len(unknown) > 5 else ""
             raise ImitateError(
-                f"config.json has unknown settings {unknown}; accepted: {sorted(names)}"
+                f"config.json has unknown settings {shown}{more}; accepted: {sorted(names)}"
             )
         return cls(**values)
 
