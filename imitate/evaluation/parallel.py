@@ -6,11 +6,12 @@ its teacher's model and the variation's settings alone (``Trial.run`` seeds ever
 them), so the two back-ends and any number of workers give the same records, timings aside.
 Local workers are spawned, not forked (MuJoCo's rendering contexts and fork do not mix), set
 ``MUJOCO_GL``, run single-threaded BLAS unless told otherwise, and exit by themselves when the
-evaluation's process is killed.
+evaluation's process is killed (on Linux killed with it, elsewhere within 0.2 s).
 """
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
 import os
 import signal
@@ -30,6 +31,7 @@ __all__ = ["Job", "run_local", "run_ray"]
 _SINGLE_THREAD = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 _worker: dict = {}  # a local worker's trials by teacher, set once by _start
 _PARENT_POLL = 0.2  # [s] how often a local worker checks that its parent still runs
+_PR_SET_PDEATHSIG = 1  # prctl's option (linux/prctl.h)
 
 Job = tuple[str, int, Variation]  # (digest, teacher seed, variation)
 Models = dict[int, dict[str, np.ndarray]]  # model.npz's arrays by teacher seed
@@ -85,9 +87,22 @@ def run_ray(models: Models, jobs: Sequence[Job], address: str) -> Generator[dict
 
 def _start(models: Models) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
-    threading.Thread(target=_exit_with, args=(os.getppid(),), daemon=True).start()
+    parent = os.getppid()
+    if not _killed_with_parent() or os.getppid() != parent:
+        threading.Thread(target=_exit_with, args=(parent,), daemon=True).start()
     os.environ.setdefault("MUJOCO_GL", "egl")
     _worker.update({teacher: Trial(arrays) for teacher, arrays in models.items()})
+
+
+def _killed_with_parent() -> bool:
+    """Ask Linux to SIGKILL this worker when the thread that started it (the evaluation's main
+    thread) ends, killed or not: at once, before its record could meet a closed pipe. Whether
+    it could (not elsewhere: :func:`_exit_with` polls there)."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
 
 
 def _exit_with(parent: int) -> None:
