@@ -469,6 +469,17 @@ def test_a_model_of_nan_names_its_file(tmp_path, model_arrays, name):
         LearnedModel.from_arrays(load_npz(tmp_path / "model.npz"))
 
 
+def test_a_model_of_disagreeing_shapes_names_its_file(tmp_path, model_arrays):
+    """Review I10: a GMR covariance of 3 dimensions beside a mean of 7 reached the planner."""
+    from imitate.learning import LearnedModel
+    from imitate.rundir.artifacts import load_npz
+
+    arrays = {**model_arrays, "covariance": model_arrays["covariance"][:, :3, :3]}
+    save_npz(tmp_path / "model.npz", arrays)
+    with pytest.raises(ImitateError, match=r"model.npz: times \(T,\), mean .* must agree; got"):
+        LearnedModel.from_arrays(load_npz(tmp_path / "model.npz"))
+
+
 def test_a_run_directory_this_user_cannot_write_is_evaluated_into_out(
     tmp_path, model_arrays, monkeypatch, caplog
 ):

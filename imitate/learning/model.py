@@ -165,6 +165,7 @@ class LearnedModel:
                    if n != "bic_curve" and not np.isfinite(np.asarray(v, float)).all()]
             if bad:
                 raise ImitateError(f"{', '.join(bad)} must be finite (no NaN or inf)")
+            _check_shapes(a)
             gmm = GMM.from_parameters(a.pop("weights"), a.pop("means"), a.pop("covariances"))
         except (ImitateError, ValueError, TypeError) as err:
             if path is None:
@@ -176,6 +177,20 @@ class LearnedModel:
 
 
 _ARRAYS = ("data", "weights", "means", "covariances", "bic_curve", "times", "mean", "covariance")
+
+
+def _check_shapes(a: Mapping[str, np.ndarray]) -> None:
+    """Raise ``ImitateError`` unless the GMR's arrays agree: ``times`` ``(T,)``, ``mean``
+    ``(T, d)``, ``covariance`` ``(T, d, d)`` and ``data`` ``(n, 1 + d)``."""
+    times, mean = np.shape(a["times"]), np.shape(a["mean"])
+    cov, data = np.shape(a["covariance"]), np.shape(a["data"])
+    if len(times) != 1 or len(mean) != 2 or mean[0] != times[0] or cov != (*mean, mean[1]) or (
+        len(data) != 2 or data[1] != 1 + mean[1]
+    ):
+        raise ImitateError(
+            f"times (T,), mean (T, d), covariance (T, d, d) and data (n, 1 + d) must agree; "
+            f"got {times}, {mean}, {cov} and {data}"
+        )
 
 
 def time_stacked(demos: Sequence[np.ndarray], rate: float) -> np.ndarray:
