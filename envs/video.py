@@ -94,15 +94,15 @@ def teacher_frames(
         image_size: ``(width, height)`` [px] of the images ``projection`` is for; needed with
             ``marks``.
         threads: render in this many threads at once (:func:`interleaved`); the same frames.
-        quick: no multisampling nor reflections (:func:`quick_renderer`).
+        quick: no multisampling nor reflections (:func:`frame_renderer`).
     """
 
     def part(every: slice) -> Iterator[np.ndarray]:
         model, data = watching_scene(ObservationConfig())
         inset_size = (2 * (width // 6), 2 * (height // 6))
-        renderer = quick_renderer(model, height, width, quick=quick)
+        renderer = frame_renderer(model, height, width, quick=quick)
         model.vis.quality.offsamples = 0  # the eye as the robot saw (fast_render): 2x faster
-        eye = quick_renderer(model, inset_size[1], inset_size[0], quick=quick)
+        eye = frame_renderer(model, inset_size[1], inset_size[0], quick=quick)
         try:
             for i in range(len(times))[every]:
                 poses = motion.poses(times[i : i + 1])
@@ -161,14 +161,14 @@ def replay_frames(
 ) -> Iterator[np.ndarray]:
     """Recorded replay ``states`` (:meth:`StateRecorder.arrays`) of the scene ``config``, seen
     from ``camera``, the liquid drawn so that it shows; in ``threads`` threads at once
-    (:func:`interleaved`), the same frames; ``quick``: see :func:`quick_renderer`."""
+    (:func:`interleaved`), the same frames; ``quick``: see :func:`frame_renderer`."""
     config = _as_recorded(config, states)
 
     def part(every: slice) -> Iterator[np.ndarray]:
         model = build_model(config)
         _show_liquid(model)
         data = mujoco.MjData(model)
-        renderer = quick_renderer(model, height, width, shadows=shadows, quick=quick)
+        renderer = frame_renderer(model, height, width, shadows=shadows, quick=quick)
         try:
             for state in _states({name: value[every] for name, value in states.items()}):
                 _pose(model, data, *state)
@@ -181,7 +181,7 @@ def replay_frames(
     return interleaved(part, threads)
 
 
-def quick_renderer(
+def frame_renderer(
     model: mujoco.MjModel, height: int, width: int, shadows: bool = False, quick: bool = False
 ) -> mujoco.Renderer:
     """:func:`~imitate.envs.rendering.make_renderer`'s renderer; with ``quick``, without

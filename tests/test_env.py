@@ -68,6 +68,20 @@ def test_the_teacher_only_on_request():
     assert PouringEnv(particles=0, teacher=True).model.nmocap == 6  # its arms
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_the_teachers_mannequin_changes_no_physics(seed):
+    """The replays of runs with it (the replay stage) and evaluations without it agree."""
+    envs = [PouringEnv(particles=20, teacher=teacher) for teacher in (False, True)]
+    actions = np.random.default_rng(seed).uniform(-0.3, 0.3, (40, 18))
+    steps = [[env.reset(seed=seed)[0]] for env in envs]
+    for action in actions:
+        for env, out in zip(envs, steps, strict=True):
+            obs, reward, _, _, info = env.step(action)
+            out += [obs, reward, info["pour_fraction"], info["min_distance"]]
+    for without, with_teacher in zip(*steps, strict=True):
+        np.testing.assert_array_equal(without, with_teacher)
+
+
 def visible(image):
     """Pixels ``(2,)`` of the bottle's and the glass's colours (the tracker's ranges) in an RGB
     image."""

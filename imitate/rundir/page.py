@@ -241,8 +241,8 @@ SWEEP_NOTES = (
     "The setting <code>sweep</code> holds fractions of <code>collision_weight</code> "
     "({weight:g}); each row's weight is its fraction times it. The chosen weight is in bold.",
     "<b>min distance</b>: the smallest signed distance of the plan's kinematics between parts "
-    "that must not touch (negative: the held objects pass into the body). The plan moves "
-    "through the parts as if they were not there; in physics the contacts push back, so a plan "
+    "that must not touch (negative: the held objects pass into the body). Kinematics have no "
+    "contacts, so a plan can pass through a part; in physics the contacts push back, so a plan "
     "that passes tens of millimetres into the chest shows only a few millimetres of "
     "penetration in the replay (Fig. 8, and the headline's <i>min distance, physics</i>).",
     "<b>max deviation</b>: the largest distance of the plan's relative position from the "

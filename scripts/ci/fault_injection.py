@@ -33,7 +33,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -690,28 +690,29 @@ def hardlink_lock(base: Path, work: Path) -> list[Outcome]:
 
 @case("symlink-eval", fast=True)
 def symlink_eval(base: Path, work: Path) -> list[Outcome]:
-    """`eval` with R/eval a symbolic link to an outside folder (review S4): exit 1, one line,
-    nothing written outside."""
-    run_dir = copy(base, work, "symlink-eval")
-    outside = fresh(work / "symlink-eval-outside")
-    (run_dir / "eval").symlink_to(outside, target_is_directory=True)
-    before = snapshot(run_dir)
-    o = finish("symlink-eval (R/eval a link to an outside folder)",
-               start(*eval_args(run_dir, work, n=1, videos=0)), run_dir, before, [])
-    o.checks = {**one_line(o, 1), "nothing written outside": listing(outside) == {}}
-    return [o]
+    """`eval` with R/eval a symbolic link to an outside folder (review S4)."""
+    return _linked_folder(base, work, "eval", lambda run_dir: eval_args(run_dir, work, n=1,
+                                                                        videos=0))
 
 
 @case("symlink-export", fast=True)
 def symlink_export(base: Path, work: Path) -> list[Outcome]:
-    """`export --format hdf5` with R/export a symbolic link to an outside folder (review S10):
-    exit 1, one line, nothing written outside."""
-    run_dir = copy(base, work, "symlink-export")
-    outside = fresh(work / "symlink-export-outside")
-    (run_dir / "export").symlink_to(outside, target_is_directory=True)
+    """`export --format hdf5` with R/export a symbolic link to an outside folder (review S10)."""
+    return _linked_folder(base, work, "export",
+                          lambda run_dir: ("export", str(run_dir), "--format", "hdf5"))
+
+
+def _linked_folder(
+    base: Path, work: Path, folder: str, args: Callable[[Path], Sequence[str]]
+) -> list[Outcome]:
+    """``imitate ARGS`` with ``R/folder`` a symbolic link to an outside folder: exit 1, one
+    line, nothing written outside."""
+    run_dir = copy(base, work, f"symlink-{folder}")
+    outside = fresh(work / f"symlink-{folder}-outside")
+    (run_dir / folder).symlink_to(outside, target_is_directory=True)
     before = snapshot(run_dir)
-    o = finish("symlink-export (R/export a link to an outside folder)",
-               start("export", str(run_dir), "--format", "hdf5"), run_dir, before, [])
+    o = finish(f"symlink-{folder} (R/{folder} a link to an outside folder)",
+               start(*args(run_dir)), run_dir, before, [])
     o.checks = {**one_line(o, 1), "nothing written outside": listing(outside) == {}}
     return [o]
 
