@@ -29,9 +29,9 @@ $(BIN)/.installed-test: pyproject.toml scripts/ci/install_system_deps.sh
 	$(call install,[test])
 	touch $(BIN)/.installed $@
 
-# numba compiles the kernels (the list in imitate/numba_cache.py) into its cache now, two
+# numba compiles the kernels (the list in imitate/warmup.py) into its cache now, two
 # processes at once, so that the first run loads them (again whenever a kernel's source changes).
-KERNELS := $(shell grep -o '"imitate\.[a-z_.]*"' imitate/numba_cache.py | tr -d '"' | \
+KERNELS := $(shell grep -o '"imitate\.[a-z_.]*"' imitate/warmup.py | tr -d '"' | \
 	sed 's|\.|/|g; s|$$|.py|')
 $(BIN)/.compiled: $(BIN)/.installed $(KERNELS)
 	$(BIN)/python -m imitate.warmup

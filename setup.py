@@ -4,6 +4,7 @@ outside ``imitate/`` as a sub-package, and envs/ and models/ install as ``imitat
 
 from setuptools import find_namespace_packages, setup
 
-# Namespace packages too: imitate/evaluation/suites holds data only (the suites' .toml files).
+# Namespace packages too: a task's suites/ folder holds data only (the suites' .toml files).
 setup(packages=[*find_namespace_packages(include=["imitate", "imitate.*"]),
-                "imitate.envs", "imitate.models"])
+                "imitate.envs", "imitate.models",
+                *(f"imitate.envs.{name}" for name in find_namespace_packages(where="envs"))])

@@ -1,9 +1,10 @@
-"""Scene assembly with ``mujoco.MjSpec``: room, robot, teacher, bottle, glass, liquid, obstacles
-and fixtures.
+"""Scene assembly with ``mujoco.MjSpec``: room, robot, teacher, a task's two objects, liquid,
+obstacles and fixtures.
 
-One model serves both halves of the experiment. The bottle and glass are free bodies held by
-weld constraints, either in the robot's hands (bottle right, glass left) or in the teacher's
-(bottle in its left hand, which the robot sees on its own right); :func:`hold` switches.
+One model serves both halves of the experiment. The task's objects, the tool and the target, are
+free bodies held by weld constraints, either in the robot's hands (tool right, target left) or
+in the teacher's (tool in its left hand, which the robot sees on its own right); :func:`hold`
+switches.
 """
 
 from __future__ import annotations
@@ -17,25 +18,23 @@ import mujoco
 import numpy as np
 
 from imitate import defaults
+from imitate.envs.collision import EXEMPT
 from imitate.errors import ImitateError
-from imitate.models import humanoid, model_path, objects, scene, teacher
+from imitate.models import humanoid, model_path, objects, scene, shapes, teacher
 
 HOLDERS = ("robot", "teacher")
 OBSTACLE_SHAPES = defaults.OBSTACLE_SHAPES
-MAX_PARTICLES = defaults.MAX_PARTICLES  # what fits in the bottle below its shoulder
+MAX_PARTICLES = shapes.MAX_PARTICLES
 # Highest an obstacle's bottom may float above the table top [m]: up to the robot's shoulders.
 OBSTACLE_MAX_LIFT = defaults.OBSTACLE_MAX_LIFT
-GRASP_RANGE = defaults.GRASP_RANGE  # [m] above each object's bottom, by object name
-# Which hand (and grip site) holds which object, for each holder.
-GRASPS = {
-    "robot": {
-        objects.BOTTLE: (humanoid.RIGHT_HAND, humanoid.RIGHT_GRIP),
-        objects.GLASS: (humanoid.LEFT_HAND, humanoid.LEFT_GRIP),
-    },
-    "teacher": {
-        objects.BOTTLE: (teacher.HAND["left"], teacher.GRIP["left"]),
-        objects.GLASS: (teacher.HAND["right"], teacher.GRIP["right"]),
-    },
+GRASP_RANGE = shapes.GRASP_RANGE  # [m] above each object's bottom, by object name
+# Which hand (and grip site) holds the tool and which the target, for each holder.
+HANDS = {
+    "robot": ((humanoid.RIGHT_HAND, humanoid.RIGHT_GRIP), (humanoid.LEFT_HAND, humanoid.LEFT_GRIP)),
+    "teacher": (
+        (teacher.HAND["left"], teacher.GRIP["left"]),
+        (teacher.HAND["right"], teacher.GRIP["right"]),
+    ),
 }
 
 
@@ -136,19 +135,25 @@ class SceneConfig:
 
     Attributes:
         teacher: include the teacher mannequin across the table.
-        particles: number of liquid spheres in the bottle, 0..``MAX_PARTICLES``.
+        particles: number of liquid spheres in the tool, 0..``MAX_PARTICLES``.
         obstacles: obstacles on the table and fixtures (:class:`Fixture`) off it.
-        holder: who holds the bottle and glass at the start, ``"robot"`` or ``"teacher"``.
-        bottle_grasp: height along the bottle at which it is held [m], see ``GRASP_RANGE``.
-        glass_grasp: height along the glass at which it is held [m], see ``GRASP_RANGE``.
+        holder: who holds the objects at the start, ``"robot"`` or ``"teacher"``.
+        objects: the tool (held in the robot's right hand) and the target (left), names of
+            :data:`imitate.models.shapes.SHAPES`.
+        grasps: height along the tool and along the target at which each is held [m], see
+            ``GRASP_RANGE``.
+        tool_inside: the tool goes into the target (a stick into the glass): the clearance
+            does not ask the two to keep apart (the target's hulls are solid), while in physics
+            they touch as ever.
     """
 
     teacher: bool = True
-    particles: int = 60
+    particles: int = 0
     obstacles: tuple[Obstacle, ...] = field(default_factory=tuple)
     holder: str = "robot"
-    bottle_grasp: float = defaults.BOTTLE_GRASP
-    glass_grasp: float = defaults.GLASS_GRASP
+    objects: tuple[str, str] = (shapes.BOTTLE, shapes.GLASS)
+    grasps: tuple[float, float] = (shapes.GRASP[shapes.BOTTLE], shapes.GRASP[shapes.GLASS])
+    tool_inside: bool = False
 
     def __post_init__(self):
         if not isinstance(self.teacher, bool | np.bool_):
@@ -164,7 +169,14 @@ class SceneConfig:
                 f"holder={self.holder!r} not accepted: one of {HOLDERS} ('teacher' needs "
                 f"teacher=True)"
             )
-        for obj, value in ((objects.BOTTLE, self.bottle_grasp), (objects.GLASS, self.glass_grasp)):
+        if len(self.objects) != 2 or not set(self.objects) <= set(shapes.SHAPES):
+            raise ImitateError(
+                f"objects={self.objects!r} not accepted: a tool and a target of "
+                f"{list(shapes.SHAPES)}"
+            )
+        if len(self.grasps) != 2:
+            raise ImitateError(f"grasps={self.grasps!r} not accepted: two heights [m]")
+        for obj, value in zip(self.objects, self.grasps, strict=True):
             check_grasp(obj, value)
         for obstacle in self.obstacles:
             if not isinstance(obstacle, Obstacle):
@@ -217,9 +229,11 @@ def build_spec(config: SceneConfig = SceneConfig()) -> mujoco.MjSpec:
     """The scene as an editable ``MjSpec``."""
     parts = ["scene.xml", "humanoid.xml"] + (["teacher.xml"] if config.teacher else [])
     includes = "".join(f'<include file="{model_path(part)}"/>' for part in parts)
-    spec = mujoco.MjSpec.from_string(f'<mujoco model="pouring">{includes}</mujoco>')
-    for obj, shape in objects.SHAPES.items():
-        objects.add_container(spec, spec.worldbody, obj, shape)
+    spec = mujoco.MjSpec.from_string(f'<mujoco model="{config.objects[0]}">{includes}</mujoco>')
+    for obj in config.objects:
+        objects.add_container(spec, spec.worldbody, obj, shapes.SHAPES[obj])
+    if config.tool_inside:
+        spec.add_text(name=EXEMPT, data=" ".join(config.objects))
     objects.add_particles(spec, config.particles)
     for i, obstacle in enumerate(config.obstacles):
         body = spec.worldbody.add_body(name=f"{scene.OBSTACLE_PREFIX}{i}", pos=obstacle.pos)
@@ -233,7 +247,7 @@ def build_spec(config: SceneConfig = SceneConfig()) -> mujoco.MjSpec:
             rgba=(0.45, 0.42, 0.40, 1),
         )
     for holder in HOLDERS if config.teacher else ("robot",):
-        for obj, (hand, _) in GRASPS[holder].items():
+        for obj, (hand, _) in grips(holder, config.objects).items():
             spec.add_equality(
                 name=scene.weld_name(obj, hand),
                 type=mujoco.mjtEq.mjEQ_WELD,
@@ -276,9 +290,23 @@ def planning_model(config: SceneConfig = SceneConfig()) -> mujoco.MjModel:
 def _with_grasps(model: mujoco.MjModel, config: SceneConfig) -> mujoco.MjModel:
     """``model`` with its welds set to hold each object at ``config``'s grasp."""
     for holder in HOLDERS if config.teacher else ("robot",):
-        set_grasp(model, holder, objects.BOTTLE, config.bottle_grasp)
-        set_grasp(model, holder, objects.GLASS, config.glass_grasp)
+        for obj, height in zip(config.objects, config.grasps, strict=True):
+            set_grasp(model, holder, obj, height)
     return model
+
+
+def grips(holder: str, objs: tuple[str, ...]) -> dict[str, tuple[str, str]]:
+    """``{object: (hand body, grip site)}`` of ``holder`` for the tool and target ``objs``."""
+    return dict(zip(objs, HANDS[holder], strict=True))
+
+
+def objects_in(model: mujoco.MjModel) -> tuple[str, str]:
+    """The tool and target of a scene built by :func:`build_model` (its first two free
+    bodies, in the order they were added)."""
+    names = [model.body(model.jnt_bodyid[j]).name for j in range(model.njnt)
+             if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
+    found = [n for n in names if n in shapes.SHAPES]
+    return found[0], found[1]
 
 
 def grasp_pose(model: mujoco.MjModel, holder: str, obj: str, height: float):
@@ -287,7 +315,7 @@ def grasp_pose(model: mujoco.MjModel, holder: str, obj: str, height: float):
     Returns:
         ``(pos (3,) [m], quat (4,) wxyz)``.
     """
-    _, site = GRASPS[holder][obj]
+    _, site = grips(holder, objects_in(model))[obj]
     site_pos, site_quat = model.site(site).pos, model.site(site).quat
     rot = np.zeros(9)
     mujoco.mju_quat2Mat(rot, site_quat)
@@ -297,7 +325,7 @@ def grasp_pose(model: mujoco.MjModel, holder: str, obj: str, height: float):
 def set_grasp(model: mujoco.MjModel, holder: str, obj: str, height: float) -> None:
     """Make ``holder``'s weld hold ``obj`` at ``height`` [m] above its bottom (no recompile)."""
     check_grasp(obj, height)
-    hand, _ = GRASPS[holder][obj]
+    hand, _ = grips(holder, objects_in(model))[obj]
     pos, quat = grasp_pose(model, holder, obj, height)
     eq = model.equality(scene.weld_name(obj, hand))
     # Weld data: anchor (3), pose of body2 in body1's frame (pos 3, quat 4), torque scale.
@@ -311,8 +339,9 @@ def hold(model: mujoco.MjModel, data: mujoco.MjData, holder: str) -> None:
     """Activate ``holder``'s welds, deactivate the others', and move the objects into its hands."""
     if holder not in HOLDERS:
         raise ImitateError(f"holder={holder!r} not accepted: one of {HOLDERS}")
-    for name, grasps in GRASPS.items():
-        for obj, (hand, _) in grasps.items():
+    held = objects_in(model)
+    for name in HANDS:
+        for obj, (hand, _) in grips(name, held).items():
             eq_id = mujoco.mj_name2id(
                 model, mujoco.mjtObj.mjOBJ_EQUALITY, scene.weld_name(obj, hand)
             )
@@ -321,7 +350,7 @@ def hold(model: mujoco.MjModel, data: mujoco.MjData, holder: str) -> None:
             if eq_id >= 0:
                 data.eq_active[eq_id] = name == holder
     mujoco.mj_kinematics(model, data)
-    for obj, (hand, _) in GRASPS[holder].items():
+    for obj, (hand, _) in grips(holder, held).items():
         eq = model.equality(scene.weld_name(obj, hand))
         hand_pos, hand_quat = data.body(hand).xpos, data.body(hand).xquat
         pos, quat = np.zeros(3), np.zeros(4)
@@ -334,16 +363,17 @@ def hold(model: mujoco.MjModel, data: mujoco.MjData, holder: str) -> None:
     mujoco.mj_kinematics(model, data)
 
 
-def fill_bottle(model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator | None = None):
-    """Place every particle at rest inside the bottle (at its current pose), with a small jitter."""
+def fill_tool(model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator | None = None):
+    """Place every particle at rest inside the tool (at its current pose), with a small jitter."""
     n = particle_count(model)
     if n == 0:
         return
-    slots = objects.particle_slots(objects.BOTTLE_SHAPE, n)
+    tool = objects_in(model)[0]
+    slots = objects.particle_slots(shapes.SHAPES[tool], n)
     if rng is not None:
         slots[:, :2] += rng.uniform(-0.2, 0.2, (n, 2)) * objects.PARTICLE_RADIUS
     mujoco.mj_kinematics(model, data)
-    body = data.body(objects.BOTTLE)
+    body = data.body(tool)
     world = body.xpos + slots @ body.xmat.reshape(3, 3).T
     for i in range(n):
         joint = model.joint(f"{objects.PARTICLE_PREFIX}{i}")
@@ -361,8 +391,9 @@ def particle_count(model: mujoco.MjModel) -> int:
 def clearance_geoms(model: mujoco.MjModel) -> list[int]:
     """Ids of the geoms that must keep clear of each other.
 
-    The robot's collision capsules, the bottle's and glass's hulls, the table top and the
-    obstacles. Pairs among them are filtered by ``imitate.envs.collision.CollisionPairs.between``.
+    The robot's collision capsules, the objects' hulls, the table top and the obstacles. Pairs
+    among them are filtered by ``imitate.envs.collision.CollisionPairs.between`` (not the tool
+    and the target of a scene whose ``tool_inside``).
     """
     root = model.body(humanoid.ROOT_BODY).id
     robot = {b for b in range(model.nbody) if model.body_rootid[b] == root}

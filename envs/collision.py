@@ -3,8 +3,9 @@
 A pair is kept once, at construction, when MuJoCo would not already ignore it for the robot:
 geoms of the same body, of bodies welded together, of a parent and its child (unless one of
 them is welded to the world: a free object still collides with the table and the obstacles,
-as in MuJoCo's parent filter), and pairs the model excludes explicitly (a hand and the object
-it holds) are dropped.
+as in MuJoCo's parent filter), pairs the model excludes explicitly (a hand and the object it
+holds) and pairs of bodies its text :data:`EXEMPT` names (a tool that goes into its target,
+whose solid hulls then overlap: physics still has them touch) are dropped.
 """
 
 from __future__ import annotations
@@ -14,6 +15,10 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+
+# Name of a model text listing body pairs whose clearance is not asked, ``"a b"`` per pair,
+# pairs separated by ``";"``.
+EXEMPT = "clearance_exempt"
 
 
 @dataclass(frozen=True)
@@ -43,7 +48,7 @@ class CollisionPairs:
     @classmethod
     def between(cls, model: mujoco.MjModel, geoms: Sequence[int]) -> CollisionPairs:
         """All pairs among ``geoms`` (ids) that may come into contact and must not."""
-        excluded = {int(s) for s in model.exclude_signature}
+        excluded = {int(s) for s in model.exclude_signature} | _exempt(model)
         geom_body = model.geom_bodyid
         weld = model.body_weldid
         parent = model.body_parentid
@@ -62,6 +67,20 @@ class CollisionPairs:
                 first.append(g1)
                 second.append(g2)
         return cls(np.array(first, dtype=int), np.array(second, dtype=int))
+
+
+def _exempt(model: mujoco.MjModel) -> set[int]:
+    """The :data:`EXEMPT` body pairs of ``model`` as exclude signatures."""
+    text = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXT, EXEMPT)
+    if text < 0:
+        return set()
+    start = model.text_adr[text]
+    pairs = bytes(model.text_data[start : start + model.text_size[text] - 1]).decode()
+    signatures = set()
+    for pair in pairs.split(";"):
+        b1, b2 = (model.body(name).id for name in pair.split())
+        signatures.add((min(b1, b2) << 16) + max(b1, b2))
+    return signatures
 
 
 def signed_distances(

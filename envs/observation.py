@@ -17,11 +17,11 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from imitate.envs import teacher_motion
+from imitate.envs import tasks, teacher_motion
 from imitate.envs.assembly import SceneConfig, build_model, hold
 from imitate.envs.rendering import in_thread, make_renderer
 from imitate.errors import ImitateError
-from imitate.models import humanoid, objects
+from imitate.models import humanoid, objects, shapes
 
 EYES = (humanoid.LEFT_EYE, humanoid.RIGHT_EYE)
 
@@ -61,8 +61,13 @@ class ObservationConfig:
 
 
 def watching_scene(config: ObservationConfig) -> tuple[mujoco.MjModel, mujoco.MjData]:
-    """The scene with the teacher holding the objects and the robot at rest, looking at them."""
-    model = build_model(SceneConfig(teacher=True, particles=0, holder="teacher"))
+    """The scene with the teacher holding its task's objects and the robot at rest, looking at
+    them."""
+    objs = tasks.module(config.teacher.task, "teacher").SCRIPT.objects
+    model = build_model(SceneConfig(
+        teacher=True, particles=0, holder="teacher", objects=objs,
+        grasps=tuple(shapes.GRASP[obj] for obj in objs),
+    ))
     data = mujoco.MjData(model)
     pose = dict(zip(humanoid.JOINTS, humanoid.rest_pose(), strict=True))
     pose["head_tilt"] = config.head_tilt

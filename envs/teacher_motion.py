@@ -1,17 +1,16 @@
-"""The teacher: scripted bimanual pouring demonstrations, and the mannequin that performs them.
+"""The teacher: scripted bimanual demonstrations of a task, and the mannequin that performs them.
 
-:func:`script_demonstrations` draws ``n_demos`` pouring movements (lift, bring the bottle over the
-glass, tilt and pour, return) as a person would repeat them: spread by a few cm while
-transporting, a few mm and degrees while pouring, each on its own smooth monotone time warp, with
-a little tremor throughout and at least one second of stillness between demonstrations; or, with
-``TeacherConfig(variation="misaligned")``, the same swing every time and a pour whose position
-varies by centimetres across the glass (a teacher whose variance is not where the task is).
-:func:`teacher_pour` pours a demonstration with liquid, to check that the script pours. The
-result, a :class:`TeacherMotion`, gives the ground-truth object poses at any time; :func:`show`
-puts the objects there and draws the mannequin's arms holding them.
+:func:`script_demonstrations` draws ``n_demos`` movements of a task's :class:`Script` (its
+nominal waypoints, each with its spread) as a person would repeat them: spread where the script
+spreads them, each on its own smooth monotone time warp, with a little tremor throughout and at
+least one second of stillness between demonstrations; or, with
+``TeacherConfig(variation="misaligned")``, the nominal everywhere but in the task's critical
+phase, whose position varies by centimetres (a teacher whose variance is not where the task is).
+The result, a :class:`TeacherMotion`, gives the ground-truth object poses at any time;
+:func:`show` puts the objects there and draws the mannequin's arms holding them.
 
-The teacher holds the bottle in its left hand, which the robot facing it sees on its own right
-(mirror correspondence), and tilts the bottle's top towards the glass (world ``+y``).
+The teacher holds the tool in its left hand, which the robot facing it sees on its own right
+(mirror correspondence), and tilts the tool's top towards the target (world ``+y``).
 
 Each arm is three mocap bodies. Given where a hand should be, :func:`pose_arm` places the hand
 there and draws upper arm and forearm by two-link inverse kinematics, elbow down and out, so a
@@ -28,9 +27,10 @@ from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
 from scipy.spatial.transform import Rotation
 
 from imitate import defaults
-from imitate.envs.assembly import GRASPS, SceneConfig, build_model, fill_bottle, hold
+from imitate.envs import tasks
+from imitate.envs.assembly import grips, objects_in
 from imitate.errors import ImitateError
-from imitate.models import humanoid, objects, scene, teacher
+from imitate.models import scene, shapes, teacher
 
 _YAW = np.pi  # the mannequin faces the robot (-x)
 
@@ -54,7 +54,7 @@ def hand_pose_for_object(
     Returns:
         ``(pos (3,) [m], quat (4,) wxyz)`` of the hand body.
     """
-    hand, _ = GRASPS["teacher"][obj]
+    hand, _ = grips("teacher", objects_in(model))[obj]
     eq = model.equality(scene.weld_name(obj, hand))
     inv_pos, inv_quat = np.zeros(3), np.zeros(4)
     mujoco.mju_negPose(inv_pos, inv_quat, eq.data[3:6], eq.data[6:10])
@@ -126,72 +126,38 @@ def _set_mocap(model, data, body: str, pos, quat) -> None:
 
 # --- Scripted demonstrations -------------------------------------------------------------------
 
-TEACHER_OBJECTS = (objects.BOTTLE, objects.GLASS)
-_KEYS = ("glass", "glass_tilt", "mouth", "bottle_tilt")
-# The nominal pour as waypoints in a demonstration's phase u in [0, 1]: the glass bottom [m], the
-# glass tilt towards the bottle [deg], the bottle's mouth relative to the glass rim centre [m] and
-# the bottle tilt towards the glass [deg]; with each waypoint's spread over demonstrations (one
-# standard deviation, [m] and [deg]; the mouth's either one value or per axis x, y, z). The first
-# and last rows are the rest pose, shared with the previous and next demonstration. The mouth is
-# placed relative to the glass, so the bottle's position relative to the glass varies by
-# millimetres while pouring and by centimetres while transporting.
-# - Swing (rows 1-2): the bottle swings out beside and in front of the glass, towards the robot
-#   (world -x), still upright, above and beside the glass in the robot's view; how far it swings
-#   varies most (6 cm, against 2-2.5 cm sideways and up). Followed exactly, the swing brings the
-#   robot's bottle into its chest by centimetres (paper Fig. 8): the reproduction has to leave
-#   the demonstrated mean, where the demonstrations varied. The swings spread around the
-#   nominal one (their offsets are centred over the session): drawn independently, the mean of
-#   five varies by 2.7 cm itself, and in 5 of 30 sessions (seeds 20-49) the reproduction
-#   without the collision cost then came less than 2 cm into the chest or missed it.
-# - Pour (rows 4-5): the bottle is held at a nearly constant tilt (126-130 deg) over the glass
-#   while the teacher lifts both hands a little (the glass rises 5 cm): steady relative to the
-#   glass, so the attractors can follow it closely, yet never still, so the stillness
-#   segmentation does not cut a demonstration in two. The tilt empties the bottle: its shoulder
-#   (radius 34 to 16 mm over 45 mm of height) slopes towards the neck by only 6 deg at a tilt of
-#   118 deg, where the last particles came to rest on it and rolled out over the glass's edge
-#   as the bottle tilted back; at 128 deg it slopes by 16 deg and drains.
-# - Return (rows 6-7): the bottle tilts back before it is lowered, so the pour ends gently.
-_SWING = (0.06, 0.02, 0.025)  # spread of the mouth on the swing: towards the robot, sideways, up
-_WAYPOINTS = (
-    # u,  glass bottom,        tilt, mouth - rim,           tilt, spreads (glass, tilt, mouth, tilt)
-    (0.00, (1.21, 0.11, 1.00), 0.0, (0.00, -0.24, 0.165), 0.0, (0.020, 0.0, 0.006, 0.0)),
-    (0.12, (1.19, 0.07, 1.04), 3.0, (-0.31, -0.16, 0.20), 3.0, (0.020, 1.5, _SWING, 5.0)),
-    (0.24, (1.19, 0.07, 1.04), 3.0, (-0.44, -0.12, 0.28), 5.0, (0.020, 1.5, _SWING, 5.0)),
-    (0.36, (1.18, 0.06, 1.02), 8.0, (-0.12, -0.05, 0.13), 62.0, (0.020, 2.0, 0.040, 5.0)),
-    (0.52, (1.18, 0.05, 1.05), 12.0, (0.00, -0.025, 0.040), 126.0, (0.020, 1.0, 0.003, 1.0)),
-    (0.68, (1.18, 0.02, 1.10), 14.0, (0.00, -0.020, 0.035), 130.0, (0.003, 1.0, 0.003, 1.0)),
-    (0.80, (1.18, -0.01, 1.14), 6.0, (0.00, -0.05, 0.07), 95.0, (0.020, 2.0, 0.010, 8.0)),
-    (0.92, (1.19, 0.07, 1.03), 4.0, (0.00, -0.10, 0.13), 30.0, (0.020, 2.0, 0.020, 8.0)),
-    (1.00, (1.21, 0.11, 1.00), 0.0, (0.00, -0.24, 0.165), 0.0, (0.020, 0.0, 0.006, 0.0)),
-)
-_SWING_ROWS = (1, 2)  # a demonstration swings wide or narrow as a whole: one draw for both
-_POUR_ROWS = (4, 5)  # the glass keeps its offset from the nominal while the bottle pours
-# Where the demonstrations vary (``TeacherConfig.variation``):
-# - "aligned": as the waypoints' spreads say, centimetres in the swing and millimetres in the
-#   pour, so that the demonstrations agree where the task is (the paper's premise behind eq. 21:
-#   invariant = important) and the reproduction may give way in the swing (Fig. 8-9).
-# - "misaligned": the premise turned round, to test it instead of assuming it. Outside the pour
-#   everything that moves the task space (the mouth relative to the rim, both tilts) is the
-#   nominal in every demonstration: they agree in the swing, where nothing depends on them.
-#   While pouring, each holds the mouth off the nominal along the stream (world y, the way the
-#   bottle tilts: nearer to or further across the glass's axis) by its own offset, and only by
-#   it; the offsets spread evenly over +-``pour_offset`` (25 mm) in a seeded order, so the pour
-#   varies by centimetres where the liquid has to land. Bounded, not drawn, so that every
-#   demonstration still pours: in physics (:func:`teacher_pour`, 60 particles) every
-#   demonstration of seeds 0-9 put at least 0.967 of the liquid into the glass with +-25 mm
-#   (the mouth from 47 mm short of the glass's axis, outside the rim's 40 mm inner radius, to
-#   4 mm past it), the outermost of seed 6 only 0.900 with +-30 mm (success is 0.9) and that of
-#   seed 0 0.817 with +-35 mm. Not along the rim's tangent (world x): that is the robot's depth,
-#   which its stereo resolves worst; a teacher varied by +-25 mm there was perceived as varying
-#   as much in the swing as in the pour (GMR position standard deviation 14 mm in both), so
-#   eq. 21 could not tell them apart. The glass's own position (outside the task space), the
-#   time warps and the tremor vary as in "aligned".
 TEACHER_VARIATIONS = defaults.TEACHER_VARIATIONS
-_TASK_COLUMNS = slice(3, 8)  # glass tilt, mouth - rim (3), bottle tilt: what moves the task space
-_POUR_AXIS = 5  # the mouth's world y (in the waypoints' columns): along the stream
+_TASK_COLUMNS = slice(3, 8)  # target tilt, top - rim (3), tool tilt: what moves the task space
 _WARP_GRID = 2001  # samples of a demonstration's time warp
 _TREMOR_BAND = (6.0, 11.0)  # [Hz], physiological tremor
 _TREMOR_WAVES = 6  # sinusoids summed per tremor channel
+
+
+@dataclass(frozen=True)
+class Script:
+    """A task's demonstration as nominal waypoints in a demonstration's phase ``u`` in [0, 1].
+
+    Attributes:
+        objects: the tool and the target (names of :data:`imitate.models.shapes.SHAPES`).
+        waypoints: rows ``(u, target bottom (3) [m], target tilt towards the tool [deg], tool
+            top relative to the target's rim centre (3) [m], tool tilt towards the target
+            [deg], spreads)``, the spreads one standard deviation over demonstrations of
+            ``(target bottom, target tilt, tool top (one value or per axis x, y, z), tool
+            tilt)``; the first and last rows are the rest pose, shared with the previous and
+            next demonstration.
+        swing_rows: rows through which a demonstration's tool top varies as a whole (one draw).
+        agree_rows: the first and last row of the critical phase, where the demonstrations
+            agree (the target keeps its offset from the nominal through it).
+        offset_axis: the waypoints' column (of target bottom x, y, z, target tilt, tool top
+            x, y, z, tool tilt) along which ``"misaligned"`` demonstrations are offset in the
+            critical phase.
+    """
+
+    objects: tuple[str, str]
+    waypoints: tuple[tuple, ...]
+    swing_rows: tuple[int, ...]
+    agree_rows: tuple[int, int]
+    offset_axis: int
 
 
 @dataclass(frozen=True)
@@ -203,27 +169,28 @@ class TeacherConfig:
         duration: range ``(low, high)`` [s] each demonstration's duration is drawn from.
         pause: range ``(low, high)`` [s] of the stillness between demonstrations; also the
             stillness before the first and after the last demonstration is drawn from it.
+        task: the task demonstrated (its :class:`Script`), one of ``imitate.envs.tasks.NAMES``.
         spread: scale of the spatial variation between demonstrations: 1 gives the spreads of
-            the nominal waypoints (up to 6 cm while transporting, 3 mm and 1 deg while
-            pouring).
-        tilt_plane_spread: standard deviation of the azimuth of the plane the bottle tilts in
+            the script's waypoints.
+        tilt_plane_spread: standard deviation of the azimuth of the plane the tool tilts in
             [rad] (0: it tilts straight across the robot's view).
         speed_variation: amplitude of the time warp: the local speed is
             ``1 +- speed_variation`` times a demonstration's mean speed, in [0, 0.9].
         tremor: standard deviation of the hands' tremor, positions [m].
         tremor_angle: standard deviation of the tremor of the tilt angles [rad].
         variation: where the demonstrations vary (:data:`TEACHER_VARIATIONS`): ``"aligned"``
-            (centimetres in the swing, millimetres in the pour: they agree where the task is)
-            or ``"misaligned"`` (the swing the same in every demonstration, the pour's position
-            spread across the glass by ``pour_offset``: they agree where it is not), to test
-            the premise that what the demonstrations keep invariant is what matters.
-        pour_offset: with ``"misaligned"``, the half range [m] the mouth's offsets along the
-            stream spread evenly over while pouring (times ``spread``): 25 mm still pours into
-            the glass, 35 mm spills (see ``TEACHER_VARIATIONS``).
+            (as the script's spreads say: they agree where the task is) or ``"misaligned"``
+            (the nominal outside the critical phase, the tool's position in it spread by
+            ``offset``: they agree where the task is not), to test the premise that what the
+            demonstrations keep invariant is what matters.
+        offset: with ``"misaligned"``, the half range [m] the tool top's offsets along the
+            script's ``offset_axis`` spread evenly over in the critical phase (times
+            ``spread``).
         seed: seed of the ``numpy.random.Generator`` everything is drawn from.
     """
 
     n_demos: int = 5
+    task: str = tasks.DEFAULT
     duration: tuple[float, float] = (4.0, 5.0)
     pause: tuple[float, float] = (1.2, 1.6)
     spread: float = 1.0
@@ -232,7 +199,7 @@ class TeacherConfig:
     tremor: float = 0.0004
     tremor_angle: float = np.radians(0.15)
     variation: str = defaults.TEACHER_VARIATION
-    pour_offset: float = 0.025
+    offset: float = 0.025
     seed: int = 0
 
     def __post_init__(self):
@@ -254,7 +221,8 @@ class TeacherConfig:
             raise ImitateError(
                 f"variation={self.variation!r} not accepted: one of {TEACHER_VARIATIONS}"
             )
-        for name in ("spread", "tilt_plane_spread", "tremor", "tremor_angle", "pour_offset"):
+        tasks.check(self.task)
+        for name in ("spread", "tilt_plane_spread", "tremor", "tremor_angle", "offset"):
             if not getattr(self, name) >= 0:
                 raise ImitateError(f"{name}={getattr(self, name)!r} not accepted: a value >= 0")
 
@@ -265,19 +233,21 @@ class TeacherMotion:
 
     Attributes:
         config: the configuration it was drawn from.
+        objects: the tool and the target.
         boundaries: ``(n_demos, 2)`` start and end time of each demonstration [s]; outside them
             the objects are held still (up to tremor).
         duration: length of the session [s].
         paths: per demonstration, the waypoint curve of the phase ``u`` in [0, 1]; it gives
-            ``(glass bottom (3), glass tilt, mouth - rim (3), bottle tilt)`` [m, rad].
+            ``(target bottom (3), target tilt, tool top - target rim (3), tool tilt)`` [m, rad].
         warps: ``(n_demos, _WARP_GRID)`` phase ``u`` at evenly spaced times over each
             demonstration (monotone, 0 to 1).
-        tilt_planes: ``(n_demos,)`` azimuth of the bottle's tilt plane [rad].
+        tilt_planes: ``(n_demos,)`` azimuth of the tool's tilt plane [rad].
         tremor: ``(2, 4, _TREMOR_WAVES, 3)`` per object, per channel (x, y, z, tilt), the
             sinusoids' amplitude, frequency [Hz] and phase [rad].
     """
 
     config: TeacherConfig
+    objects: tuple[str, str]
     boundaries: np.ndarray
     duration: float
     paths: tuple[CubicHermiteSpline, ...]
@@ -304,7 +274,7 @@ class TeacherMotion:
         return demo, u
 
     def poses(self, times: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """Ground-truth poses of the bottle and glass frames (bottom centre, z along the axis).
+        """Ground-truth poses of the tool and target frames (bottom centre, z along the axis).
 
         Args:
             times: ``(n,)`` [s].
@@ -316,32 +286,33 @@ class TeacherMotion:
         demo, u = self.phase(times)
         state = np.array([self.paths[d](x) for d, x in zip(demo, u, strict=True)])
         shake = _tremor(self.tremor, times)  # (2, n, 4)
-        glass_tilt = state[:, 3] + shake[1, :, 3]
-        glass_axis = np.stack(
-            [np.zeros_like(glass_tilt), -np.sin(glass_tilt), np.cos(glass_tilt)], axis=1
+        tool, target = self.objects
+        target_tilt = state[:, 3] + shake[1, :, 3]
+        target_axis = np.stack(
+            [np.zeros_like(target_tilt), -np.sin(target_tilt), np.cos(target_tilt)], axis=1
         )
-        rim = state[:, :3] + objects.GLASS_SHAPE.height * glass_axis
-        bottle_tilt = state[:, 7] + shake[0, :, 3]
+        rim = state[:, :3] + shapes.SHAPES[target].height * target_axis
+        tool_tilt = state[:, 7] + shake[0, :, 3]
         plane = self.tilt_planes[demo]
-        bottle_axis = np.stack(
+        tool_axis = np.stack(
             [
-                -np.sin(plane) * np.sin(bottle_tilt),
-                np.cos(plane) * np.sin(bottle_tilt),
-                np.cos(bottle_tilt),
+                -np.sin(plane) * np.sin(tool_tilt),
+                np.cos(plane) * np.sin(tool_tilt),
+                np.cos(tool_tilt),
             ],
             axis=1,
         )
-        bottle_pos = rim + state[:, 4:7] - objects.BOTTLE_SHAPE.height * bottle_axis
-        # Rz(plane) Rx(-tilt) maps z onto bottle_axis; Rx(tilt) leans the glass towards -y.
-        bottle_rot = Rotation.from_euler("ZX", np.stack([plane, -bottle_tilt], axis=1))
-        glass_rot = Rotation.from_euler("X", glass_tilt[:, None])
+        tool_pos = rim + state[:, 4:7] - shapes.SHAPES[tool].height * tool_axis
+        # Rz(plane) Rx(-tilt) maps z onto tool_axis; Rx(tilt) leans the target towards -y.
+        tool_rot = Rotation.from_euler("ZX", np.stack([plane, -tool_tilt], axis=1))
+        target_rot = Rotation.from_euler("X", target_tilt[:, None])
         return {
-            objects.BOTTLE: (bottle_pos + shake[0, :, :3], bottle_rot.as_quat(scalar_first=True)),
-            objects.GLASS: (state[:, :3] + shake[1, :, :3], glass_rot.as_quat(scalar_first=True)),
+            tool: (tool_pos + shake[0, :, :3], tool_rot.as_quat(scalar_first=True)),
+            target: (state[:, :3] + shake[1, :, :3], target_rot.as_quat(scalar_first=True)),
         }
 
     def demonstration_frames(self, times: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-        """Ground-truth frames of the bottle and the glass at the ``times`` inside each
+        """Ground-truth frames of the tool and the target at the ``times`` inside each
         demonstration.
 
         Args:
@@ -350,17 +321,17 @@ class TeacherMotion:
         Returns:
             Per demonstration, ``(position (2, m, 3) [m], axis (2, m, 3))``: the frames' origins
             (bottom centres) and unit long axes in the world frame, objects in
-            ``TEACHER_OBJECTS`` order, at the ``m`` of ``times`` within its start and end.
+            ``objects`` order (tool, target), at the ``m`` of ``times`` within its start and end.
         """
         times = np.asarray(times, dtype=float)
         frames = []
         for start, end in self.boundaries:
             poses = self.poses(times[(times >= start) & (times <= end)])
-            position = np.array([poses[obj][0] for obj in TEACHER_OBJECTS])
+            position = np.array([poses[obj][0] for obj in self.objects])
             axis = np.array(
                 [
                     Rotation.from_quat(poses[obj][1], scalar_first=True).as_matrix()[:, :, 2]
-                    for obj in TEACHER_OBJECTS
+                    for obj in self.objects
                 ]
             )
             frames.append((position, axis))
@@ -368,12 +339,14 @@ class TeacherMotion:
 
 
 def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMotion:
-    """Draw a recording session of ``config.n_demos`` pouring demonstrations.
+    """Draw a recording session of ``config.n_demos`` demonstrations of ``config.task``.
 
     The same config (seed included) gives the same motion.
     """
+    script: Script = tasks.module(config.task, "teacher").SCRIPT
     rng = np.random.default_rng(config.seed)
-    rows = _WAYPOINTS
+    rows = script.waypoints
+    critical = list(script.agree_rows)
     u = np.array([row[0] for row in rows])
     nominal = np.array([[*row[1], np.radians(row[2]), *row[3], np.radians(row[4])] for row in rows])
     spread = (
@@ -389,10 +362,10 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
         * config.spread
     )
     misaligned = config.variation == "misaligned"
-    if misaligned:  # the task space outside the pour as the nominal in every demonstration
-        outside = np.setdiff1d(np.arange(len(rows)), _POUR_ROWS)
+    if misaligned:  # the task space outside the critical phase as the nominal everywhere
+        outside = np.setdiff1d(np.arange(len(rows)), critical)
         spread[outside, _TASK_COLUMNS] = 0.0
-        spread[list(_POUR_ROWS), _POUR_AXIS] = 0.0  # along the stream: the offsets alone
+        spread[critical, script.offset_axis] = 0.0  # along the offsets' axis: they alone
     rests = nominal[0] + spread[0] * rng.standard_normal((config.n_demos + 1, nominal.shape[1]))
     draws, warps, boundaries = [], [], []
     t = rng.uniform(*config.pause)
@@ -406,28 +379,29 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
     # One swing per demonstration, wide or narrow, spread around the nominal swing: the offsets
     # are centred over the session (n > 1), so the mean swing is the nominal one, and scaled by
     # sqrt(n / (n - 1)) so that they spread as much as independent draws.
-    swing = noises[:, _SWING_ROWS[0], 4:7]
+    swing = noises[:, script.swing_rows[0], 4:7]
     if config.n_demos > 1:
         swing = (swing - swing.mean(axis=0)) * np.sqrt(config.n_demos / (config.n_demos - 1))
-    noises[:, _SWING_ROWS, 4:7] = swing[:, None]
-    offsets = np.zeros(config.n_demos)  # the mouth's along the stream while pouring
-    if misaligned and config.n_demos > 1:  # evenly over +-pour_offset, shuffled
-        even = np.linspace(-1.0, 1.0, config.n_demos) * config.pour_offset * config.spread
+    noises[:, script.swing_rows, 4:7] = swing[:, None]
+    offsets = np.zeros(config.n_demos)  # the tool top's in the critical phase
+    if misaligned and config.n_demos > 1:  # evenly over +-offset, shuffled
+        even = np.linspace(-1.0, 1.0, config.n_demos) * config.offset * config.spread
         offsets = even[np.random.default_rng([config.seed, 1]).permutation(config.n_demos)]
     paths = []
     for i, noise in enumerate(noises):
         values = nominal + spread * noise
         values[0], values[-1] = rests[i], rests[i + 1]
         if misaligned:
-            values[list(_POUR_ROWS), _POUR_AXIS] += offsets[i]
-        # While pouring the glass moves as scripted (nominal), off by its pour-start offset.
-        values[_POUR_ROWS[1], :3] += values[_POUR_ROWS[0], :3] - nominal[_POUR_ROWS[0], :3]
+            values[critical, script.offset_axis] += offsets[i]
+        # In the critical phase the target moves as scripted (nominal), off by its offset at
+        # the phase's start.
+        values[critical[1], :3] += values[critical[0], :3] - nominal[critical[0], :3]
         # Shape-preserving (no overshoot between waypoints), starting and ending at rest.
         slopes = PchipInterpolator(u, values).derivative()(u)
         slopes[[0, -1]] = 0.0
         paths.append(CubicHermiteSpline(u, values, slopes))
     amplitude = np.array([config.tremor] * 3 + [config.tremor_angle]) * np.sqrt(2 / _TREMOR_WAVES)
-    shape = (len(TEACHER_OBJECTS), 4, _TREMOR_WAVES)
+    shape = (2, 4, _TREMOR_WAVES)
     tremor = np.stack(
         [
             np.broadcast_to(amplitude[None, :, None], shape),
@@ -438,6 +412,7 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
     )
     return TeacherMotion(
         config=config,
+        objects=script.objects,
         boundaries=np.array(boundaries),
         duration=float(t),
         paths=tuple(paths),
@@ -445,52 +420,6 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
         tilt_planes=config.tilt_plane_spread * rng.standard_normal(config.n_demos),
         tremor=tremor,
     )
-
-
-def teacher_pour(
-    motion: TeacherMotion, demo: int, *, particles: int = 60, settle: float = 0.5, seed: int = 0
-) -> float:
-    """The teacher's pour in physics: the share of the liquid in the glass after demonstration
-    ``demo`` of ``motion`` and ``settle`` [s] more.
-
-    The scene with the teacher holding both objects on its hands' welds, ``particles`` of liquid
-    in the bottle (placed with ``seed``'s jitter) and the robot at rest; the hands (mocap bodies)
-    follow the script at every physics step from the demonstration's start. A check of the
-    script, not part of a run: the scripted poses are what the robot sees, with or without
-    liquid.
-
-    Raises:
-        ImitateError: ``demo`` is not a demonstration of ``motion``.
-    """
-    if not 0 <= demo < len(motion.boundaries):
-        raise ImitateError(f"demo={demo!r} not accepted: 0..{len(motion.boundaries) - 1}")
-    model = build_model(SceneConfig(teacher=True, holder="teacher", particles=particles))
-    data = mujoco.MjData(model)
-    joints = [model.joint(j).qposadr[0] for j in humanoid.JOINTS]
-    data.qpos[joints] = data.ctrl[:] = humanoid.rest_pose()
-    start, end = motion.boundaries[demo]
-    poses = motion.poses(np.arange(start, end + settle, model.opt.timestep))
-    hands = {
-        obj: model.body_mocapid[model.body(teacher.HAND[holding_side(obj)]).id]
-        for obj in TEACHER_OBJECTS
-    }
-    for step in range(len(poses[objects.BOTTLE][0])):
-        for obj, mocap in hands.items():
-            data.mocap_pos[mocap], data.mocap_quat[mocap] = hand_pose_for_object(
-                model, obj, poses[obj][0][step], poses[obj][1][step]
-            )
-        if step == 0:  # the objects into the hands, then the bottle filled
-            hold(model, data, "teacher")
-            fill_bottle(model, data, np.random.default_rng(seed))
-            mujoco.mj_forward(model, data)
-        mujoco.mj_step(model, data)
-    liquid = [model.body(f"{objects.PARTICLE_PREFIX}{i}").id for i in range(particles)]
-    glass = data.body(objects.GLASS)
-    local = (data.xpos[liquid] - glass.xpos) @ glass.xmat.reshape(3, 3)
-    shape = objects.GLASS_SHAPE
-    radius = np.interp(local[:, 2], *np.transpose(shape.profile)[::-1])
-    inside = (local[:, 2] > 0) & (local[:, 2] < shape.height) & (np.hypot(*local[:, :2].T) < radius)
-    return float(np.mean(inside))
 
 
 def show(model: mujoco.MjModel, data: mujoco.MjData, poses: dict[str, tuple]) -> None:
@@ -506,16 +435,17 @@ def show(model: mujoco.MjModel, data: mujoco.MjData, poses: dict[str, tuple]) ->
         joint = model.joint(obj)
         data.qpos[joint.qposadr[0] : joint.qposadr[0] + 7] = (*pos, *quat)
         hand_pos, hand_quat = hand_pose_for_object(model, obj, pos, quat)
-        pose_arm(model, data, holding_side(obj), hand_pos, hand_quat)
+        pose_arm(model, data, holding_side(model, obj), hand_pos, hand_quat)
     mujoco.mj_kinematics(model, data)
     mujoco.mj_camlight(model, data)
 
 
-def holding_side(obj: str) -> str:
+def holding_side(model: mujoco.MjModel, obj: str) -> str:
     """The teacher's hand (``"left"``/``"right"``) that holds ``obj``."""
-    if obj not in GRASPS["teacher"]:
-        raise ImitateError(f"object {obj!r} not accepted: one of {tuple(GRASPS['teacher'])}")
-    hand = GRASPS["teacher"][obj][0]
+    held = grips("teacher", objects_in(model))
+    if obj not in held:
+        raise ImitateError(f"object {obj!r} not accepted: one of {tuple(held)}")
+    hand = held[obj][0]
     return next(side for side in teacher.SIDES if teacher.HAND[side] == hand)
 
 

@@ -27,11 +27,10 @@ from imitate.envs import teacher_motion
 from imitate.envs.assembly import SceneConfig, build_model, clearance_geoms
 from imitate.envs.collision import CollisionPairs, signed_distances
 from imitate.envs.observation import ObservationConfig, watching_scene
-from imitate.envs.pouring import PouringEnv
+from imitate.envs.pour.env import PouringEnv
 from imitate.envs.rendering import interleaved, make_renderer
 from imitate.models import humanoid, objects
 from imitate.models import scene as scene_names
-from imitate.rundir.artifacts import write_atomic
 
 # What people see of the liquid; only the copy of the model that draws it is changed, so the
 # physics (particle radius objects.PARTICLE_RADIUS, masses, contacts) stays as it is.
@@ -292,23 +291,26 @@ ENCODER: dict[str, Any] = {
 
 
 def write_video(path: Path, frames: Iterable[np.ndarray], fps: float) -> int:
-    """Encode ``frames`` as H.264 mp4 at ``fps`` (:data:`ENCODER`), atomically; returns the
-    number of frames."""
+    """Encode ``frames`` as H.264 mp4 at ``fps`` (:data:`ENCODER`) into ``path`` (the caller's:
+    a temporary file it renames into place, say), deleted again if the encoding fails; returns
+    the number of frames.
+
+    Raises:
+        OSError: the encoding failed; ``ENOSPC`` naming ``path`` if the disk is full (where
+            ffmpeg's broken pipe would hide it).
+    """
+    path = Path(path)
     count = 0
-
-    def write(tmp: Path) -> None:
-        nonlocal count
-        try:
-            with closing(imageio.get_writer(tmp, fps=fps, macro_block_size=8, **ENCODER)) as w:
-                for frame in frames:
-                    w.append_data(frame)
-                    count += 1
-        except OSError as err:  # ffmpeg stopped: its broken pipe would hide a full disk
-            if _full(tmp.parent):
-                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path)) from err
-            raise
-
-    write_atomic(path, write)
+    try:
+        with closing(imageio.get_writer(path, fps=fps, macro_block_size=8, **ENCODER)) as w:
+            for frame in frames:
+                w.append_data(frame)
+                count += 1
+    except BaseException as err:
+        path.unlink(missing_ok=True)
+        if isinstance(err, OSError) and _full(path.parent):  # ffmpeg stopped: a full disk?
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path)) from err
+        raise
     return count
 
 

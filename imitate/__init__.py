@@ -1,9 +1,10 @@
 """imitate: task-level imitation learning on a simulated humanoid (Muehlig et al., ICRA 2009).
 
-Importing the package registers the Gymnasium environment ``imitate/Pouring-v0``
-(``gym.make("imitate:imitate/Pouring-v0")`` imports it for you) and sets nothing else: no
-environment variable, no matplotlib backend (see :mod:`imitate.envs.rendering`). The Python
-API, each imported on first use (they load the learner and the planner):
+Importing the package registers the Gymnasium environments ``imitate/Pouring-v0`` and
+``imitate/Inserting-v0`` (``gym.make("imitate:imitate/Pouring-v0")`` imports it for you) and
+sets nothing else: no environment variable, no matplotlib backend (see
+:mod:`imitate.envs.rendering`). The Python API, each imported on first use (they load the
+learner and the planner):
 
 - :func:`load_run`: a run directory as typed objects (:class:`Run`: ``config``, ``model``,
   ``plan``, ``replay``, ``report``, ..., and ``replan(**settings)``).
@@ -29,7 +30,12 @@ __version__ = "0.1.0"  # the package's version (pyproject.toml reads it)
 ENV_ID = "imitate/Pouring-v0"
 
 if ENV_ID not in gym.registry:
-    gym.register(id=ENV_ID, entry_point="imitate.envs.pouring:PouringEnv", max_episode_steps=500)
+    gym.register(id=ENV_ID, entry_point="imitate.envs.pour.env:PouringEnv", max_episode_steps=500)
+if "imitate/Inserting-v0" not in gym.registry:
+    gym.register(
+        id="imitate/Inserting-v0", entry_point="imitate.envs.insert.env:InsertingEnv",
+        max_episode_steps=500,
+    )
 
 # The API's names and the modules they come from, imported when first asked for.
 _LAZY = {

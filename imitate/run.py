@@ -5,90 +5,41 @@
     run.plan.q, run.replay.pour_fraction, run.report["replay"]["success"]
     plan = run.replan(collision_weight=0.0)              # the learned model planned again
 
-Each member reads its artifact the first time it is used; a missing or corrupt artifact raises
-:class:`~imitate.errors.ImitateError` naming the file and the stage to re-run.
+Each member reads its artifact the first time it is used (with :mod:`imitate.stages.files`); a
+missing or corrupt artifact raises :class:`~imitate.errors.ImitateError` naming the file and the
+stage to re-run.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
-from imitate.demos.segment import Demonstration, load_demos, task_demos
+from imitate.demos.segment import task_demos
 from imitate.envs.assembly import Obstacle, check_clearance
 from imitate.errors import ImitateError
 from imitate.learning import LearnedModel
 from imitate.motion import Plan
 from imitate.motion.replay import reproduce
-from imitate.perception import Observations, load_observations
-from imitate.rundir import table
-from imitate.rundir.artifacts import load_json, load_npz
-from imitate.rundir.schema import check_schema
+from imitate.perception import Observations
+from imitate.rundir import layout
+from imitate.rundir.schema import load_report
 from imitate.stages.config import RunConfig, load_config
+from imitate.stages.files import (
+    DemosFile,
+    Learned,
+    ModelFile,
+    ObservationsFile,
+    PlanFile,
+    Recording,
+    ReplayFile,
+)
 
-__all__ = ["Demos", "Recording", "Run", "load_run"]
-
-
-@dataclass(frozen=True, eq=False, repr=False)
-class Demos:
-    """Contents of ``demos.npz``: the demonstrations cut from the tracks.
-
-    Attributes:
-        segments: One :class:`~imitate.demos.segment.Demonstration` per demonstration, in time
-            order.
-        objects: Object names, the first axis of each segment's arrays.
-        gaze: ``(3, 3)`` gaze frame of the observation (columns right, down, forward).
-    """
-
-    segments: tuple[Demonstration, ...]
-    objects: tuple[str, ...]
-    gaze: np.ndarray
-
-    def __repr__(self) -> str:
-        return f"Demos({len(self.segments)} demonstrations of {', '.join(self.objects)})"
-
-
-@dataclass(frozen=True, eq=False, repr=False)
-class Recording:
-    """Contents of ``replay.npz``: the plan replayed in physics.
-
-    Attributes:
-        qpos: ``(n, nq)`` MuJoCo ``qpos`` of the whole scene every ``state_dt`` [rad, m].
-        mocap_pos: ``(n, n_mocap, 3)`` the teacher's mocap positions [m].
-        mocap_quat: ``(n, n_mocap, 4)`` their orientations, wxyz.
-        state_dt: Time between recorded states [s].
-        task_error: ``(T, 7)`` task state reached in physics minus the plan's, every env step of
-            the plan's part.
-        pour_fraction: Fraction of the particles in the glass at the end.
-        spilled: Particles in neither container at the end.
-        min_distance: Smallest signed distance [m] between geoms that must not touch.
-    """
-
-    qpos: np.ndarray
-    mocap_pos: np.ndarray
-    mocap_quat: np.ndarray
-    state_dt: float
-    task_error: np.ndarray
-    pour_fraction: float
-    spilled: int
-    min_distance: float
-
-    @property
-    def times(self) -> np.ndarray:
-        """``(n,)`` times of the recorded states [s] from the reset."""
-        return np.arange(len(self.qpos)) * self.state_dt
-
-    def __repr__(self) -> str:
-        return (
-            f"Recording({len(self.qpos)} states every {self.state_dt:g} s, qpos "
-            f"{self.qpos.shape}, pour_fraction {self.pour_fraction:.3g}, spilled {self.spilled}, "
-            f"min_distance {1e3 * self.min_distance:.1f} mm)"
-        )
+__all__ = ["Run", "load_run"]
 
 
 class Run:
@@ -109,13 +60,12 @@ class Run:
     @cached_property
     def observations(self) -> Observations:
         """Tracks, camera matrices and ground truth (``observations.npz``)."""
-        return load_observations(self.path / "observations.npz")
+        return ObservationsFile.load(self.path).observations
 
     @cached_property
-    def demos(self) -> Demos:
+    def demos(self) -> DemosFile:
         """The segmented demonstrations (``demos.npz``)."""
-        segments, objects, gaze = load_demos(self.path / "demos.npz")
-        return Demos(tuple(segments), objects, gaze)
+        return DemosFile.load(self.path)
 
     def task_demos(self) -> tuple[list[np.ndarray], float]:
         """The demonstrations in eq. 1's task space as the ``learn`` stage projects them (one
@@ -125,38 +75,35 @@ class Run:
         return task_demos(d.segments, d.objects, d.gaze, smoothing=self.config.smoothing)
 
     @cached_property
+    def learned(self) -> Learned:
+        """The learned model and its gaze frame (``model.npz``)."""
+        return ModelFile.load_learned(self.path)
+
+    @property
     def model(self) -> LearnedModel:
         """The learned model (``model.npz``): GMM, BIC curve, GMR mean and covariance at its
         ``times``, and :meth:`~imitate.learning.LearnedModel.predict` at any time."""
-        path = self.path / "model.npz"
-        return LearnedModel.from_arrays(load_npz(path, required=LearnedModel.array_names()))
+        return self.learned.model
 
-    @cached_property
+    @property
     def gaze(self) -> np.ndarray:
         """``(3, 3)`` gaze frame the model's task space is expressed in (``model.npz``)."""
-        return load_npz(self.path / "model.npz", required=("gaze",))["gaze"]
+        return self.learned.gaze
 
     @cached_property
     def plan(self) -> Plan:
         """The optimized movement (``plan.npz``): ``q(t)``, ``x(t)``, attractors, costs."""
-        return Plan.from_arrays(load_npz(self.path / "plan.npz", required=Plan.array_names()))
+        return PlanFile.load(self.path).plan
 
     @cached_property
     def replay(self) -> Recording:
         """The replay in physics (``replay.npz``)."""
-        a = load_npz(self.path / "replay.npz", required=_RECORDING)
-        return Recording(
-            qpos=a["qpos"], mocap_pos=a["mocap_pos"], mocap_quat=a["mocap_quat"],
-            state_dt=float(a["state_dt"]), task_error=a["task_error"],
-            pour_fraction=float(a["pour_fraction"]), spilled=int(a["spilled"]),
-            min_distance=float(a["min_distance"]),
-        )
+        return ReplayFile.load(self.path).recording
 
     @cached_property
     def report(self) -> dict:
         """``report.json``: its keys are declared in :mod:`imitate.rundir.schema`."""
-        path = self.path / table.REPORT
-        return check_schema(load_json(path), path)
+        return load_report(self.path / layout.REPORT)
 
     def replan(self, *, obstacles: Sequence[Obstacle] | None = None, **settings) -> Plan:
         """The learned model planned again as the ``optimize`` stage plans it, with
@@ -181,12 +128,6 @@ class Run:
 
     def __repr__(self) -> str:
         return f"Run({str(self.path)!r})"
-
-
-_RECORDING = (
-    "qpos", "mocap_pos", "mocap_quat", "state_dt", "task_error", "pour_fraction", "spilled",
-    "min_distance",
-)
 
 
 def load_run(path: str | Path) -> Run:

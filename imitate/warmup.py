@@ -1,32 +1,75 @@
-"""The numba kernels, compiled ahead of a run (``python -m imitate.warmup``) or announced as
-a stage compiles them.
+"""The numba kernels: the one list of their modules, compiled ahead of a run (``python -m
+imitate.warmup``) or announced as a stage compiles them.
 
 numba compiles a kernel the first time a process calls it and keeps the machine code in its
 on-disk cache (``cache=True``): later processes load it in milliseconds. ``make setup`` runs
-this module once after installing, so that the first ``imitate run`` finds every kernel in the
-cache. It runs the tracker on one rendered stereo pair, the learner on a few short synthetic
-demonstrations and one planner iteration, the code paths of a run with the argument types of a
-run, in two processes at once (numba compiles on one core): the tracker's and the planner's
-kernels in one, the learner's (DTW, K-means, EM, BIC) in the other. Between them they compile
-every kernel a run calls (a warm run compiles nothing: ``scripts/bench/bench_run.py`` shows it);
-with one process, all of it runs here, one after the other.
+this module once after installing (the Makefile's stamp depends on the files of
+:data:`KERNELS`), so that the first ``imitate run`` finds every kernel in the cache. For each
+stage of :data:`KERNELS` it runs that stage's code path with the argument types of a run: the
+tracker on one rendered stereo pair, the learner on a few short synthetic demonstrations, one
+planner iteration; the stages in two processes at once (numba compiles on one core), the
+longest first. Each then checks that it reached every kernel of its stage's modules (a warm run
+compiles nothing: ``scripts/bench/bench_run.py`` shows it).
 
-:func:`announce_compiles` makes a process say on stderr which kernel it compiles, so that a
+:func:`compile_notice` is the line the ``imitate`` command prints before a stage that compiles,
+and :func:`announce_compiles` makes a process say on stderr which kernel it compiles, so that a
 stage that compiles for seconds is not silent.
 """
 
 from __future__ import annotations
 
+import importlib
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import ExitStack
 from multiprocessing import get_context
+from pathlib import Path
 
 import numpy as np
 
-__all__ = ["announce_compiles", "warm"]
+from imitate import _numba
+from imitate.errors import ImitateError
+
+__all__ = ["KERNELS", "KERNEL_MODULES", "announce_compiles", "compile_notice", "uncompiled",
+           "warm"]
+
+# The one list of numba-compiled kernel modules: by the stage that first compiles them, with
+# about how long that takes on the 2-core CI machine [s] (`python scripts/bench/bench_run.py`).
+# Each calls ensure_writable(__file__) before declaring its kernels; warm() compiles them all
+# and the Makefile's warm-up stamp depends on their files (it reads them from this file).
+KERNELS = {
+    "observe": (("imitate.perception._rim", "imitate.perception._outline"), 4),
+    "learn": (
+        ("imitate.learning.dtw", "imitate.learning.kmeans", "imitate.learning._em",
+         "imitate.learning.bic"),
+        7,
+    ),
+    "optimize": (("imitate.motion._planner",), 10),
+}
+KERNEL_MODULES = tuple(name for names, _ in KERNELS.values() for name in names)
 
 _ANNOUNCING: list = []  # the listener, once registered
+
+
+def compile_notice(stage: str) -> str | None:
+    """A line saying that ``stage`` compiles its kernels, else None: when numba's cache holds
+    no kernel of one of its modules as declared now."""
+    if stage not in KERNELS:
+        return None
+    modules, seconds = KERNELS[stage]
+    uncached = set()
+    for module in map(importlib.import_module, modules):
+        if not _numba.cached(module):
+            assert module.__file__ is not None  # the kernel modules are source files
+            uncached.add(str(_numba.cache_dir(Path(module.__file__))))
+    if not uncached:
+        return None
+    _numba.said()
+    return (
+        f"compiling the {stage} kernels once (about {seconds} s); later runs load them from "
+        f"the cache at {', '.join(sorted(uncached))}"
+    )
 
 
 def announce_compiles(stream=None) -> None:
@@ -36,9 +79,7 @@ def announce_compiles(stream=None) -> None:
         return
     from numba.core import event
 
-    from imitate import numba_cache
-
-    numba_cache.said()  # this announcer names every kernel
+    _numba.said()  # this announcer names every kernel
 
     stream = stream or sys.stderr
 
@@ -66,6 +107,24 @@ def _write(line: str, stream) -> None:
         print(line, file=stream, flush=True)
 
 
+def uncompiled(modules) -> list[str]:
+    """The kernels of ``modules`` (names) that this process has neither called (compiled or
+    loaded from the cache) nor reached from one it called: compiling a kernel compiles the
+    kernels it calls, but loading it from the cache loads none of them."""
+    missing = []
+    for name in modules:
+        declared = _numba.kernels(importlib.import_module(name))
+        reached = {kernel for kernel, dispatcher in declared.items() if dispatcher.signatures}
+        calling = list(reached)
+        while calling:
+            for called in declared[calling.pop()].py_func.__code__.co_names:
+                if called in declared and called not in reached:
+                    reached.add(called)
+                    calling.append(called)
+        missing += [f"{name}.{kernel}" for kernel in declared if kernel not in reached]
+    return missing
+
+
 def _tracker() -> None:
     """The tracker's kernels (steps 3-5) on one rendered stereo pair of a small session."""
     import dataclasses
@@ -78,15 +137,15 @@ def _tracker() -> None:
     sess = session(ObservationConfig(teacher=TeacherConfig(n_demos=2), width=320, height=240))
     start, end = sess.motion.boundaries[0]
     sess = dataclasses.replace(sess, times=sess.times[sess.times >= 0.5 * (start + end)][:1])
-    tracker = StereoTracker(*cameras(sess), perception_config())
+    tracker = StereoTracker(*cameras(sess), perception_config(sess.motion.objects))
     for left, right in frames(sess, ahead=False):
         tracker.update(left, right)
 
 
 def _demos():
-    from imitate.demos.synthetic import SyntheticConfig, pouring_demos
+    from imitate.demos.synthetic import SyntheticConfig, phased_demos
 
-    synthetic = pouring_demos(SyntheticConfig(n_demos=3, duration=1.0, rate=40.0))
+    synthetic = phased_demos(SyntheticConfig(n_demos=3, duration=1.0, rate=40.0))
     return synthetic.demos, synthetic.rate
 
 
@@ -130,58 +189,56 @@ def _planner() -> None:
     plan_from_model(planning_task(), model, q0=humanoid.rest_pose(), config=PlanConfig(max_iter=1))
 
 
-def _everything() -> None:
-    """What a run calls: the tracker, and the learner with both BICs and without DTW."""
-    import dataclasses
-
-    from imitate.learning import LearningConfig, learn
-
-    _tracker()
-    _planner()
-    demos, rate = _demos()
-    for method in ("full", "fast"):
-        config = LearningConfig(k_max=4, bic_method=method)
-        learn(demos, rate=rate, config=config)
-        learn(demos, rate=rate, config=dataclasses.replace(config, n_components=2, use_dtw=False))
-
-
-_GROUPS = {  # the full BIC runs K-means too: the learner's kernels in one group
-    "tracker, planner": (_tracker, _planner),
-    "DTW, K-means, EM, BIC": (_learning_em, _learning_kmeans),
+# Each stage's code path, with the argument types of a run (the full BIC runs K-means too).
+_PATHS = {
+    "observe": (_tracker,),
+    "learn": (_learning_em, _learning_kmeans),
+    "optimize": (_planner,),
 }
 
 
-def _group(name: str) -> float:
-    """Compile the kernels of group ``name`` (in a worker process); returns the seconds."""
+def _stage(stage: str) -> tuple[float, list[str]]:
+    """Compile the kernels of ``stage`` (in a worker process); returns the seconds and the
+    kernels of its modules that the code path did not reach (:func:`uncompiled`)."""
     announce_compiles()
     start = time.perf_counter()
-    for step in _GROUPS[name]:
-        step()
-    return time.perf_counter() - start
+    for path in _PATHS[stage]:
+        path()
+    return time.perf_counter() - start, uncompiled(KERNELS[stage][0])
 
 
 def warm(processes: int = 2, stream=None) -> float:
-    """Compile (or load) every kernel a run calls; returns the seconds it took.
+    """Compile (or load) every kernel of :data:`KERNELS`; returns the seconds it took.
 
     Args:
-        processes: compile the two groups of kernels in this many processes at once (spawned;
-            1 or less: here, one after the other, with every variant of the learner).
+        processes: run the stages' code paths in this many processes at once (spawned; 1 or
+            less: here, one after the other).
         stream: where to report (stderr).
+
+    Raises:
+        ImitateError: a stage's code path does not reach every kernel of its modules.
     """
     stream = stream or sys.stderr
     start = time.perf_counter()
-    print("numba: compiling the tracker's, the learner's and the planner's kernels into the "
-          "cache ...",
+    stages = sorted(KERNELS, key=lambda stage: -KERNELS[stage][1])  # the longest first
+    print(f"numba: compiling the kernels of {', '.join(stages)} into the cache ...",
           file=stream, flush=True)
     announce_compiles(stream)
-    if processes > 1:
-        context = get_context("spawn")
-        with ProcessPoolExecutor(min(processes, len(_GROUPS)), mp_context=context) as pool:
-            for name, seconds in zip(_GROUPS, pool.map(_group, _GROUPS), strict=True):
-                print(f"numba: {name} kernels ready after {seconds:.1f} s", file=stream,
-                      flush=True)
-    else:
-        _everything()
+    missing = []
+    with ExitStack() as workers:
+        if processes > 1:
+            pool = ProcessPoolExecutor(min(processes, len(stages)), mp_context=get_context("spawn"))
+            done = workers.enter_context(pool).map(_stage, stages)
+        else:
+            done = map(_stage, stages)
+        for stage, (seconds, left) in zip(stages, done, strict=True):
+            print(f"numba: {stage} kernels ready after {seconds:.1f} s", file=stream, flush=True)
+            missing += left
+    if missing:
+        raise ImitateError(
+            f"the warm-up compiles not every kernel: its code paths (imitate.warmup._PATHS) "
+            f"reach none of {', '.join(missing)}"
+        )
     seconds = time.perf_counter() - start
     print(f"numba: kernels ready in {seconds:.1f} s", file=stream, flush=True)
     return seconds

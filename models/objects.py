@@ -1,4 +1,4 @@
-"""The bottle, the glass and the liquid: shapes, colours, names, and their MjSpec builder.
+"""The objects and the liquid as MjSpec bodies (their data: :mod:`imitate.models.shapes`).
 
 Each container is a body whose frame sits at the centre of its bottom, ``z`` along its long axis.
 It has one uniformly coloured visual mesh (a surface of revolution made by trimesh), hidden
@@ -10,14 +10,25 @@ hulls means the collision geoms are apart too.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import mujoco
 import numpy as np
 import trimesh
 
-BOTTLE, GLASS = "bottle", "glass"
-PARTICLE_PREFIX = "particle_"
+from imitate.models.shapes import (  # noqa: F401  (the objects' data, re-exported)
+    BOTTLE,
+    BOTTLE_SHAPE,
+    GLASS,
+    GLASS_SHAPE,
+    GRASP_RANGE,
+    PARTICLE_DENSITY,
+    PARTICLE_PREFIX,
+    PARTICLE_RADIUS,
+    PARTICLE_RGBA,
+    SHAPES,
+    STICK,
+    STICK_SHAPE,
+    ContainerShape,
+)
 
 # Visual and hidden groups of mujoco.Renderer's default scene options (groups 0-2 are drawn).
 VISUAL_GROUP, COLLISION_GROUP, HULL_GROUP = 1, 3, 4
@@ -26,55 +37,6 @@ PHYSICAL = 1
 # Stiff contacts (time constant = 2 physics steps) so fast particles cannot sink through a wall.
 STIFF_SOLREF = (0.004, 1.0)
 FLOOR_THICKNESS = 0.012  # [m] of the collision floor, below the visual one: a safety margin
-
-
-@dataclass(frozen=True)
-class ContainerShape:
-    """A thin-walled vessel, open at the top, as a profile of wall segments.
-
-    Attributes:
-        profile: ``(n, 2)`` points ``(radius, height)`` of the wall's mid-surface, bottom to
-            rim [m].
-        wall: wall thickness [m].
-        segments: boxes per ring of the collision wall.
-        rgba: the one uniform colour.
-    """
-
-    profile: tuple[tuple[float, float], ...]
-    wall: float
-    segments: int
-    rgba: tuple[float, float, float, float]
-
-    @property
-    def height(self) -> float:
-        """Height of the rim above the bottom [m]."""
-        return self.profile[-1][1]
-
-    @property
-    def inner_radius(self) -> float:
-        """Smallest inner radius of the wall [m] (the bottle's neck, the glass's foot)."""
-        return min(r for r, _ in self.profile) - self.wall / 2
-
-
-# Saturated hues far from everything else in the scene: green bottle, blue glass.
-BOTTLE_SHAPE = ContainerShape(
-    profile=((0.034, 0.0), (0.034, 0.15), (0.016, 0.195), (0.016, 0.235)),
-    wall=0.004,
-    segments=16,
-    rgba=(0.10, 0.72, 0.22, 1.0),
-)
-GLASS_SHAPE = ContainerShape(
-    profile=((0.036, 0.0), (0.042, 0.10)),
-    wall=0.004,
-    segments=18,
-    rgba=(0.12, 0.30, 0.92, 1.0),
-)
-SHAPES = {BOTTLE: BOTTLE_SHAPE, GLASS: GLASS_SHAPE}  # the containers by name
-PARTICLE_RADIUS = 0.005  # [m]
-PARTICLE_DENSITY = 1000.0  # [kg/m^3], water
-# Red juice: it stands out on the white robot, the grey floor and the beige table, and its hue
-# is far from the bottle's green and the glass's blue.
-PARTICLE_RGBA = (0.82, 0.06, 0.12, 1.0)
 
 
 def container_mesh(shape: ContainerShape) -> trimesh.Trimesh:

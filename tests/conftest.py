@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from imitate.cli import main
-from imitate.demos.synthetic import pouring_demos
+from imitate.demos.synthetic import phased_demos
 from imitate.learning import time_stacked
 from imitate.learning.dtw import align
 
@@ -20,7 +20,7 @@ from imitate.learning.dtw import align
 @pytest.fixture(scope="module")
 def demo_data() -> np.ndarray:
     """Aligned synthetic pouring demonstrations as (t, x) samples, shape (~2400, 8)."""
-    sd = pouring_demos()
+    sd = phased_demos()
     return time_stacked(list(align(sd.demos).aligned), sd.rate)
 
 

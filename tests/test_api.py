@@ -10,13 +10,13 @@ import pytest
 
 import imitate
 from imitate.envs.assembly import Obstacle
-from imitate.envs.pouring import PouringEnv
+from imitate.envs.pour.env import PouringEnv
 from imitate.learning import LearnedModel
 from imitate.motion import Plan
 from imitate.perception import Observations
-from imitate.run import Demos, Recording
 from imitate.rundir.schema import REPORT_KEYS
 from imitate.stages.config import RunConfig, load_config
+from imitate.stages.files import DemosFile, Recording
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 MARKER = "<!-- tests/test_api.py runs the next code block -->"
@@ -66,7 +66,7 @@ def test_members_are_typed_and_read_lazily(quick_run):
     assert run.__dict__.keys() == {"path"}  # nothing read yet
     assert isinstance(run.config, RunConfig) and run.config == load_config(quick_run)
     assert isinstance(run.observations, Observations)
-    assert isinstance(run.demos, Demos)
+    assert isinstance(run.demos, DemosFile)
     assert len(run.demos.segments) == run.report["demos"]["detected"]
     assert isinstance(run.model, LearnedModel) and isinstance(run.plan, Plan)
     assert isinstance(run.replay, Recording)

@@ -1,4 +1,5 @@
-"""Artifacts are written atomically and read back with errors that say what to re-run."""
+"""Artifacts are written atomically and read back with errors that name the file; the run files
+(:mod:`imitate.stages.files`) add the command that writes them again."""
 
 import errno
 import os
@@ -20,6 +21,8 @@ from imitate.rundir.artifacts import (
     staged,
     write_atomic,
 )
+from imitate.rundir.schema import load_report
+from imitate.stages.files import DemosFile, ModelFile, PlanFile
 
 
 def test_npz_round_trip(tmp_path):
@@ -49,30 +52,40 @@ def test_interrupted_rewrite_keeps_the_old_file(tmp_path):
     assert load_json(path) == {"seed": 1}
 
 
-def test_missing_artifact_names_file_and_stage(tmp_path):
+def test_a_missing_file_is_named_with_the_hint_given(tmp_path):
+    path = tmp_path / "model.npz"
+    with pytest.raises(ImitateError) as error:
+        load_npz(path)
+    assert str(error.value) == f"{path} is missing"
+    with pytest.raises(ImitateError, match=r"model.npz is missing; make it$"):
+        load_npz(path, hint="make it")
+
+
+def test_missing_run_file_names_file_and_stage(tmp_path):
     with pytest.raises(ImitateError, match=r"model.npz is missing; re-run `imitate learn"):
-        load_npz(tmp_path / "model.npz")
+        ModelFile.load(tmp_path)
 
 
-def test_corrupt_artifact_names_file_and_stage(tmp_path):
+def test_corrupt_run_file_names_file_and_stage(tmp_path):
     (tmp_path / "plan.npz").write_bytes(b"not a zip file")
     with pytest.raises(ImitateError, match=r"plan.npz is corrupt .* `imitate optimize"):
-        load_npz(tmp_path / "plan.npz")
+        PlanFile.load(tmp_path)
     (tmp_path / "report.json").write_text("{truncated")
-    with pytest.raises(ImitateError, match=r"report.json is corrupt"):
-        load_json(tmp_path / "report.json")
+    with pytest.raises(ImitateError, match=r"report.json is corrupt .*delete it"):
+        load_report(tmp_path / "report.json")
 
 
 def test_missing_array_is_named(tmp_path):
     save_npz(tmp_path / "demos.npz", {"t": np.zeros(3)})
-    with pytest.raises(ImitateError, match=r"lacks \['segments'\]; re-run `imitate observe"):
-        load_npz(tmp_path / "demos.npz", required=("t", "segments"))
+    with pytest.raises(ImitateError, match=r"lacks \['objects', 'gaze', 'boundaries'\]; re-run `"
+                       r"imitate observe"):
+        DemosFile.load(tmp_path)
 
 
-def test_array_read_but_not_required_is_named_with_its_stage(tmp_path):
+def test_array_read_but_not_required_is_named_with_the_hint(tmp_path):
     save_npz(tmp_path / "plan.npz", {"times": np.zeros(3)})
-    plan = load_npz(tmp_path / "plan.npz", required=("times",))
-    with pytest.raises(ImitateError, match=r"lacks 'sweep2_cost_total'; re-run `imitate optimize"):
+    plan = load_npz(tmp_path / "plan.npz", required=("times",), hint="re-run it")
+    with pytest.raises(ImitateError, match=r"lacks 'sweep2_cost_total'; re-run it"):
         plan["sweep2_cost_total"]
 
 

@@ -1,6 +1,5 @@
 """The ``imitate`` command end to end: ``imitate run --quick``, its report, determinism, errors."""
 
-import argparse
 import json
 import re
 import shutil
@@ -9,7 +8,8 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from imitate.cli import build_parser, main
+from imitate.cli import main
+from imitate.cli.parser import COMMANDS, build_parser, stages_of
 from imitate.errors import ImitateError
 from imitate.rundir.artifacts import load_npz
 from imitate.stages.config import RunConfig, settings
@@ -151,15 +151,14 @@ def test_bad_flag_values_are_refused(argv, expected, tmp_path, capsys):
     assert not (tmp_path / "config.json").exists()
 
 
-def _commands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
-    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    return action.choices
-
-
 def test_cli_knows_every_stage_in_order():
-    from imitate.rundir.table import NAMES
+    from imitate.stages.table import NAMES
 
-    assert tuple(_commands(build_parser())) == (*NAMES, "run", "export", "eval", "compare")
+    assert tuple(COMMANDS) == (*NAMES, "run", "export", "eval", "compare")
+    parser = build_parser()
+    for command in COMMANDS:
+        args, _ = parser.parse_known_args([command, "RUN_DIR", "--format", "hdf5"])
+        assert args.command == command and args.parser.prog == f"imitate {command}"
 
 
 def test_config_round_trips_through_json():
@@ -170,26 +169,27 @@ def test_config_round_trips_through_json():
 
 
 def test_help_states_the_real_defaults():
-    defaults = RunConfig()
-    flags = [
-        action
-        for command in _commands(build_parser()).values()
-        for action in command._actions
-        if action.dest in RunConfig.__dataclass_fields__
-    ]
-    assert {a.dest for a in flags} >= {"n_demos", "k_max", "collision_weight", "particles"}
-    for action in flags:
-        expected = getattr(defaults, action.dest)
-        if expected is None:  # --obstacle: no obstacle unless given
-            continue
-        stated = re.search(r"\(default (\S+)\)", action.help)
-        assert stated, action.option_strings
-        if isinstance(expected, bool):
-            assert stated.group(1) == ("--" if expected else "--no-") + action.dest
-        elif isinstance(expected, str):
-            assert stated.group(1) == expected, action.option_strings
-        else:
-            assert float(stated.group(1)) == expected, action.option_strings
+    defaults, parser, shown = RunConfig(), build_parser(), set()
+    for command in (*stages_of("run"), "run"):
+        page = "".join(parser.parse_known_args([command])[0].parser.format_help().split())
+        for name, setting, default in settings([None, *stages_of(command)]):
+            if setting.flag is None:
+                continue
+            text = setting.describe(default)
+            assert "".join(text.split()) in page, (command, setting.flag)
+            shown.add(name)
+            expected = getattr(defaults, name)
+            if expected is None:  # --obstacle: no obstacle unless given
+                continue
+            stated = re.search(r"\(default (\S+)\)", text)
+            assert stated, setting.flag
+            if isinstance(expected, bool):
+                assert stated.group(1) == ("--" if expected else "--no-") + name
+            elif isinstance(expected, str):
+                assert stated.group(1) == expected, setting.flag
+            else:
+                assert float(stated.group(1)) == expected, setting.flag
+    assert shown >= {"n_demos", "k_max", "collision_weight", "video_width"}
 
 
 def test_settings_refuse_values_outside_the_range_their_help_states():
@@ -231,7 +231,7 @@ def test_a_mistyped_flag_gets_the_sub_command_usage_and_a_suggestion(tmp_path, c
 
 
 def test_a_new_run_over_another_names_the_settings_it_replaces(tmp_path, caplog):
-    from imitate.cli import _warn_if_replaced
+    from imitate.cli.commands import _warn_if_replaced
     from imitate.rundir.artifacts import save_json
 
     save_json(tmp_path / "config.json", RunConfig.quick().to_json())
@@ -263,16 +263,18 @@ def test_a_report_of_another_schema_is_refused_in_one_line(quick_run, tmp_path):
     assert main(["figures", str(run_dir)]) == 1
 
 
-HEAVY = ("mujoco", "numba", "scipy.signal", "scipy.stats", "matplotlib", "cv2")
+HEAVY = ("mujoco", "numba", "scipy", "matplotlib", "cv2", "trimesh")
 
 
 @pytest.mark.parametrize("command", ["", "observe", "learn", "optimize", "replay", "figures",
                                      "run", "export", "eval", "compare"])
 def test_help_loads_no_heavy_module(command):
-    """Every ``--help`` builds its parser from plain constants (quick, even on a loaded
-    machine): none of MuJoCo, numba, SciPy's signal and stats, matplotlib or OpenCV loads."""
+    """Every ``--help`` builds its parser from plain constants and the settings' declarations
+    (under a second): none of MuJoCo, numba, SciPy, matplotlib, OpenCV or trimesh loads. Its
+    time is printed (``pytest -s``), not asserted: a loaded machine is slower."""
     import subprocess
     import sys
+    import time
 
     code = (
         "import sys, runpy\n"
@@ -281,8 +283,10 @@ def test_help_loads_no_heavy_module(command):
         "except SystemExit:\n    pass\n"
         f"print(sorted(m for m in {HEAVY!r} if m in sys.modules), file=sys.stderr)\n"
     )
+    start = time.perf_counter()
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True)
+    print(f"imitate {command} --help: {time.perf_counter() - start:.2f} s")
     assert "usage: imitate" in done.stdout
     assert done.stderr.strip().splitlines()[-1] == "[]"
 
@@ -328,3 +332,33 @@ def test_an_error_keeps_a_paths_spaces_on_one_line(tmp_path, capsys):
     assert main(["learn", str(folder)]) == 1
     (line,) = capsys.readouterr().err.splitlines()
     assert line.startswith("imitate learn: error: ") and f"`imitate run --out {folder}`" in line
+
+
+@pytest.mark.parametrize(
+    ("error", "status", "line"),
+    [
+        (ImitateError("similarities='variance,flat' not accepted: two or more"), 1,
+         "--similarity variance,flat not accepted: two or more"),
+        (ImitateError("from_eval='e v' with format='minari' not accepted"), 1,
+         "--from-eval e v with --format minari not accepted"),
+        (OSError(28, "No space left on device"), 1,
+         "[Errno 28] No space left on device; nothing was written"),
+        (KeyboardInterrupt(), 130, "interrupted (Ctrl-C); nothing was written"),
+        ("SIGTERM", 143, "terminated (SIGTERM); nothing was written"),
+    ],
+)
+def test_every_command_exits_through_one_mapping(error, status, line, capsys):
+    """A command's failure is one line naming the flags (not the library's parameters), with
+    status 1 for an ImitateError or OSError, 130 for Ctrl-C and 143 for SIGTERM."""
+    import os
+    import signal
+
+    from imitate.cli.commands import exits
+
+    with exits("export", "nothing was written") as outcome:
+        if error == "SIGTERM":
+            os.kill(os.getpid(), signal.SIGTERM)
+        else:
+            raise error
+    assert outcome.status == status
+    assert capsys.readouterr().err == f"imitate export: error: {line}\n"

@@ -8,13 +8,13 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from imitate.cli import build_parser, config_for, main
+from imitate.cli import main
+from imitate.cli.parser import build_parser, config_for
 from imitate.defaults import MAX_WEIGHT
 from imitate.envs.teacher_motion import TeacherConfig
 from imitate.envs.video import write_video
 from imitate.errors import ImitateError
-from imitate.rundir import table
-from imitate.stages import provenance
+from imitate.stages import provenance, table
 from imitate.stages.config import (
     VIDEO_BLOCK,
     RunConfig,

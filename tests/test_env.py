@@ -11,7 +11,7 @@ from gymnasium.utils.env_checker import check_env
 import imitate
 from imitate.envs import pouring
 from imitate.envs.assembly import Obstacle
-from imitate.envs.pouring import PouringEnv
+from imitate.envs.pour.env import PouringEnv
 from imitate.envs.rendering import make_renderer
 from imitate.errors import ImitateError
 from imitate.models import humanoid
@@ -86,7 +86,8 @@ def visible(image):
     """Pixels ``(2,)`` of the bottle's and the glass's colours (the tracker's ranges) in an RGB
     image."""
     hsv = cv2.cvtColor(image, cv2.COLOR_RGB2HSV)
-    return np.array([np.count_nonzero(m.colour.mask(hsv)) for m in object_models()])
+    models = object_models(("bottle", "glass"))
+    return np.array([np.count_nonzero(m.colour.mask(hsv)) for m in models])
 
 
 def test_the_workspace_camera_sees_both_objects_through_a_pour_like_motion(monkeypatch):

@@ -15,18 +15,19 @@ import pytest
 
 from imitate.cli import main
 from imitate.demos.oracle import oracle_model
-from imitate.envs.outcome import outcome
+from imitate.envs.pour.outcome import outcome
 from imitate.errors import ImitateError
 from imitate.evaluation import Suite, evaluate, load_suite
 from imitate.evaluation.report import summarize, text, wilson
 from imitate.evaluation.suite import KEYS
 from imitate.evaluation.suite_run import RESULTS, default_out, last_records, read_records
 from imitate.evaluation.variation import Variation, draw
-from imitate.learning import LearningConfig
+from imitate.learning import LearnedModel, LearningConfig
 from imitate.models.scene import TABLE_HEIGHT
 from imitate.motion.replay import planning_task
 from imitate.rundir.artifacts import save_json, save_npz
 from imitate.stages import provenance
+from imitate.stages.files import Learned, ModelFile
 
 # Three variations that run in seconds: few particles, a short optimization, two replays.
 TINY = {
@@ -243,7 +244,8 @@ def test_a_variation_whose_physics_diverges_is_recorded_and_the_next_goes_on(
 
     suite = Suite.from_dict({**TINY, "obstacle_share": 0.0, "replays": 1})
     first, second = (draw(suite, 0, i, np.zeros((2, 3))) for i in range(2))
-    runner = trial.Trial(model_arrays)
+    learned = Learned(LearnedModel.from_arrays(model_arrays), model_arrays["gaze"])
+    runner = trial.Trial(learned)
     replay = trial.replay
 
     def diverging(plan, env, on_step, **kwargs):
@@ -460,24 +462,18 @@ def test_a_file_in_the_way_of_the_evaluation_is_named(tmp_path, model_arrays, ca
 @pytest.mark.parametrize("name", ["mean", "weights", "covariances"])
 def test_a_model_of_nan_names_its_file(tmp_path, model_arrays, name):
     """Review I10, N-e1: the model's errors name model.npz and the stage to re-run."""
-    from imitate.learning import LearnedModel
-    from imitate.rundir.artifacts import load_npz
-
     arrays = {**model_arrays, name: np.full_like(model_arrays[name], np.nan)}
     save_npz(tmp_path / "model.npz", arrays)
     with pytest.raises(ImitateError, match=f"model.npz: {name} must be finite .*imitate learn"):
-        LearnedModel.from_arrays(load_npz(tmp_path / "model.npz"))
+        ModelFile.load_learned(tmp_path)
 
 
 def test_a_model_of_disagreeing_shapes_names_its_file(tmp_path, model_arrays):
     """Review I10: a GMR covariance of 3 dimensions beside a mean of 7 reached the planner."""
-    from imitate.learning import LearnedModel
-    from imitate.rundir.artifacts import load_npz
-
     arrays = {**model_arrays, "covariance": model_arrays["covariance"][:, :3, :3]}
     save_npz(tmp_path / "model.npz", arrays)
     with pytest.raises(ImitateError, match=r"model.npz: times \(T,\), mean .* must agree; got"):
-        LearnedModel.from_arrays(load_npz(tmp_path / "model.npz"))
+        ModelFile.load_learned(tmp_path)
 
 
 def test_a_run_directory_this_user_cannot_write_is_evaluated_into_out(

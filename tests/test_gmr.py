@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from imitate.demos.synthetic import pouring_demos
+from imitate.demos.synthetic import phased_demos
 from imitate.errors import ImitateError
 from imitate.learning import LearningConfig, learn
 from imitate.learning.gmm import GMM
@@ -78,7 +78,7 @@ def test_at_a_component_far_from_the_others_returns_that_component():
 
 
 def test_dtw_lowers_the_pouring_phase_variance_at_least_twofold():
-    sd = pouring_demos()
+    sd = phased_demos()
     aligned = learn(
         sd.demos, rate=sd.rate, config=LearningConfig(bic_method="fast", covariance="total")
     )
@@ -87,7 +87,7 @@ def test_dtw_lowers_the_pouring_phase_variance_at_least_twofold():
         sd.demos, rate=sd.rate,
         config=LearningConfig(n_components=k, use_dtw=False, covariance="total"),
     )
-    start, end = sd.pour_windows[aligned.alignment.reference]
+    start, end = sd.act_windows[aligned.alignment.reference]
     pour = (aligned.times >= start) & (aligned.times <= end)
     var_dtw = aligned.variance[pour]
     var_raw = np.diagonal(gmr(raw.gmm, aligned.times[pour], covariance="total")[1], 0, 1, 2)

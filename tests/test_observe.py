@@ -40,7 +40,8 @@ def rendered_session():
 def test_tracking_rendered_frames_matches_ground_truth(rendered_session):
     sess, pairs = rendered_session
     timing = {}
-    tracks = track(StereoTracker(*cameras(sess), perception_config()), pairs, sess.times, timing)
+    tracker = StereoTracker(*cameras(sess), perception_config(sess.motion.objects))
+    tracks = track(tracker, pairs, sess.times, timing)
     truth = ground_truth(sess, tracks.objects)
     assert tracks.detected.all() and timing["track"] > 0
     error = np.linalg.norm(tracks.position - truth.position, axis=-1)
@@ -55,7 +56,7 @@ def test_tracking_runs_opencv_in_one_thread_and_restores_its_threads(rendered_se
     seen = []
 
     def tracker():
-        return StereoTracker(*cameras(sess), perception_config())
+        return StereoTracker(*cameras(sess), perception_config(sess.motion.objects))
 
     def counted():
         for pair in pairs:
@@ -80,7 +81,7 @@ def test_tracking_runs_opencv_in_one_thread_and_restores_its_threads(rendered_se
 
 def test_tracker_recovers_after_an_object_leaves_the_view(rendered_session):
     sess, pairs = rendered_session
-    tracker = StereoTracker(*cameras(sess), perception_config())
+    tracker = StereoTracker(*cameras(sess), perception_config(sess.motion.objects))
     blank = np.full_like(pairs[0][0], 200)
     assert all(m is not None for m in tracker.update(*pairs[0]).values())
     assert all(m is None for m in tracker.update(blank, blank).values())
@@ -89,7 +90,7 @@ def test_tracker_recovers_after_an_object_leaves_the_view(rendered_session):
 
 def test_an_object_found_in_no_frame_is_named_with_its_colour(rendered_session):
     sess, pairs = rendered_session
-    models = object_models()
+    models = object_models(sess.motion.objects)
     purple = ObjectModel(
         "purple_cup", ColourRange((140, 100, 30), (160, 255, 255)), models[1].profile
     )
@@ -108,7 +109,7 @@ def test_an_object_found_in_no_frame_is_named_with_its_colour(rendered_session):
 )
 def test_frames_of_the_wrong_shape_or_dtype_are_refused(rendered_session, frame):
     sess, pairs = rendered_session
-    tracker = StereoTracker(*cameras(sess), perception_config())
+    tracker = StereoTracker(*cameras(sess), perception_config(sess.motion.objects))
     with pytest.raises(ImitateError, match=r"left frame not accepted: .*\(240, 320, 3\).*uint8"):
         tracker.update(frame, pairs[0][1])
 

@@ -120,7 +120,7 @@ def test_wheel_ships_every_package_and_one_top_level_name(installed):
     }
     assert not expected - names, f"missing from the wheel: {sorted(expected - names)}"
     for shipped in ("imitate/cli/__init__.py", "imitate/cli/console.py", "imitate/py.typed",
-                    "imitate/evaluation/suites/effort.toml", "imitate/models/humanoid.xml",
+                    "imitate/envs/pour/suites/effort.toml", "imitate/models/humanoid.xml",
                     f"{WHEEL_STEM}.dist-info/licenses/LICENSE"):
         assert shipped in names
 
@@ -139,7 +139,7 @@ def test_installed_command_from_another_folder(installed):
     assert "usage: imitate" in _run(installed, "imitate", "--help")
     assert "usage: imitate" in _run(installed, "python", "-m", "imitate", "--help")
     assert _run(installed, "imitate", "--version") == f"imitate {imitate.__version__}\n"
-    assert _run(installed, "python", "-c", ONE_LINER).strip() == "imitate.envs.pouring"
+    assert _run(installed, "python", "-c", ONE_LINER).strip() == "imitate.envs.pour.env"
 
 
 def test_installed_code_digest_is_the_clones(installed):
@@ -168,7 +168,7 @@ def test_gym_make_needs_no_import_and_ignores_local_folders(tmp_path):
         check=False,
     )
     assert result.returncode == 0, result.stderr
-    assert result.stdout.strip() == "imitate.envs.pouring"
+    assert result.stdout.strip() == "imitate.envs.pour.env"
 
 
 def _installs_of_imitate(text: str) -> list[int]:

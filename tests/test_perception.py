@@ -14,17 +14,15 @@ from imitate.perception import (
     Observations,
     PinholeCamera,
     StereoTracker,
-    axis_angle,
     fill_gaps,
-    gaze_frame,
-    load_observations,
     perception_config,
-    save_observations,
     tracks_from_ends,
     triangulate,
 )
 from imitate.perception._rim import _correct_ends
+from imitate.taskspace import gaze_of_camera, image_angle
 
+POURING = ("bottle", "glass")  # the objects tracked
 RED = ColourRange((170, 120, 40), (8, 255, 255))  # wraps around hue 0
 MARKERS = np.array([[0.62, 0.05, 1.10], [0.70, -0.12, 1.02], [0.55, 0.10, 0.98]])  # [m]
 
@@ -101,7 +99,7 @@ def test_rim_correction_recovers_the_ends_from_exact_extremes(marker_views, tilt
     """The compiled rim correction (module step 5) on exact synthetic rim extremes of the
     bottle, upright and lying across the view tilted away from the eyes."""
     _, cameras = marker_views
-    tracker = StereoTracker(*cameras, perception_config())
+    tracker = StereoTracker(*cameras, perception_config(POURING))
     bottle = tracker.config.objects[0]
     radii = bottle.radius(np.array([0.0, bottle.height]))
     eyes = 0.5 * (cameras[0].position + cameras[1].position)
@@ -137,13 +135,13 @@ def test_rim_correction_recovers_the_ends_from_exact_extremes(marker_views, tilt
     assert np.abs(corrected - ends).max() < 1e-3
 
 
-def test_gaze_frame_is_the_left_camera_and_right_handed(marker_views):
+def test_gaze_of_the_left_camera_is_right_handed(marker_views):
     _, (left, _) = marker_views
-    gaze = gaze_frame(left)
+    gaze = gaze_of_camera(left.rotation)
     assert np.allclose(gaze.T @ gaze, np.eye(3)) and np.linalg.det(gaze) > 0
     assert gaze[:, 2] @ np.array([1.0, 0.0, 0.0]) > 0.9  # looks at the teacher (+x)
     upright = np.array([0.0, 0.0, 1.0])
-    assert axis_angle(upright, gaze) == pytest.approx(-np.pi / 2, abs=0.01)
+    assert image_angle(upright, gaze) == pytest.approx(-np.pi / 2, abs=0.01)
 
 
 def test_short_gaps_are_interpolated_and_long_ones_reported():
@@ -161,7 +159,7 @@ def test_short_gaps_are_interpolated_and_long_ones_reported():
 
 def _tracks_with_gaps():
     """Two upright objects moving along x at 30 Hz; the bottle's gap is short, the glass's long."""
-    perception = perception_config(max_gap=0.1)
+    perception = perception_config(POURING, max_gap=0.1)
     times = np.arange(30) / 30.0
     ends = np.zeros((2, 30, 2, 3))
     ends[:, :, 1, 2] = 0.2  # upright, 0.2 m long
@@ -183,11 +181,13 @@ def test_tracks_report_long_gaps_and_fill_short_ones():
 
 
 def test_observations_round_trip(tmp_path):
+    from imitate.stages.files import ObservationsFile
+
     tracks = _tracks_with_gaps()
     truth = GroundTruth(tracks.position, tracks.axis, tracks.angle, np.array([[0.1, 0.9]]))
     saved = Observations(tracks, np.arange(24.0).reshape(2, 3, 4), (320, 240), truth)
-    save_observations(tmp_path / "observations.npz", saved)
-    loaded = load_observations(tmp_path / "observations.npz")
+    ObservationsFile(saved).save(tmp_path)
+    loaded = ObservationsFile.load(tmp_path).observations
     assert loaded.tracks.objects == tracks.objects and loaded.tracks.gaps == tracks.gaps
     for name in ("times", "position", "axis", "angle", "detected", "gaze"):
         assert np.array_equal(getattr(loaded.tracks, name), getattr(tracks, name), equal_nan=True)

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from imitate.envs import assembly, teacher_motion
-from imitate.envs.pour_geometry import PourGeometry
-from imitate.envs.pouring import PouringEnv, _inside
+from imitate.envs.pour.geometry import PourGeometry
+from imitate.envs.pour.env import PouringEnv, _inside
 from imitate.models import objects
 
 
@@ -80,7 +80,7 @@ def test_particles_leave_bottle_tilted_120_degrees():
 
     pose(0.0)
     assembly.hold(model, data, "teacher")
-    assembly.fill_bottle(model, data)
+    assembly.fill_tool(model, data)
     steps = 400
     for k in range(steps):  # tilt to 120 degrees in 0.8 s, then hold for 1 s
         pose(np.radians(120) * min(1.0, k / (0.8 / model.opt.timestep)))

@@ -6,7 +6,7 @@ from html.parser import HTMLParser
 from pathlib import Path
 
 from imitate.evaluation.report import summarize
-from imitate.rundir import table
+from imitate.rundir import layout
 from imitate.rundir.page import CAPTIONS, save_eval_page, save_run_page
 from imitate.rundir.schema import REPORT_SCHEMA
 from imitate.stages.config import RunConfig
@@ -38,10 +38,10 @@ def references(page: Path) -> References:
 
 
 def test_run_page_links_every_artifact_and_shows_the_key_numbers(quick_run):
-    found = references(quick_run / table.PAGE)
-    report = json.loads((quick_run / table.REPORT).read_text())
+    found = references(quick_run / layout.PAGE)
+    report = json.loads((quick_run / layout.REPORT).read_text())
     assert set(report["artifacts"].values()) <= set(found.paths)
-    assert {f"figures/{name}.png" for name in table.FIGURES} <= set(found.paths)
+    assert {f"figures/{name}.png" for name in layout.FIGURES} <= set(found.paths)
     assert "video.mp4" in found.paths
     text = " ".join(found.text)
     opt, replay = report["optimization"], report["replay"]
@@ -111,13 +111,13 @@ def test_eval_page_links_its_files_and_failure_videos(tmp_path):
 
 
 def test_every_figure_has_a_caption():
-    assert set(CAPTIONS) == set(table.FIGURES)
+    assert set(CAPTIONS) == set(layout.FIGURES)
 
 
 def test_run_page_explains_its_numbers(quick_run):
     from imitate.rundir.page import run_page
 
-    report = json.loads((quick_run / table.REPORT).read_text())
+    report = json.loads((quick_run / layout.REPORT).read_text())
     config = json.loads((quick_run / "config.json").read_text())
     opt = report["optimization"]
     text = " ".join("".join(References(run_page(report, config, str(quick_run))).text).split())

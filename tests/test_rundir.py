@@ -21,9 +21,8 @@ import pytest
 from imitate.cli import main
 from imitate.errors import ImitateError
 from imitate.figures import drawing
-from imitate.rundir import table
 from imitate.rundir.lock import LOCK, locked
-from imitate.stages import provenance
+from imitate.stages import provenance, table
 from imitate.stages.config import load_config
 
 
@@ -196,7 +195,7 @@ def test_6_observations_lacking_an_array(run_dir, capsys):
     assert "observations.npz is not the file `imitate observe` wrote" in line
     assert main(["figures", str(run_dir), "--force"]) == 1
     line = one_error_line(capsys.readouterr().err, "figures")
-    assert "observations.npz lacks 'gap_span'" in line and "imitate observe" in line
+    assert "observations.npz lacks ['gap_span']" in line and "imitate observe" in line
 
 
 @pytest.mark.parametrize("command", [["observe", "--quick"], ["replay"], ["run", "--quick"]])

@@ -6,7 +6,7 @@ import pytest
 
 from imitate.envs import assembly
 from imitate.envs.collision import CollisionPairs
-from imitate.envs.pouring import PouringEnv
+from imitate.envs.pour.env import PouringEnv
 from imitate.errors import ImitateError
 from imitate.models import humanoid, objects
 from imitate.models import scene as names

@@ -3,11 +3,12 @@
 import numpy as np
 import pytest
 
-from imitate.demos.segment import StillnessConfig, load_demos, save_demos, segment
+from imitate.demos.segment import StillnessConfig, segment
 from imitate.envs.observation import tracked_point
 from imitate.envs.teacher_motion import TeacherConfig, script_demonstrations
 from imitate.errors import ImitateError
-from imitate.perception import Tracks, axis_angle
+from imitate.perception import Tracks
+from imitate.taskspace import image_angle
 
 # Gaze frame of a camera looking along +x, level: columns right, down, forward.
 GAZE = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
@@ -23,7 +24,7 @@ def _tracks(seed: int, noise: float, n_demos: int = 5):
         np.array(v) for v in zip(*(tracked_point(n, *poses[n]) for n in names), strict=True)
     )
     rng = np.random.default_rng(seed)
-    angle = np.unwrap(axis_angle(axes, GAZE), axis=-1)
+    angle = np.unwrap(image_angle(axes, GAZE), axis=-1)
     tracks = Tracks(
         times=times,
         objects=names,
@@ -72,10 +73,12 @@ def test_settings_that_see_no_stillness_find_nothing():
 def test_demos_round_trip(tmp_path):
     tracks, _ = _tracks(2, 0.0, n_demos=2)
     demos = segment(tracks)
-    save_demos(tmp_path / "demos.npz", demos, tracks)
-    loaded, names, gaze = load_demos(tmp_path / "demos.npz")
-    assert names == tracks.objects and np.array_equal(gaze, GAZE)
-    for a, b in zip(demos, loaded, strict=True):
+    from imitate.stages.files import DemosFile
+
+    DemosFile(tuple(demos), tracks.objects, tracks.gaze).save(tmp_path)
+    loaded = DemosFile.load(tmp_path)
+    assert loaded.objects == tracks.objects and np.array_equal(loaded.gaze, GAZE)
+    for a, b in zip(demos, loaded.segments, strict=True):
         assert (a.start, a.end) == (b.start, b.end)
         assert np.array_equal(a.position, b.position) and np.array_equal(a.angle, b.angle)
 

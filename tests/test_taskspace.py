@@ -1,6 +1,6 @@
-"""Task space (eq. 1): the demonstration map's values, unwrapping and gaze convention, and the
-robot map ``TaskMap`` (value, Jacobian, rates) against ``task_space`` and finite differences on
-a toy MuJoCo model."""
+"""Task space (eq. 1): its columns, the gaze frames, the demonstration map's values, unwrapping
+and angle convention, and the robot map ``TaskMap`` (value, Jacobian, rates) against
+``task_space`` and finite differences on a toy MuJoCo model."""
 
 from __future__ import annotations
 
@@ -11,7 +11,19 @@ from scipy.spatial.transform import Rotation
 
 from imitate.errors import ImitateError
 from imitate.motion.kinematics import Kinematics
-from imitate.motion.taskspace import TaskMap, gaze_frame, object_orientation, task_space
+from imitate.motion.taskspace import TaskMap
+from imitate.taskspace import (
+    _POUR_DIMS,
+    ANGLES,
+    POSITION,
+    TASK_DIMS,
+    TASK_UNITS,
+    gaze_frame,
+    gaze_of_camera,
+    image_angle,
+    object_orientation,
+    task_space,
+)
 
 N_LINKS = 3  # hinges per object chain
 H = 1e-6  # central-difference step [rad]
@@ -22,11 +34,11 @@ def _fmt(values) -> str:
 
 
 def _toy_kinematics(seed: int) -> Kinematics:
-    """Two serial chains of hinges with random axes and offsets, ending in a ``bottle`` and a
-    ``glass`` body with random orientations (a toy robot holding two objects)."""
+    """Two serial chains of hinges with random axes and offsets, ending in a ``tool`` and a
+    ``target`` body with random orientations (a toy robot holding two objects)."""
     rng = np.random.default_rng(seed)
     chains, joints = [], []
-    for name in ("bottle", "glass"):
+    for name in ("tool", "target"):
         xml = close = ""
         for i in range(N_LINKS):
             joints.append(f"{name}{i}")
@@ -52,7 +64,7 @@ def _toy(seed: int, gaze: np.ndarray | None = None, fixed=()) -> tuple[TaskMap, 
     kin = _toy_kinematics(seed)
     gaze = Rotation.random(random_state=seed).as_matrix() if gaze is None else gaze
     q = np.random.default_rng(seed + 50).uniform(-np.pi, np.pi, kin.n)
-    return TaskMap(kin, "bottle", "glass", gaze, fixed), q
+    return TaskMap(kin, "tool", "target", gaze, fixed), q
 
 
 def _at(task: TaskMap, q: np.ndarray, ref) -> tuple[np.ndarray, np.ndarray]:
@@ -72,11 +84,11 @@ def _fd_jacobian(task: TaskMap, q: np.ndarray, ref: np.ndarray) -> np.ndarray:
 
 
 def _frame_task_space(task: TaskMap) -> np.ndarray:
-    """``task_space`` of the bottle's and glass's frames (origin, z axis) read from MuJoCo."""
+    """``task_space`` of the tool's and target's frames (origin, z axis) read from MuJoCo."""
     d = task.kin.data
     return task_space(
-        d.body("bottle").xpos[None], _axis(task, "bottle")[None],
-        d.body("glass").xpos[None], _axis(task, "glass")[None], task.gaze,
+        d.body("tool").xpos[None], _axis(task, "tool")[None],
+        d.body("target").xpos[None], _axis(task, "target")[None], task.gaze,
     )[0]
 
 
@@ -86,15 +98,15 @@ def test_task_map_value_jacobian_and_rates_match_task_space_and_finite_differenc
     kin = task.kin
     kin.update(q)
     expected = _frame_task_space(task)
-    x, J, frame = task.evaluate(expected[[3, 5]])
+    x, J, frame = task.evaluate(expected[ANGLES])
     np.testing.assert_allclose(x, expected, atol=1e-12)  # the robot map is the demos' map
-    np.testing.assert_allclose(J, _fd_jacobian(task, q, x[[3, 5]]), atol=1e-6)
+    np.testing.assert_allclose(J, _fd_jacobian(task, q, x[ANGLES]), atol=1e-6)
     directions = np.random.default_rng(seed).normal(size=(2, kin.n))
     kin.update(q)
     rates = task.rates(directions, frame)
     for b, rate in zip(directions, rates, strict=True):
-        jp = _at(task, q + H * b, x[[3, 5]])[1]
-        jm = _at(task, q - H * b, x[[3, 5]])[1]
+        jp = _at(task, q + H * b, x[ANGLES])[1]
+        jm = _at(task, q - H * b, x[ANGLES])[1]
         np.testing.assert_allclose(rate, (jp - jm) / (2 * H), atol=1e-6)
 
 
@@ -102,7 +114,7 @@ def test_task_map_value_jacobian_and_rates_match_task_space_and_finite_differenc
 def test_task_map_jacobian_and_branch_at_the_angle_wrap(side):
     task, q = _toy(11)
     task.kin.update(q)
-    a = _axis(task, "bottle")
+    a = _axis(task, "tool")
     rng = np.random.default_rng(11)
     forward = np.cross(a, rng.normal(size=3))
     forward /= np.linalg.norm(forward)
@@ -111,7 +123,7 @@ def test_task_map_jacobian_and_branch_at_the_angle_wrap(side):
     task, _ = _toy(11, np.column_stack((right, np.cross(forward, right), forward)))
     x, J = _at(task, q, [np.pi, 0.0])
     assert abs(abs(x[3]) - np.pi) < 1e-6
-    np.testing.assert_allclose(J, _fd_jacobian(task, q, x[[3, 5]]), atol=1e-6)
+    np.testing.assert_allclose(J, _fd_jacobian(task, q, x[ANGLES]), atol=1e-6)
 
 
 def test_task_map_picks_the_branch_nearest_to_angle_ref():
@@ -120,16 +132,16 @@ def test_task_map_picks_the_branch_nearest_to_angle_ref():
     assert -np.pi <= x[3] <= np.pi and -np.pi <= x[5] <= np.pi
     for k in (-2, 1, 3):
         for offset in (-np.pi + 0.01, 0.4, np.pi - 0.01):
-            xk, _ = _at(task, q, x[[3, 5]] + 2 * np.pi * k + offset)
-            np.testing.assert_allclose(xk[[3, 5]], x[[3, 5]] + 2 * np.pi * k, atol=1e-12)
-            np.testing.assert_array_equal(np.delete(xk, [3, 5]), np.delete(x, [3, 5]))
+            xk, _ = _at(task, q, x[ANGLES] + 2 * np.pi * k + offset)
+            np.testing.assert_allclose(xk[ANGLES], x[ANGLES] + 2 * np.pi * k, atol=1e-12)
+            np.testing.assert_array_equal(np.delete(xk, ANGLES), np.delete(x, ANGLES))
 
 
 def test_task_map_holds_angle_ref_with_a_zero_row_when_the_axis_is_along_the_gaze():
     task, q = _toy(3)
     task.kin.update(q)
-    a = _axis(task, "bottle")
-    gaze = gaze_frame(a, up=np.random.default_rng(3).normal(size=3))  # along the bottle's axis
+    a = _axis(task, "tool")
+    gaze = gaze_frame(a, up=np.random.default_rng(3).normal(size=3))  # along the tool's axis
     task, _ = _toy(3, gaze)
     task.kin.update(q)
     x, J, frame = task.evaluate(np.array([0.7, 0.0]))
@@ -143,15 +155,15 @@ def test_task_map_holds_angle_ref_with_a_zero_row_when_the_axis_is_along_the_gaz
 
 
 def test_task_map_fixed_joints_and_bad_gaze():
-    task, q = _toy(2, fixed=("bottle1", "glass0"))
+    task, q = _toy(2, fixed=("tool1", "target0"))
     _, J = _at(task, q, [0.0, 0.0])
     np.testing.assert_array_equal(J[:, [1, N_LINKS]], 0.0)
     assert np.all(np.any(J[:, task.driven] != 0.0, axis=0))
     kin = task.kin
     with pytest.raises(ImitateError, match="unknown"):
-        TaskMap(kin, "bottle", "glass", np.eye(3), ("elbow",))
+        TaskMap(kin, "tool", "target", np.eye(3), ("elbow",))
     with pytest.raises(ImitateError, match="right-handed"):
-        TaskMap(kin, "bottle", "glass", np.diag([1.0, -1.0, 1.0]))
+        TaskMap(kin, "tool", "target", np.diag([1.0, -1.0, 1.0]))
 
 
 def test_gaze_frame_is_right_down_forward():
@@ -233,7 +245,7 @@ def test_bad_input_is_rejected():
         task_space(p, a, p, a, np.diag([1.0, 2.0, 1.0]))
     with pytest.raises(ImitateError, match="right-handed"):
         task_space(p, a, p, a, np.diag([1.0, 1.0, -1.0]))  # right, up, forward
-    with pytest.raises(ImitateError, match=r"p_glass must have shape \(3, 3\)"):
+    with pytest.raises(ImitateError, match=r"p_target must have shape \(3, 3\)"):
         task_space(p, a, p[:2], a, gaze)
     with pytest.raises(ImitateError, match="finite"):
         task_space(np.full((3, 3), np.nan), a, p, a, gaze)
@@ -241,3 +253,63 @@ def test_bad_input_is_rejected():
         task_space(p, np.zeros((3, 3)), p, a, gaze)
     with pytest.raises(ImitateError, match="parallel"):
         gaze_frame([0.0, 0.0, 2.0])
+
+
+def test_columns_name_the_position_and_the_angles():
+    assert len(TASK_DIMS) == len(TASK_UNITS) == len(_POUR_DIMS) == TaskMap.m
+    assert TASK_DIMS[POSITION] == ("dx", "dy", "dz")
+    assert [TASK_DIMS[i] for i in ANGLES] == ["tool_angle", "target_angle"]
+    assert [TASK_UNITS[i] for i in ANGLES] == ["rad", "rad"]
+    assert [TASK_DIMS[i + 1] for i in ANGLES] == ["tool_gaze", "target_gaze"]
+    # Pouring prints its own words for the columns: the bottle is the tool, the glass the target.
+    renamed = tuple(d.replace("tool", "bottle").replace("target", "glass") for d in TASK_DIMS)
+    assert _POUR_DIMS == renamed
+    with pytest.raises(ValueError, match="read-only"):
+        ANGLES[0] = 4
+
+
+def test_gaze_of_a_pinhole_camera_and_of_a_mujoco_camera():
+    rotation = Rotation.random(random_state=7).as_matrix()  # a MuJoCo camera: right, up, backward
+    gaze = gaze_of_camera(rotation, mujoco=True)
+    np.testing.assert_array_equal(gaze, np.column_stack((rotation[:, 0], -rotation[:, 1],
+                                                         -rotation[:, 2])))
+    assert np.linalg.det(gaze) == pytest.approx(1.0)
+    # OpenCV's world-to-camera rotation has the gaze columns as its rows.
+    np.testing.assert_array_equal(gaze_of_camera(gaze.T), gaze)
+    # A pinhole camera with that rotation sees a point below its gaze lower in the image and a
+    # point to its right further right.
+    centre, K = np.array([0.3, -0.2, 1.1]), np.diag([500.0, 500.0, 1.0])
+
+    def pixel(p):
+        cam = K @ (gaze.T @ (p - centre))
+        return cam[:2] / cam[2]
+
+    ahead = centre + gaze[:, 2]
+    assert pixel(ahead + 0.1 * gaze[:, 1])[1] > pixel(ahead)[1]
+    assert pixel(ahead + 0.1 * gaze[:, 0])[0] > pixel(ahead)[0]
+    with pytest.raises(ImitateError, match="right-handed"):
+        gaze_of_camera(np.diag([1.0, 1.0, -1.0]))  # rows right, up, forward: left-handed
+
+
+def test_image_angle_is_object_orientations_angle_for_any_length_and_missing_axes():
+    gaze = gaze_frame([0.6, 0.8, -0.3])
+    axes = np.random.default_rng(4).normal(size=(2, 5, 3))
+    angle, _, _ = object_orientation(axes, gaze)
+    np.testing.assert_allclose(image_angle(axes, gaze), angle, atol=1e-15)
+    np.testing.assert_allclose(image_angle(3.0 * axes, gaze), angle, atol=1e-15)
+    axes[1, 2] = np.nan  # an object not seen in one frame
+    seen = image_angle(axes, gaze)
+    assert np.isnan(seen[1, 2]) and np.isfinite(np.delete(seen.ravel(), 7)).all()
+    with pytest.raises(ImitateError, match="orthonormal"):
+        image_angle(axes, np.diag([1.0, 2.0, 1.0]))
+
+
+def test_the_contract_loads_neither_the_planner_nor_mujoco():
+    import subprocess
+    import sys
+
+    code = ("import sys, imitate.taskspace\n"
+            "print(sorted(m for m in ('numba', 'mujoco', 'scipy') if m in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True)
+    assert done.stdout.strip() == "[]"

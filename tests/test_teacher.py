@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from imitate.envs.observation import tracked_point
-from imitate.envs.outcome import SUCCESS_FRACTION
+from imitate.envs.pour.outcome import SUCCESS_FRACTION
 from imitate.envs.teacher_motion import (
     _POUR_ROWS,
     _SWING_ROWS,

@@ -25,10 +25,9 @@ from imitate.envs.video import (
 from imitate.errors import ImitateError
 from imitate.models import objects
 from imitate.models import scene as scene_names
-from imitate.rundir.artifacts import load_npz
 from imitate.stages.config import load_config
 from imitate.stages.figures import ROBOT_CAPTION, TEACHER_CAPTION
-from imitate.stages.replay import STATE_NAMES
+from imitate.stages.files import ReplayFile
 
 LONG = "teacher demonstrates (3x); inset: robot's eye, tracking"
 
@@ -68,7 +67,7 @@ def test_caption_error_tells_a_legible_caption_from_a_garbled_one():
 def test_video_captions_read_after_encoding(quick_run):
     config = load_config(quick_run)
     video = iio.imread(quick_run / "video.mp4")
-    n_robot = len(load_npz(quick_run / "replay.npz")["qpos"])
+    n_robot = len(ReplayFile.load(quick_run).recording.qpos)
     teacher = TEACHER_CAPTION.format(speedup=config.teacher_speedup)
     robot = ROBOT_CAPTION.format(weight=config.collision_weight)
     assert caption_error(video[0], teacher) < 20.0
@@ -78,13 +77,13 @@ def test_video_captions_read_after_encoding(quick_run):
 def test_video_shows_liquid_in_the_glass_while_pouring(quick_run):
     config = load_config(quick_run)
     video = iio.imread(quick_run / "video.mp4")
-    states = load_npz(quick_run / "replay.npz")
+    states = ReplayFile.load(quick_run).recording.states()
     robot = video[len(video) - len(states["qpos"]) :]  # the video ends with the replay
     model = build_model(config.scene())
     data = mujoco.MjData(model)
     height, width = robot.shape[1:3]
     counts = []
-    for frame, *state in zip(robot, *(states[name] for name in STATE_NAMES), strict=True):
+    for frame, *state in zip(robot, *states.values(), strict=True):
         data.qpos[:], data.mocap_pos[:], data.mocap_quat[:] = state
         mujoco.mj_kinematics(model, data)
         mujoco.mj_camlight(model, data)
@@ -102,9 +101,9 @@ def test_frames_rendered_in_two_threads_are_those_of_one(quick_run):
     config = load_config(quick_run)
     times = np.linspace(1.0, 6.0, 5)
     motion = script_demonstrations(config.teacher())
-    states = load_npz(quick_run / "replay.npz")
+    states = ReplayFile.load(quick_run).recording.states()
     shown = np.linspace(0, len(states["qpos"]) - 1, 6).astype(int)
-    states = {name: states[name][shown] for name in STATE_NAMES}
+    states = {name: value[shown] for name, value in states.items()}
     for frames in (
         lambda threads: teacher_frames(motion, times, 96, 72, threads=threads),
         lambda threads: replay_frames(config.scene(), states, 96, 72, threads=threads),
@@ -119,9 +118,9 @@ def test_quick_frames_look_like_the_full_ones(quick_run):
     """``quick`` (no multisampling, no reflections: the run's video) changes edges, not what a
     frame shows: the same frames to a few levels of 255 on average."""
     config = load_config(quick_run)
-    states = load_npz(quick_run / "replay.npz")
+    states = ReplayFile.load(quick_run).recording.states()
     shown = np.linspace(0, len(states["qpos"]) - 1, 3).astype(int)
-    states = {name: states[name][shown] for name in STATE_NAMES}
+    states = {name: value[shown] for name, value in states.items()}
     motion = script_demonstrations(config.teacher())
     for frames in (
         lambda quick: teacher_frames(motion, np.array([2.0, 4.0]), 160, 120, quick=quick),

@@ -23,7 +23,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from imitate.rundir.table import PAGE
+from imitate.rundir.layout import PAGE
 
 __all__ = [
     "Terminated", "fail", "log_to_stderr", "prepare", "stopped", "summary",

@@ -6,7 +6,7 @@ import numpy as np
 
 from imitate.envs.teacher_motion import TeacherConfig, TeacherMotion, script_demonstrations
 from imitate.learning import LearnedModel, LearningConfig, learn
-from imitate.motion.taskspace import task_space
+from imitate.taskspace import task_space
 
 __all__ = ["oracle_model", "true_demos"]
 

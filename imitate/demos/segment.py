@@ -5,9 +5,9 @@ finished and the next one starts when the objects are moving again." Held still 
 moved nor turned: a frame is still when it lies in a window of ``min_still`` seconds over which
 every object's (smoothed) tracked point stays within a box of ``still_range`` and its angle
 around the gaze vector within ``still_turn``. Spread over a window separates a slow movement
-(the bottle turning while it pours, a slow return) from tracking noise much better than an
-instantaneous speed does. A demonstration is a stretch between still frames lasting at least
-``min_moving``.
+(an object turning slowly while the task is done, a slow return) from tracking noise much
+better than an instantaneous speed does. A demonstration is a stretch between still frames
+lasting at least ``min_moving``.
 
 Its boundaries are then placed where the movement really starts and stops. A hand leaves rest
 with about constant acceleration, so the distance from the rest position grows with the square
@@ -23,7 +23,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import cast
 
 import numpy as np
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
@@ -31,10 +30,9 @@ from scipy.signal import savgol_filter
 
 from imitate import defaults
 from imitate.errors import ImitateError
-from imitate.models.objects import BOTTLE, GLASS, SHAPES
-from imitate.motion.taskspace import task_space
+from imitate.models.shapes import SHAPES
 from imitate.perception import Tracks
-from imitate.rundir.artifacts import load_npz, save_npz
+from imitate.taskspace import task_space
 
 
 @dataclass(frozen=True)
@@ -277,7 +275,7 @@ def task_demo(
 
     Args:
         demo: The demonstration; ``objects`` names the first axis of its arrays.
-        objects: Object names, the bottle and the glass among them.
+        objects: Object names, the tool's first, then the target's.
         gaze: ``(3, 3)`` gaze frame of the observation.
         smoothing: Savitzky-Golay window [s]; 0: none.
         rate: Frame rate of the tracks [Hz].
@@ -298,40 +296,11 @@ def task_demo(
         name: (position[k] - axis[k] * SHAPES[name].height / 2, axis[k])
         for k, name in enumerate(objects)
     }
-    return task_space(*bottoms[BOTTLE], *bottoms[GLASS], gaze)
+    return task_space(*bottoms[objects[0]], *bottoms[objects[1]], gaze)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
-def save_demos(path, demos: list[Demonstration], tracks: Tracks):
-    """Write ``demos.npz``: boundaries and, per demonstration ``i``, ``demo{i}_*`` arrays.
-
-    Also stores ``objects`` and the ``gaze`` frame of the tracks, so the file is self-contained.
-    """
-    arrays = {
-        "objects": np.array(tracks.objects),
-        "gaze": tracks.gaze,
-        "boundaries": np.array([(d.start, d.end) for d in demos]),
-    }
-    for i, demo in enumerate(demos):
-        for name in ("times", "position", "axis", "angle"):
-            arrays[f"demo{i}_{name}"] = getattr(demo, name)
-    return save_npz(path, arrays)
-
-
-def load_demos(path) -> tuple[list[Demonstration], tuple[str, ...], np.ndarray]:
-    """Read ``demos.npz``: ``(demonstrations, object names, gaze frame (3, 3))``."""
-    a = load_npz(path, required=("objects", "gaze", "boundaries"))
-    demos = []
-    for i, (start, end) in enumerate(a["boundaries"]):
-        fields = {name: a.get(f"demo{i}_{name}") for name in ("times", "position", "axis", "angle")}
-        if any(value is None for value in fields.values()):
-            raise ImitateError(f"{path} lacks the arrays of demonstration {i}; re-run observe")
-        arrays = cast(dict[str, np.ndarray], fields)  # none is None (checked above)
-        demos.append(Demonstration(float(start), float(end), **arrays))
-    return demos, tuple(str(name) for name in a["objects"]), a["gaze"]
 
 
 def task_demos(

@@ -1,18 +1,18 @@
-"""Seeded synthetic pouring demonstrations in task space, with known structure.
+"""Seeded synthetic bimanual demonstrations in task space, with known structure.
 
 Stands in for the observed teacher in tests and benchmarks. Every demonstration follows one
 canonical movement over a phase variable ``s`` in [0, 1]:
 
-- transport (``s < pour_start``): the bottle moves from beside the glass to above it along a
+- transport (``s < act_start``): the tool moves from beside the target to above it along a
   path bent by a per-demonstration via-point offset (large inter-demonstration spread);
-- pour (``pour_start <= s < pour_end``): the bottle tilts towards the glass and back, at a nearly
+- act (``act_start <= s < act_end``): the tool tilts towards the target and back, at a nearly
   fixed pose (small spread);
-- return: the bottle goes back down beside the glass (moderate spread).
+- return: the tool goes back down beside the target (moderate spread).
 
 Each demonstration runs the canonical movement through its own smooth, monotone time warp and
 has its own duration, so raw demonstrations disagree in time (Fig. 4, left) until DTW aligns
 them. Object positions and long axes are generated in the world frame and mapped through
-:func:`imitate.motion.taskspace.task_space`.
+:func:`imitate.taskspace.task_space`.
 """
 
 from __future__ import annotations
@@ -22,28 +22,28 @@ from dataclasses import dataclass
 import numpy as np
 
 from imitate.errors import ImitateError
-from imitate.motion.taskspace import gaze_frame, task_space
+from imitate.taskspace import gaze_frame, task_space
 
-__all__ = ["SyntheticConfig", "SyntheticDemos", "pouring_demos"]
+__all__ = ["SyntheticConfig", "SyntheticDemos", "phased_demos"]
 
 
 @dataclass(frozen=True)
 class SyntheticConfig:
-    """Parameters of :func:`pouring_demos`.
+    """Parameters of :func:`phased_demos`.
 
     Attributes:
         n_demos: Number of demonstrations.
         duration: Mean duration of a demonstration [s].
         duration_spread: Relative standard deviation of the durations.
         rate: Sampling rate [Hz].
-        pour_start: Phase at which pouring starts, in (0, pour_end).
-        pour_end: Phase at which pouring ends, in (pour_start, 1).
+        act_start: Phase at which the act starts, in (0, act_end).
+        act_end: Phase at which the act ends, in (act_start, 1).
         transport_spread: Standard deviation of the transport via-point offset [m].
-        pour_spread: Standard deviation of the pouring pose [m], tilt spread 5x this [rad].
+        act_spread: Standard deviation of the acting pose [m], tilt spread 5x this [rad].
         return_spread: Standard deviation of the final resting offset [m].
         warp: Amplitude of the time warps, in [0, 0.5) (monotone by construction).
         noise: Standard deviation of the measurement noise [m] (and 5x [rad] on the axes).
-        tilt: Maximum tilt of the bottle while pouring [rad].
+        tilt: Maximum tilt of the tool while acting [rad].
         seed: Seed of the random draws.
     """
 
@@ -51,10 +51,10 @@ class SyntheticConfig:
     duration: float = 4.5
     duration_spread: float = 0.06
     rate: float = 100.0
-    pour_start: float = 0.45
-    pour_end: float = 0.8
+    act_start: float = 0.45
+    act_end: float = 0.8
     transport_spread: float = 0.04
-    pour_spread: float = 0.003
+    act_spread: float = 0.003
     return_spread: float = 0.02
     warp: float = 0.3
     noise: float = 0.0005
@@ -64,19 +64,19 @@ class SyntheticConfig:
 
 @dataclass(frozen=True)
 class SyntheticDemos:
-    """Output of :func:`pouring_demos`.
+    """Output of :func:`phased_demos`.
 
     Attributes:
         demos: Task-space demonstrations, each of shape ``(n_steps_i, 7)``.
-        pour_windows: Start and end of the pouring phase in each demonstration's own time,
+        act_windows: Start and end of the act in each demonstration's own time,
             shape ``(n_demos, 2)`` [s].
         gaze: Gaze frame used for the orientations, shape ``(3, 3)``, columns right, down,
-            forward (:mod:`imitate.motion.taskspace`).
+            forward (:mod:`imitate.taskspace`).
         rate: Sampling rate [Hz].
     """
 
     demos: tuple[np.ndarray, ...]
-    pour_windows: np.ndarray
+    act_windows: np.ndarray
     gaze: np.ndarray
     rate: float
 
@@ -93,8 +93,8 @@ def _bump(u: np.ndarray) -> np.ndarray:
     return np.sin(np.pi * u) ** 2
 
 
-def pouring_demos(config: SyntheticConfig | None = None) -> SyntheticDemos:
-    """Generates seeded pouring-like demonstrations in task space.
+def phased_demos(config: SyntheticConfig | None = None) -> SyntheticDemos:
+    """Generates seeded three-phase (transport, act, return) demonstrations in task space.
 
     Args:
         config: Parameters; ``None`` for the defaults (5 demonstrations of about 4.5 s at 100 Hz).
@@ -108,16 +108,16 @@ def pouring_demos(config: SyntheticConfig | None = None) -> SyntheticDemos:
     c = config or SyntheticConfig()
     if c.n_demos < 1 or c.rate <= 0 or c.duration <= 0:
         raise ImitateError(f"n_demos, rate and duration must be positive; got {c}")
-    if not 0.0 < c.pour_start < c.pour_end < 1.0:
+    if not 0.0 < c.act_start < c.act_end < 1.0:
         raise ImitateError(
-            f"need 0 < pour_start < pour_end < 1; got {c.pour_start} and {c.pour_end}"
+            f"need 0 < act_start < act_end < 1; got {c.act_start} and {c.act_end}"
         )
     if not 0.0 <= c.warp < 0.5:
         raise ImitateError(f"warp must be in [0, 0.5); got {c.warp}")
     rng = np.random.default_rng(c.seed)
     gaze = gaze_frame([np.cos(0.5), 0.0, -np.sin(0.5)])  # looking ahead and 29 deg down
-    glass = np.array([0.45, 0.05, 0.85])
-    start = np.array([-0.02, -0.28, -0.02])  # bottle relative to glass
+    target = np.array([0.45, 0.05, 0.85])
+    start = np.array([-0.02, -0.28, -0.02])  # tool relative to target
     above = np.array([0.0, -0.07, 0.13])
     rest = np.array([0.0, -0.22, -0.02])
 
@@ -132,37 +132,37 @@ def pouring_demos(config: SyntheticConfig | None = None) -> SyntheticDemos:
         )  # ds/dtau >= 1 - |a1| - |a2| > 0: monotone, fixed ends
 
         via = rng.normal(0.0, c.transport_spread, 3)
-        pour_pose = above + rng.normal(0.0, c.pour_spread, 3)
+        act_pose = above + rng.normal(0.0, c.act_spread, 3)
         rest_pose = rest + rng.normal(0.0, c.return_spread, 3)
-        u_transport = s / c.pour_start
-        u_pour = (s - c.pour_start) / (c.pour_end - c.pour_start)
-        u_return = (s - c.pour_end) / (1.0 - c.pour_end)
+        u_transport = s / c.act_start
+        u_act = (s - c.act_start) / (c.act_end - c.act_start)
+        u_return = (s - c.act_end) / (1.0 - c.act_end)
         rel = (
             start
-            + _smoothstep(u_transport)[:, None] * (pour_pose - start)
+            + _smoothstep(u_transport)[:, None] * (act_pose - start)
             + _bump(u_transport)[:, None] * via
-            + _smoothstep(u_return)[:, None] * (rest_pose - pour_pose)
+            + _smoothstep(u_return)[:, None] * (rest_pose - act_pose)
         )
-        glass_sway = rng.normal(0.0, 0.3 * c.transport_spread, 3)
-        glass_pos = glass + _bump(u_transport)[:, None] * glass_sway
+        target_sway = rng.normal(0.0, 0.3 * c.transport_spread, 3)
+        target_pos = target + _bump(u_transport)[:, None] * target_sway
 
-        tilt = (c.tilt + 5 * c.pour_spread * rng.standard_normal()) * _bump(u_pour)
+        tilt = (c.tilt + 5 * c.act_spread * rng.standard_normal()) * _bump(u_act)
         lean = 0.15 * _bump(u_transport) * rng.standard_normal()
-        a_bottle = np.column_stack((np.sin(lean), np.sin(tilt), np.cos(tilt) * np.cos(lean)))
+        a_tool = np.column_stack((np.sin(lean), np.sin(tilt), np.cos(tilt) * np.cos(lean)))
         wobble = 0.05 * _bump(u_transport) * rng.standard_normal()
-        a_glass = np.column_stack((np.zeros(n), -np.sin(wobble), np.cos(wobble)))
+        a_target = np.column_stack((np.zeros(n), -np.sin(wobble), np.cos(wobble)))
 
         noise = c.noise * rng.standard_normal((4, n, 3))
         x = task_space(
-            glass_pos + rel + noise[0],
-            a_bottle + 5 * noise[1],
-            glass_pos + noise[2],
-            a_glass + 5 * noise[3],
+            target_pos + rel + noise[0],
+            a_tool + 5 * noise[1],
+            target_pos + noise[2],
+            a_target + 5 * noise[3],
             gaze,
         )
         demos.append(x)
         t = tau * (n - 1) / c.rate
-        windows.append(np.interp([c.pour_start, c.pour_end], s, t))
+        windows.append(np.interp([c.act_start, c.act_end], s, t))
     return SyntheticDemos(
-        demos=tuple(demos), pour_windows=np.array(windows), gaze=gaze, rate=c.rate
+        demos=tuple(demos), act_windows=np.array(windows), gaze=gaze, rate=c.rate
     )

@@ -45,7 +45,7 @@ from imitate.evaluation.suite_run import RESULTS, Draw, check_counts, draw_jobs,
 from imitate.evaluation.teachers import check_run, teachers
 from imitate.figures import plots
 from imitate.motion import SIMILARITIES
-from imitate.rundir.artifacts import refuse_link, save_json, write_atomic
+from imitate.rundir.artifacts import refuse_link, save_bytes, save_json, write_atomic
 from imitate.rundir.lock import locked
 from imitate.stages import provenance
 
@@ -71,7 +71,7 @@ def parse_sweep(text: str) -> tuple[str, tuple[float, ...]]:
     key, _, values = text.partition("=")
     numeric = [k for k, v in KEYS.items() if not (v.is_name or v.is_switch or v.integer)
                and v.choices is None]
-    refused = f"--sweep {text} not accepted: KEY=V1,V2,... with KEY one of {numeric} and " \
+    refused = f"sweep={text!r} not accepted: KEY=V1,V2,... with KEY one of {numeric} and " \
               "two or more increasing values, e.g. path_length_weight=10,20,40,70"
     if key not in numeric:
         raise ImitateError(refused)
@@ -85,7 +85,7 @@ def parse_sweep(text: str) -> tuple[str, tuple[float, ...]]:
     outside = [v for v in levels if not k.low <= v <= k.high]
     if outside:
         raise ImitateError(
-            f"--sweep {text} not accepted: {key} {outside[0]:g} is outside {k.low:g}.."
+            f"sweep={text!r} not accepted: {key} {outside[0]:g} is outside {k.low:g}.."
             f"{k.high:g}; give values within it"
         )
     return key, levels
@@ -126,8 +126,8 @@ def compare(
     unknown = [s for s in similarities if s not in SIMILARITIES]
     if unknown or len(set(similarities)) != len(similarities) or len(similarities) < 2:
         raise ImitateError(
-            f"--similarity {','.join(similarities)} not accepted: two or more of "
-            f"{', '.join(SIMILARITIES)}, comma-separated, each once"
+            f"similarities={','.join(similarities)!r} not accepted: two or more of "
+            f"{', '.join(SIMILARITIES)}, each once"
         )
     levels = [suite] if sweep is None else [suite.replace(**{sweep[0]: v}) for v in sweep[1]]
     start = time.perf_counter()
@@ -178,7 +178,7 @@ def compare(
         result["run"] = {**run, "command_seconds": time.perf_counter() - start}
         save_json(out / "compare.json", result)
         write_atomic(out / "compare.md", lambda tmp: tmp.write_text(markdown(result) + "\n"))
-        plots.save(figure, out / "compare.png")
+        save_bytes(out / "compare.png", plots.figure_png(figure))
         return result
 
 

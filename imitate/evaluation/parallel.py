@@ -19,11 +19,10 @@ import threading
 import time
 from collections.abc import Generator, Sequence
 
-import numpy as np
-
 from imitate.errors import ImitateError
 from imitate.evaluation.trial import Trial
 from imitate.evaluation.variation import Variation
+from imitate.stages.files import Learned
 
 __all__ = ["Job", "run_local", "run_ray"]
 
@@ -34,12 +33,12 @@ _PARENT_POLL = 0.2  # [s] how often a local worker checks that its parent still 
 _PR_SET_PDEATHSIG = 1  # prctl's option (linux/prctl.h)
 
 Job = tuple[str, int, Variation]  # (digest, teacher seed, variation)
-Models = dict[int, dict[str, np.ndarray]]  # model.npz's arrays by teacher seed
+Models = dict[int, Learned]  # the learned model and its gaze frame by teacher seed
 
 
 def run_local(models: Models, jobs: Sequence[Job], workers: int) -> Generator[dict, None, None]:
     """Records of ``jobs`` from ``workers`` spawned processes, in the order they finish, each
-    with its ``digest`` and ``teacher``; ``models``: each teacher's ``model.npz`` arrays. If the
+    with its ``digest`` and ``teacher``; ``models``: each teacher's learned model. If the
     caller stops (Ctrl-C, an error, closing the iterator), the workers are terminated at once:
     Ctrl-C reaches this process only."""
     for name in _SINGLE_THREAD:  # inherited by the spawned workers
@@ -74,7 +73,7 @@ def run_ray(models: Models, jobs: Sequence[Job], address: str) -> Generator[dict
         except (ConnectionError, RuntimeError, ValueError) as err:
             raise ImitateError(f"no Ray cluster at --ray {address}: {err}") from None
     task = ray.remote(num_cpus=1)(_run_with)
-    shared = {teacher: ray.put(arrays) for teacher, arrays in models.items()}
+    shared = {teacher: ray.put(learned) for teacher, learned in models.items()}
     pending = [task.remote(shared[t], d, t, v.to_json()) for d, t, v in jobs]
     try:
         while pending:
@@ -91,7 +90,7 @@ def _start(models: Models) -> None:
     if not _killed_with_parent() or os.getppid() != parent:
         threading.Thread(target=_exit_with, args=(parent,), daemon=True).start()
     os.environ.setdefault("MUJOCO_GL", "egl")
-    _worker.update({teacher: Trial(arrays) for teacher, arrays in models.items()})
+    _worker.update({teacher: Trial(learned) for teacher, learned in models.items()})
 
 
 def _killed_with_parent() -> bool:
@@ -119,9 +118,9 @@ def _run(job: tuple[str, int, dict]) -> dict:
     return {"digest": digest, "teacher": teacher, **record}
 
 
-def _run_with(arrays: dict[str, np.ndarray], digest: str, teacher: int, variation: dict) -> dict:
-    """A Ray task: one variation with the learned model of ``arrays`` (a Ray worker may serve
-    several evaluations, so nothing is kept)."""
+def _run_with(learned: Learned, digest: str, teacher: int, variation: dict) -> dict:
+    """A Ray task: one variation with the ``learned`` model (a Ray worker may serve several
+    evaluations, so nothing is kept)."""
     os.environ.setdefault("MUJOCO_GL", "egl")
-    record = Trial(arrays).run(Variation.from_json(variation))
+    record = Trial(learned).run(Variation.from_json(variation))
     return {"digest": digest, "teacher": teacher, **record}

@@ -12,13 +12,14 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Patch, Rectangle
 
-from imitate.envs.outcome import OUTCOMES, SUCCESS_FRACTION
+from imitate.envs.pour.outcome import OUTCOMES, SUCCESS_FRACTION
 from imitate.envs.video import StateRecorder, captioned, replay_frames, write_video
 from imitate.evaluation.trial import physics, plan_variation, replay_once
 from imitate.evaluation.variation import Variation
 from imitate.learning import LearnedModel
 from imitate.models.scene import TABLE_X
 from imitate.motion import PlanConfig
+from imitate.rundir.artifacts import write_atomic
 
 __all__ = [
     "failure_video", "plot_outcomes", "summarize", "summarize_teachers", "teacher_table", "text",
@@ -244,4 +245,6 @@ def failure_video(
     caption = f"variation {variation.id}: {record['outcome'].replace('_', ' ')}"
     states = recorder.arrays()
     frames = captioned(replay_frames(variation.scene(), states, 640, 480), caption)
-    return write_video(path, frames, fps)
+    counted: list[int] = []
+    write_atomic(path, lambda tmp: counted.append(write_video(tmp, frames, fps)))
+    return counted[0]

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate.envs.outcome import OUTCOMES
+from imitate.envs.pour.outcome import OUTCOMES
 from imitate.errors import ImitateError
 from imitate.evaluation.parallel import Job, run_local, run_ray
 from imitate.evaluation.report import failure_video, plot_outcomes, summarize, summarize_teachers
@@ -37,9 +37,8 @@ from imitate.evaluation.suite import KEYS, Suite
 from imitate.evaluation.teachers import Teacher, check_run, teachers
 from imitate.evaluation.variation import PourPlace, Variation, draw, free_places
 from imitate.figures import plots
-from imitate.learning import LearnedModel
 from imitate.rundir import page
-from imitate.rundir.artifacts import load_json, refuse_link, save_json
+from imitate.rundir.artifacts import load_json, refuse_link, save_bytes, save_json
 from imitate.rundir.lock import locked
 from imitate.stages import provenance
 from imitate.stages.progress import bar as progress_bar
@@ -104,9 +103,9 @@ def evaluate(
             "run": run,
         }
         save_json(out / "summary.json", summary)
-        plots.save(plot_outcomes(ordered, drawn[0].path), out / "outcomes.png")
-        learned = {t.seed: LearnedModel.from_arrays(t.arrays) for t in models}
-        gaze = {t.seed: t.arrays["gaze"] for t in models}
+        save_bytes(out / "outcomes.png", plots.figure_png(plot_outcomes(ordered, drawn[0].path)))
+        learned = {t.seed: t.learned.model for t in models}
+        gaze = {t.seed: t.learned.gaze for t in models}
         failures = [r for r in ordered if r["outcome"] != "success"][:videos]
         for record in progress_bar(failures, progress, desc="failure videos", unit="video"):
             name = f"{record['id']:04d}-{record['outcome']}.mp4"
@@ -200,8 +199,7 @@ def draw_jobs(
     drawn = []
     for t in models:
         if t.seed not in places:
-            learned = LearnedModel.from_arrays(t.arrays)
-            places[t.seed] = free_places(learned, t.arrays["gaze"], suite["max_iter"])
+            places[t.seed] = free_places(t.learned.model, t.learned.gaze, suite["max_iter"])
         path, pour = places[t.seed]
         drawn.append(Draw(
             t.seed, suite.digest(seed, t.model_bytes, code), path,
@@ -234,12 +232,12 @@ def run_jobs(
         (d, v) for d in drawn for v in d.variations if (d.digest, v.id) not in records
     ]
     jobs: list[Job] = [(d.digest, d.teacher, v) for d, v in pending]
-    arrays = {t.seed: t.arrays for t in models if t.seed in {d.teacher for d in drawn}}
+    learned = {t.seed: t.learned for t in models if t.seed in {d.teacher for d in drawn}}
     total = sum(len(d.variations) for d in drawn)
     start, load = time.perf_counter(), os.getloadavg()
     no_records: tuple[dict, ...] = ()
     finished = (
-        run_ray(arrays, jobs, ray) if ray else run_local(arrays, jobs, min(workers, len(jobs)))
+        run_ray(learned, jobs, ray) if ray else run_local(learned, jobs, min(workers, len(jobs)))
     ) if jobs else (record for record in no_records)  # closable, as the workers' iterators
     _end_line(results)
     # closing: an interruption stops the workers before it propagates
@@ -273,7 +271,7 @@ def read_records(path: Path, digests: str | Collection[str]) -> list[dict]:
     """The records of ``path`` (``results.jsonl``) under ``digests`` (one or several), the last
     one per digest and id; a line cut short by an interruption, not UTF-8, or not a record
     (:func:`_is_record`: an ``id`` that is no whole number >= 0, an ``outcome`` not of
-    :data:`~imitate.envs.outcome.OUTCOMES`, as file names are made of them; a number the
+    :data:`~imitate.envs.pour.outcome.OUTCOMES`, as file names are made of them; a number the
     summary reads missing), is skipped, so its variation runs again."""
     wanted = {digests} if isinstance(digests, str) else set(digests)
     records = {(r["digest"], r["id"]): r for r in _records(path) if r["digest"] in wanted}

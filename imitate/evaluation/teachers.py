@@ -18,24 +18,21 @@ import logging
 import os
 from pathlib import Path
 
-import numpy as np
-
 from imitate.errors import ImitateError
-from imitate.learning import LearnedModel
 from imitate.run import load_run
-from imitate.rundir import table
-from imitate.rundir.artifacts import load_json, load_npz, refuse_link, save_json
+from imitate.rundir import layout
+from imitate.rundir.artifacts import load_json, refuse_link, save_json
 from imitate.rundir.lock import locked
-from imitate.stages import provenance
+from imitate.stages import provenance, table
 from imitate.stages.config import RunConfig, load_config
+from imitate.stages.files import Learned, ModelFile
 
 __all__ = ["MAX_TEACHERS", "Teacher", "check_run", "teacher_seeds", "teachers"]
 
 log = logging.getLogger(__name__)
 
 MAX_TEACHERS = 100
-MODEL = "model.npz"
-CODE = table.CODE  # the code digest the teacher's stages ran with
+CODE = layout.CODE  # the code digest the teacher's stages ran with
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -45,7 +42,7 @@ class Teacher:
     Attributes:
         seed: The teacher's seed (the run's ``seed`` setting it was learned with).
         path: Its ``model.npz``.
-        arrays: The learned model's arrays and ``gaze``.
+        learned: The learned model and its gaze frame.
         model_bytes: The file's bytes (what an evaluation's digest is taken of).
         default_run: The ``replay`` section of its run's ``report.json`` (its default scene
             reproduced in physics), ``None`` if the run has none.
@@ -53,7 +50,7 @@ class Teacher:
 
     seed: int
     path: Path
-    arrays: dict[str, np.ndarray]
+    learned: Learned
     model_bytes: bytes
     default_run: dict | None
 
@@ -91,14 +88,14 @@ def teachers(run_dir: Path, out: Path, n: int) -> list[Teacher]:
     # the run's own model needs no settings (a folder of a model.npz alone is evaluated too)
     config = load_config(run_dir) if n > 1 or (run_dir / "config.json").exists() else None
     own = config.seed if config else 0
-    found = [_read(own, run_dir / MODEL)]
+    found = [_read(own, run_dir / layout.MODEL)]
     for seed in teacher_seeds(own, n)[1:]:
         folder = Path(out) / "teachers" / f"seed-{seed}"
         inside = os.path.abspath(folder).startswith(os.path.abspath(run_dir) + os.sep)
         refuse_link(folder, run_dir if inside else out)  # eval/, teachers/, seed-S/
         assert config is not None  # loaded: there are other teachers (n > 1)
         _prepare(folder, dataclasses.replace(config, seed=seed))
-        found.append(_read(seed, folder / MODEL))
+        found.append(_read(seed, folder / layout.MODEL))
     return found
 
 
@@ -136,7 +133,7 @@ def _json(path: Path):
 def _fresh(folder: Path, name: str, reader: str, config: RunConfig) -> bool:
     """Whether stage ``name``'s outputs in ``folder`` are there and follow from ``config`` (as
     stage ``reader``, which reads them, checks its inputs)."""
-    written = [f for f in table.find(name).writes if f != "config.json"]
+    written = [f for f in table.find(name).writes if f != layout.CONFIG]
     if not all((folder / f).is_file() for f in written):
         return False
     try:
@@ -147,9 +144,8 @@ def _fresh(folder: Path, name: str, reader: str, config: RunConfig) -> bool:
 
 
 def _read(seed: int, path: Path) -> Teacher:
-    stored = load_npz(path, required=(*LearnedModel.array_names(), "gaze"))
-    arrays = {k: stored[k] for k in (*LearnedModel.array_names(), "gaze")}
-    report_path = path.parent / table.REPORT
+    learned = ModelFile.load_learned(path.parent)
+    report_path = path.parent / layout.REPORT
     report = load_json(report_path) if report_path.is_file() else {}
     default_run = report.get("replay") if isinstance(report, dict) else None
-    return Teacher(seed, path, arrays, path.read_bytes(), default_run)
+    return Teacher(seed, path, learned, path.read_bytes(), default_run)

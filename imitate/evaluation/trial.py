@@ -4,7 +4,7 @@ the unconstrained reproduction (the same model and weighting in the default scen
 weight 0 and the default path-length weight) and how far the reproduction lies from the
 demonstrations in their own metric (:func:`~imitate.motion.metrics.mahalanobis`).
 
-The outcome is :func:`imitate.envs.outcome.outcome`'s.
+The outcome is :func:`imitate.envs.pour.outcome.outcome`'s.
 """
 
 from __future__ import annotations
@@ -17,15 +17,16 @@ import mujoco
 import numpy as np
 
 from imitate.envs.assembly import SceneConfig
-from imitate.envs.outcome import outcome
-from imitate.envs.pour_geometry import PourGeometry
-from imitate.envs.pouring import PouringEnv
+from imitate.envs.pour.outcome import outcome
+from imitate.envs.pour.geometry import PourGeometry
+from imitate.envs.pour.env import PouringEnv
 from imitate.evaluation.variation import Variation
 from imitate.learning import LearnedModel
 from imitate.models import humanoid, objects
 from imitate.motion import Plan, PlanConfig, plan_from_model
 from imitate.motion.metrics import mahalanobis, pour_phase_error, task_change
 from imitate.motion.replay import planning_task, replay
+from imitate.stages.files import Learned
 
 __all__ = ["Trial", "physics", "plan_variation", "replay_once"]
 
@@ -96,11 +97,11 @@ class Trial:
     """Runs variations with one teacher's learned model; keeps its unconstrained reproductions.
 
     Args:
-        arrays: The teacher's ``model.npz`` arrays (the learned model and ``gaze``).
+        learned: The teacher's learned model and its gaze frame.
     """
 
-    def __init__(self, arrays: dict[str, np.ndarray]):
-        self.learned, self.gaze = LearnedModel.from_arrays(arrays), arrays["gaze"]
+    def __init__(self, learned: Learned):
+        self.learned, self.gaze = learned.model, learned.gaze
         self._free: dict[tuple[str, int], Plan] = {}
 
     def free(self, similarity: str, max_iter: int) -> Plan:

@@ -22,10 +22,9 @@ from pathlib import Path
 
 from imitate import defaults
 from imitate.errors import ImitateError
-from imitate.rundir import table
 from imitate.rundir.artifacts import refuse_link
 from imitate.rundir.lock import locked
-from imitate.stages import provenance
+from imitate.stages import provenance, table
 
 __all__ = ["FORMATS", "export"]
 
@@ -64,8 +63,9 @@ def export(run_dir: str | Path, format: str, out: str | Path | None = None,
         raise ImitateError(f"format {format!r} unknown; accepted: {FORMATS}")
     if from_eval is not None and format == "minari":
         raise ImitateError(
-            "--from-eval with --format minari not accepted: a Minari dataset has one env and "
-            "the variations' scenes differ; accepted: --format hdf5 or lerobot"
+            f"from_eval={str(from_eval)!r} with format='minari' not accepted: a Minari dataset "
+            "has one env and the variations' scenes differ; accepted: format='hdf5' or "
+            "format='lerobot'"
         )
     missing = [name for name in _NEEDS[format] if importlib.util.find_spec(name) is None]
     if missing:

@@ -27,14 +27,13 @@ from imitate import ENV_ID
 from imitate.demos.segment import task_demo
 from imitate.envs.assembly import Obstacle
 from imitate.envs.observation import EYES, ObservationConfig, frames, session
-from imitate.envs.pouring import PouringEnv
+from imitate.envs.pour.env import PouringEnv
 from imitate.envs.teacher_motion import script_demonstrations
 from imitate.models import humanoid, objects
 from imitate.motion import Plan
 from imitate.motion.replay import replay
-from imitate.motion.taskspace import TASK_DIMS
 from imitate.run import Run
-from imitate.rundir.artifacts import load_npz
+from imitate.taskspace import _POUR_DIMS as TASK_DIMS
 
 __all__ = [
     "Episode", "Recorder", "image_kwargs", "obstacle_vector", "recorded", "robot_episode",
@@ -163,7 +162,7 @@ def robot_episode(run: Run, images: bool = False) -> Episode:
         "obstacles": [dataclasses.asdict(o) for o in config.scene().obstacles],
         **image_kwargs(run, images),
     }
-    gaze = load_npz(run.path / "model.npz", required=("gaze",))["gaze"]
+    gaze = run.gaze
     options = {"bottle_grasp": config.bottle_grasp, "glass_grasp": config.glass_grasp}
     return recorded(run.plan, PouringEnv(**kwargs), kwargs, config.seed, options, gaze)
 

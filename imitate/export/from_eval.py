@@ -29,10 +29,11 @@ from imitate.evaluation.trial import physics, plan_variation
 from imitate.evaluation.variation import Variation
 from imitate.export.episodes import OBSTACLE, PLACES, Episode, image_kwargs, recorded
 from imitate.export.episodes import obstacle_vector as vector
-from imitate.learning import LearnedModel
 from imitate.run import Run
-from imitate.rundir.artifacts import load_json, load_npz
+from imitate.rundir import layout
+from imitate.rundir.artifacts import load_json
 from imitate.stages import provenance
+from imitate.stages.files import Learned, ModelFile
 from imitate.stages.progress import bar as progress_bar
 
 __all__ = ["Evaluated", "evaluated", "evaluated_episodes", "replayed"]
@@ -44,11 +45,11 @@ class Evaluated:
 
     Attributes:
         records: The last evaluation's records, by teacher and id.
-        models: Teacher seed -> its ``model.npz`` arrays (the learned model and ``gaze``).
+        models: Teacher seed -> its learned model and gaze frame.
     """
 
     records: list[dict]
-    models: dict[int, dict[str, np.ndarray]]
+    models: dict[int, Learned]
 
 
 def evaluated(run: Run, eval_dir: Path) -> Evaluated:
@@ -72,16 +73,17 @@ def evaluated(run: Run, eval_dir: Path) -> Evaluated:
         ) from err
     models, code = {}, provenance.code_digest()
     for seed, digest in digests.items():
-        path = run.path / "model.npz" if seed == run.config.seed else (
-            run.path / "eval" / "teachers" / f"seed-{seed}" / "model.npz"
+        folder = run.path if seed == run.config.seed else (
+            run.path / "eval" / "teachers" / f"seed-{seed}"
         )
-        arrays = load_npz(path, required=(*LearnedModel.array_names(), "gaze"))
+        path = folder / layout.MODEL
+        learned = ModelFile.load_learned(folder)
         if suite.digest(draw_seed, path.read_bytes(), code) != digest:
             raise ImitateError(
                 f"{eval_dir} was evaluated with another model of teacher {seed} ({path}) or "
                 f"other code; run the evaluation again (imitate eval {run.path} ...) to export it"
             )
-        models[seed] = dict(arrays)
+        models[seed] = learned
     if not records:
         raise ImitateError(f"{eval_dir} holds no finished variation; run the evaluation first")
     return Evaluated(records, models)
@@ -97,12 +99,11 @@ def evaluated_episodes(
     Raises:
         ImitateError: a variation's plan differs from the evaluated one.
     """
-    learned = {seed: LearnedModel.from_arrays(a) for seed, a in evaluation.models.items()}
     for record in progress_bar(evaluation.records, progress, desc="export", unit="episode"):
         variation = Variation.from_json(record["settings"])
         teacher = record["teacher"]
-        gaze = evaluation.models[teacher]["gaze"]
-        plan = plan_variation(learned[teacher], gaze, variation)
+        gaze = evaluation.models[teacher].gaze
+        plan = plan_variation(evaluation.models[teacher].model, gaze, variation)
         evaluated_plan = record["plan"]
         if (plan.min_distance, plan.n_iter) != (
             evaluated_plan["min_distance_m"], evaluated_plan["iterations"]

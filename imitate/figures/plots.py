@@ -2,10 +2,11 @@
 Fig. 5 (BIC), GMR bands, Fig. 8 (snapshots without and with the collision cost), Fig. 9
 (reproductions over a sweep of collision weights), costs.
 
-Every ``plot_*`` function draws on a new matplotlib figure and returns it; :func:`save` writes
-one atomically and frees it; :func:`png` returns it as PNG bytes for :func:`save_png` (in a
-worker process too: the functions and their arguments pickle). The backend is matplotlib's
-choice (Agg where there is no display); the ``imitate`` command and :func:`use_agg` set Agg.
+Every ``plot_*`` function draws on a new matplotlib figure and returns it; :func:`figure_png`
+turns one into PNG bytes and frees it, :func:`png` draws one and does so (in a worker process
+too: the functions and their arguments pickle); writing the bytes is the caller's. The backend
+is matplotlib's choice (Agg where there is no display); the ``imitate`` command and
+:func:`use_agg` set Agg.
 """
 
 from __future__ import annotations
@@ -22,14 +23,15 @@ from matplotlib.patches import Ellipse
 
 from imitate.learning import LearnedModel
 from imitate.learning.gmm import GMM
-from imitate.motion.taskspace import TASK_DIMS, TASK_UNITS
-from imitate.rundir.artifacts import write_atomic
+from imitate.taskspace import _POUR_DIMS as TASK_DIMS
+from imitate.taskspace import TASK_UNITS
 
 DPI = 110  # dots per inch of the saved figures; Fig. 8 shows its snapshots at their pixel size
 LOOSE = 0.1  # Fig. 9 marks the steps whose similarity weight is below this share of its largest
 
 __all__ = [
     "DPI",
+    "figure_png",
     "plot_bic_curves",
     "plot_collision_sweep",
     "plot_costs",
@@ -38,8 +40,6 @@ __all__ = [
     "plot_observation",
     "plot_snapshots",
     "png",
-    "save",
-    "save_png",
     "use_agg",
 ]
 
@@ -70,7 +70,7 @@ def plot_gmm_with_and_without_dtw(raw: LearnedModel, aligned: LearnedModel, dim:
     Args:
         raw: Model learned without DTW (``LearningConfig(use_dtw=False)``).
         aligned: Model learned with DTW.
-        dim: Task-space dimension to show (index into :data:`imitate.motion.taskspace.TASK_DIMS`).
+        dim: Task-space dimension to show (index into :data:`imitate.taskspace.TASK_DIMS`).
 
     Returns:
         The figure.
@@ -198,7 +198,7 @@ def plot_collision_sweep(
     Args:
         times: ``(T,)`` [s].
         mean: ``(T, 7)`` GMR mean of the task state at ``times`` (units of
-            :data:`~imitate.motion.taskspace.TASK_UNITS`).
+            :data:`~imitate.taskspace.TASK_UNITS`).
         variance: ``(T, 7)`` GMR variance of each task dimension at ``times`` (those units
             squared).
         reproductions: ``{collision weight: task states (T, 7)}``.
@@ -305,16 +305,8 @@ def plot_snapshots(
     return fig
 
 
-def save(fig: Figure, path, dpi: int = DPI) -> None:
-    """Write ``fig`` as a PNG to ``path`` atomically and close it."""
-    write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi))
-    plt.close(fig)
-
-
-def png(draw: Callable[..., Figure], *args, dpi: int = DPI) -> bytes:
-    """The figure ``draw(*args)`` returns, as PNG bytes (the same as :func:`save` writes); the
-    figure is closed."""
-    fig = draw(*args)
+def figure_png(fig: Figure, dpi: int = DPI) -> bytes:
+    """``fig`` as PNG bytes at ``dpi``; the figure is closed."""
     buffer = io.BytesIO()
     try:
         fig.savefig(buffer, format="png", dpi=dpi)
@@ -323,9 +315,9 @@ def png(draw: Callable[..., Figure], *args, dpi: int = DPI) -> bytes:
     return buffer.getvalue()
 
 
-def save_png(data: bytes, path) -> None:
-    """Write the PNG bytes ``data`` (from :func:`png`) to ``path`` atomically."""
-    write_atomic(path, lambda tmp: tmp.write_bytes(data))
+def png(draw: Callable[..., Figure], *args, dpi: int = DPI) -> bytes:
+    """The figure ``draw(*args)`` returns, as PNG bytes (:func:`figure_png`)."""
+    return figure_png(draw(*args), dpi)
 
 
 def use_agg() -> None:

@@ -13,10 +13,10 @@ import math
 import numba
 import numpy as np
 
-from imitate import numba_cache
+from imitate._numba import ensure_writable
 from imitate.learning.kmeans import _EPS_COUNTS, _argsort
 
-numba_cache.ensure_writable()  # before the kernels below are declared
+ensure_writable(__file__)  # before the kernels below are declared
 
 _LOG_2PI = np.log(2.0 * np.pi)
 # Responsibilities below exp(-50) ~ 2e-22 of a sample's largest are flushed to 0: over all N

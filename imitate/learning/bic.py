@@ -14,7 +14,8 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
-from imitate import defaults, numba_cache
+from imitate import defaults
+from imitate._numba import ensure_writable
 from imitate._validation import check_n_components, check_samples
 from imitate.errors import ImitateError
 from imitate.learning._em import (
@@ -27,7 +28,7 @@ from imitate.learning._em import (
 from imitate.learning.gmm import GMM, _bic, _not_positive_definite, kmeans_parameters
 from imitate.learning.kmeans import _kmeans_sweep
 
-numba_cache.ensure_writable()  # before the kernels below are declared
+ensure_writable(__file__)  # before the kernels below are declared
 
 __all__ = ["BIC_METHODS", "DEFAULT_BIC", "BicSweep", "bic_sweep"]
 

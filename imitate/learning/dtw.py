@@ -29,10 +29,10 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
-from imitate import numba_cache
+from imitate._numba import ensure_writable
 from imitate.errors import ImitateError
 
-numba_cache.ensure_writable()  # before the kernels below are declared
+ensure_writable(__file__)  # before the kernels below are declared
 
 __all__ = ["Alignment", "align", "default_weights", "dtw", "local_costs", "warp_to_reference"]
 

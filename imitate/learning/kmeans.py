@@ -15,11 +15,11 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
-from imitate import numba_cache
+from imitate._numba import ensure_writable
 from imitate._validation import check_n_components, check_samples
 from imitate.errors import ImitateError
 
-numba_cache.ensure_writable()  # before the kernels below are declared
+ensure_writable(__file__)  # before the kernels below are declared
 
 __all__ = ["KMeansResult", "kmeans"]
 

@@ -154,25 +154,16 @@ class LearnedModel:
         """The model stored by :meth:`to_arrays` under ``prefix``, without its alignment.
 
         Raises:
-            ImitateError: an array holds NaN or inf, or the GMM's parameters are
-                inconsistent; the message names the file where ``arrays`` came from one
-                (:class:`imitate.rundir.artifacts.Arrays`).
+            ImitateError: an array holds NaN or inf, the GMR's arrays disagree in shape, or
+                the GMM's parameters are inconsistent.
         """
         a = {name: arrays[prefix + name] for name in _ARRAYS}
-        path = getattr(arrays, "path", None)
-        try:
-            bad = [prefix + n for n, v in a.items()  # (bic_curve: drawn only, may hold inf)
-                   if n != "bic_curve" and not np.isfinite(np.asarray(v, float)).all()]
-            if bad:
-                raise ImitateError(f"{', '.join(bad)} must be finite (no NaN or inf)")
-            _check_shapes(a)
-            gmm = GMM.from_parameters(a.pop("weights"), a.pop("means"), a.pop("covariances"))
-        except (ImitateError, ValueError, TypeError) as err:
-            if path is None:
-                raise
-            raise ImitateError(
-                f"{path}: {err}; re-run `imitate learn {path.parent}` to write it"
-            ) from err
+        bad = [prefix + n for n, v in a.items()  # (bic_curve: drawn only, may hold inf)
+               if n != "bic_curve" and not np.isfinite(np.asarray(v, float)).all()]
+        if bad:
+            raise ImitateError(f"{', '.join(bad)} must be finite (no NaN or inf)")
+        _check_shapes(a)
+        gmm = GMM.from_parameters(a.pop("weights"), a.pop("means"), a.pop("covariances"))
         return cls(gmm=gmm, alignment=None, **a)
 
 

@@ -16,11 +16,11 @@ import math
 import numba
 import numpy as np
 
-from imitate import numba_cache
+from imitate._numba import ensure_writable
 
-numba_cache.ensure_writable()  # before the kernels below are declared
+ensure_writable(__file__)  # before the kernels below are declared
 
-# Points of the task map: the bottle's and the glass's origin ``o``, then ``o + a`` with ``a``
+# Points of the task map: the tool's and the target's origin ``o``, then ``o + a`` with ``a``
 # each one's long axis (its frame's z axis).
 N_POINTS = 4
 
@@ -35,7 +35,7 @@ def _task_state(xpos, xmat, bodies, gaze, angle_ref, singular_rho2, points, proj
         xpos: ``(nbody, 3)`` MuJoCo's body positions (``data.xpos``) [m].
         xmat: ``(nbody, 9)`` MuJoCo's body orientations, row-major rotation matrices
             (``data.xmat``).
-        bodies: ``(2,)`` the bottle's and the glass's body ids.
+        bodies: ``(2,)`` the tool's and the target's body ids.
         gaze: ``R_gaze`` ``(3, 3)``, columns right, down, forward.
         angle_ref: ``(2,)`` the angles' reference branches [rad].
         singular_rho2: ``rho^2`` below which an angle is undefined (it is then ``angle_ref``).

@@ -27,6 +27,7 @@ from imitate.errors import ImitateError
 from imitate.motion import _planner
 from imitate.motion.kinematics import Distances, Kinematics
 from imitate.motion.taskspace import TaskFrame, TaskMap
+from imitate.taskspace import ANGLES
 
 __all__ = [
     "SAMPLE_STEP",
@@ -185,7 +186,7 @@ def rollout(
     frames, distances, between = [], [], []
     q[0] = q0
     target = np.ascontiguousarray(target, dtype=float)
-    angle_ref = np.ascontiguousarray(target[:, [3, 5]])
+    angle_ref = np.ascontiguousarray(target[:, ANGLES])
     step = _planner._rmr_step
     for t in range(T + 1):
         kin.update(q[t])
@@ -286,7 +287,7 @@ def reach(
     kin = task.kin
     target = np.empty((steps + 1, len(goal)))
     kin.update(q0)
-    x0, _ = task(goal[[3, 5]])
+    x0, _ = task(goal[ANGLES])
     remaining = (1.0 - rate) ** np.arange(steps + 1)
     target[:] = goal + remaining[:, None] * (x0 - goal)
     return rollout(task, target, q0, config, limits).q[-1]

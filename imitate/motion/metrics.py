@@ -1,5 +1,5 @@
-"""How well a plan reproduces the learned task: the pour-phase error, where it deviates, and how
-far in the demonstrations' own metric."""
+"""How well a plan reproduces the learned task: its error in the task's critical phase, where it
+deviates, and how far in the demonstrations' own metric."""
 
 from __future__ import annotations
 
@@ -7,39 +7,34 @@ import numpy as np
 
 from imitate.motion.costs import TOLERANCE
 from imitate.motion.plan import Plan
+from imitate.taskspace import ANGLES
 
-__all__ = ["deviation", "mahalanobis", "pour_phase", "pour_phase_error", "task_change"]
-
-
-def pour_phase(mean: np.ndarray) -> np.ndarray:
-    """Steps ``(T,) bool`` where the bottle is tilted beyond 80 % of its largest tilt from the
-    start, given the GMR mean ``(T, 7)``: the low-variance pouring phase."""
-    tilt = np.abs(mean[:, 3] - mean[0, 3])
-    return tilt >= 0.8 * tilt.max()
+__all__ = ["critical_error", "deviation", "mahalanobis", "task_change"]
 
 
-def pour_phase_error(plan: Plan) -> tuple[float, float]:
-    """Largest task error of ``plan`` in the pouring phase: relative position [m] and bottle or
-    glass angle [deg]."""
-    error = plan.task_error()[pour_phase(plan.mean)]
+def critical_error(plan: Plan, critical: np.ndarray) -> tuple[float, float]:
+    """Largest task error of ``plan`` in the steps ``critical`` ``(T,) bool`` (the task's
+    critical phase): relative position [m] and tool or target angle [deg]."""
+    error = plan.task_error()[critical]
     return (
         float(np.linalg.norm(error[:, :3], axis=1).max()),
-        float(np.degrees(np.abs(error[:, [3, 5]]).max())),
+        float(np.degrees(np.abs(error[:, ANGLES]).max())),
     )
 
 
-def task_change(plan: Plan, free: Plan) -> dict[str, float]:
+def task_change(plan: Plan, free: Plan, critical: np.ndarray, phase: str) -> dict[str, float]:
     """How far ``plan`` moved the task from ``free`` (the unconstrained reproduction of the same
-    model and step): the largest change of the relative position [m] and of the bottle or glass
-    angle [deg] in the pouring phase, and of the relative position in the steps whose GMR
-    position variance is at or below its median (where the demonstrations agree)."""
+    model and step): the largest change of the relative position [m] and of the tool or target
+    angle [deg] in the steps ``critical`` ``(T,) bool`` (the task's critical phase, named
+    ``phase`` in the keys ``<phase>_m`` and ``<phase>_deg``), and of the relative position in
+    the steps whose GMR position variance is at or below its median (where the demonstrations
+    agree)."""
     change = plan.x - free.x
     distance = np.linalg.norm(change[:, :3], axis=1)
-    pour = pour_phase(plan.mean)
     var = plan.variance[:, :3].sum(axis=1)
     return {
-        "pour_m": float(distance[pour].max()),
-        "pour_deg": float(np.degrees(np.abs(change[pour][:, [3, 5]]).max())),
+        f"{phase}_m": float(distance[critical].max()),
+        f"{phase}_deg": float(np.degrees(np.abs(change[critical][:, ANGLES]).max())),
         "low_variance_m": float(distance[var <= np.median(var)].max()),
     }
 

@@ -4,16 +4,16 @@
 robot's start posture onto the learned start (by RMR), fits attractors evenly spaced in time (or the
 paper's one per GMM component) to the GMR mean in least squares (:func:`setup`) and then minimises
 ``Phi(a) = sum_i w_i c_i`` by iRprop- (default; sign-based, robust to the collision cost's kinks) or
-L-BFGS (scipy). If the attractors alone leave less than the margin to an obstacle (one under the
-glass, where the task fixes where the hands are relative to each other), it optimizes once more with
-a null-space push per attractor added to the variables: the robot's redundancy, which moves the body
-without changing the task. The plan's start, RMR's posture on the learned start, is moved in the
-same null space away from the table and obstacles closer than the margin plus 3 cm. The approach
-from the given posture to the plan's start is part of the movement: its clearance counts in the
-plan's, and where its straight joint-space line would pass within the margin of something it is
-bent (:mod:`.approach`). The minimizers are :mod:`.minimize`'s, the settings
-:class:`~.plan_config.PlanConfig`. It returns a frozen :class:`Plan` with the best variables found,
-whether or not the optimizer converged.
+L-BFGS (scipy). If the attractors alone leave less than the margin to an obstacle (one under
+the target, where the task fixes where the hands are relative to each other), it optimizes once
+more with a null-space push per attractor added to the variables: the robot's redundancy, which
+moves the body without changing the task. The plan's start, RMR's posture on the learned start,
+is moved in the same null space away from the table and obstacles closer than the margin plus 3 cm.
+The approach from the given posture to the plan's start is part of the movement: its clearance
+counts in the plan's, and where its straight joint-space line would pass within the margin of
+something it is bent (:mod:`.approach`). The minimizers are :mod:`.minimize`'s, the settings
+:class:`~.plan_config.PlanConfig`. It returns a frozen :class:`Plan` with the best variables
+found, whether or not the optimizer converged.
 """
 
 from __future__ import annotations
@@ -45,11 +45,11 @@ from imitate.motion.costs import (
     weighting,
 )
 from imitate.motion.kinematics import Kinematics
-from imitate.motion.metrics import pour_phase
 from imitate.motion.minimize import lbfgs, rprop
 from imitate.motion.plan import Plan
 from imitate.motion.plan_config import PlanConfig
 from imitate.motion.taskspace import TaskMap
+from imitate.taskspace import ANGLES
 
 if TYPE_CHECKING:
     from imitate.learning import LearnedModel
@@ -102,7 +102,7 @@ class Problem:
         kin = task.kin
         self.task, self.dynamics, self.q_start, self.config = task, dynamics, q_start, config
         kin.update(q_start)
-        self.x_start, _ = task(mean[0, [3, 5]])
+        self.x_start, _ = task(mean[0, ANGLES])
         dt = config.dt
         self.limits = JointLimitCost(kin.lower, kin.upper, config.control.free_ratio)
         self.terms: dict[str, tuple[float, CostTerm]] = {
@@ -196,7 +196,12 @@ class Setup:
 
 
 def setup(
-    task: TaskMap, model: LearnedModel, *, q0: np.ndarray, config: PlanConfig = PlanConfig()
+    task: TaskMap,
+    model: LearnedModel,
+    *,
+    q0: np.ndarray,
+    config: PlanConfig = PlanConfig(),
+    critical: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> Setup:
     """The problem :func:`plan_from_model` optimizes: resampled GMR, eq. 21 weights, attractor
     dynamics (attractors every ``attractor_spacing`` seconds, or one per GMM component with
@@ -209,9 +214,12 @@ def setup(
             and ``covariance`` over ``m`` task dimensions, GMM over ``(t, x)``.
         q0: ``(n,)`` current posture [rad].
         config: Parameters.
+        critical: The task's critical phase: the steps ``(T,) bool`` of a mean ``(T, m)``; the
+            ``"oracle"`` weighting needs it.
 
     Raises:
-        ImitateError: On inconsistent shapes or non-finite inputs.
+        ImitateError: On inconsistent shapes or non-finite inputs, or the oracle weighting
+            without ``critical``.
     """
     times, mean, variance = (
         np.asarray(v, dtype=float) for v in (model.times, model.mean, model.variance)
@@ -245,8 +253,12 @@ def setup(
         flat = np.asarray(model.covariance, dtype=float).reshape(len(times), -1)
         cov = np.column_stack([np.interp(grid, times, f) for f in flat.T])
         cov = cov.reshape(len(grid), task.m, task.m)
-    critical = pour_phase(mu) if c.similarity == "oracle" else None  # the oracle's steps
-    weights = weighting(c.similarity, var, cov, w_max, np.maximum(sigma_max, 1e-12), critical)
+    steps = None  # the oracle's: the task's critical phase
+    if c.similarity == "oracle":
+        if critical is None:
+            raise ImitateError("similarity='oracle' needs the task's critical phase (critical=)")
+        steps = critical(mu)
+    weights = weighting(c.similarity, var, cov, w_max, np.maximum(sigma_max, 1e-12), steps)
 
     duration = grid[-1] - grid[0]
     if c.attractor_spacing is None:  # the paper: one attractor per GMM component
@@ -279,7 +291,12 @@ class _Best(TypedDict):
 
 
 def plan_from_model(
-    task: TaskMap, model: LearnedModel, *, q0: np.ndarray, config: PlanConfig = PlanConfig()
+    task: TaskMap,
+    model: LearnedModel,
+    *,
+    q0: np.ndarray,
+    config: PlanConfig = PlanConfig(),
+    critical: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> Plan:
     """Optimizes a whole-body movement that reproduces the learned task (paper section V).
 
@@ -289,6 +306,7 @@ def plan_from_model(
         q0: ``(n,)`` current posture [rad]; the plan starts where RMR brings it onto the GMR
             mean's start.
         config: Parameters.
+        critical: The task's critical phase (:func:`setup`), for the oracle weighting.
 
     Returns:
         The :class:`Plan`; never raises for a colliding, unreachable or unconverged result, it
@@ -298,7 +316,7 @@ def plan_from_model(
         ImitateError: On inconsistent shapes or non-finite inputs.
     """
     c = config
-    start = setup(task, model, q0=q0, config=c)
+    start = setup(task, model, q0=q0, config=c, critical=critical)
     problem, a0, mu = start.problem, start.a0, start.mean
 
     history: list[tuple[float, dict[str, float]]] = []

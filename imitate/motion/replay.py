@@ -1,31 +1,34 @@
-"""The robot in the pouring scene: planning there, and playing a plan in physics.
+"""The robot in a task's scene: planning there, and playing a plan in physics.
 
-:func:`planning_task` builds the kinematic planning model of a scene (no particles) and its
-task map; :func:`reproduce` plans a learned model there; :func:`actions` are a plan's actions
-at the env's step, and :func:`replay` drives ``PouringEnv``'s actuators with them in full
-physics and measures the pour, or stops where the physics diverges.
+:func:`planning_task` builds the kinematic planning model of a scene (hulls only) and its task
+map; :func:`reproduce` plans a learned model there; :func:`actions` are a plan's actions at the
+env's step, and :func:`replay` drives a task env's actuators with them in full physics, or
+stops where the physics diverges; :func:`measure` replays a plan and records what the task
+measures (the one replay-and-record of the replay stage and the evaluation).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from numbers import Real
-from typing import cast
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
 
 from imitate.envs import assembly
-from imitate.envs.pouring import PouringEnv
+from imitate.envs.bimanual import BimanualEnv
+from imitate.envs.task import Task
 from imitate.errors import ImitateError
 from imitate.learning import LearnedModel
-from imitate.models import humanoid, objects
+from imitate.models import humanoid
 from imitate.motion import Plan, PlanConfig, plan_from_model
 from imitate.motion.approach import approach_path
 from imitate.motion.control import ControlConfig
 from imitate.motion.kinematics import Kinematics
-from imitate.motion.taskspace import TaskMap, task_space
+from imitate.motion.taskspace import TaskMap
+from imitate.taskspace import ANGLES, gaze_of_camera, task_space
 
 GAZE_CAMERA = humanoid.LEFT_EYE
 MIN_RANGE = 0.05  # [rad] the narrowest range narrowed_limits leaves a joint
@@ -37,11 +40,11 @@ def planning_task(
     control: ControlConfig | None = None,
     limit_margin: float = 0.0,
 ) -> TaskMap:
-    """Task map on the scene's planning model (:func:`assembly.planning_model`; default:
-    ``PouringEnv``'s scene), objects held by the robot, its kinematics updated to the rest pose.
+    """Task map on the scene's planning model (:func:`assembly.planning_model`), objects held
+    by the robot, its kinematics updated to the rest pose.
 
     Args:
-        config: The scene; ``None`` for ``PouringEnv``'s default.
+        config: The scene; ``None`` for ``SceneConfig()``'s.
         gaze: ``R_gaze`` ``(3, 3)``, right-handed, columns right, down, forward (e.g. the gaze
             stored with observed tracks); ``None`` for the rest pose's left-eye camera.
         control: Its ``fixed_joints`` get zero Jacobian columns; ``None`` for the default.
@@ -58,10 +61,9 @@ def planning_task(
     kin.lower, kin.upper = narrowed_limits(kin.lower, kin.upper, limit_margin)
     kin.update(humanoid.rest_pose())
     if gaze is None:
-        _, R = kin.camera_pose(GAZE_CAMERA)
-        # MuJoCo camera axes are right, up, backward: right, down, forward is x, -y, -z.
-        gaze = np.column_stack((R[:, 0], -R[:, 1], -R[:, 2]))
-    return TaskMap(kin, objects.BOTTLE, objects.GLASS, gaze, control.fixed_joints)
+        gaze = gaze_of_camera(kin.camera_pose(GAZE_CAMERA)[1], mujoco=True)
+    tool, target = config.objects
+    return TaskMap(kin, tool, target, gaze, control.fixed_joints)
 
 
 def narrowed_limits(
@@ -100,6 +102,7 @@ def reproduce(
     scene: assembly.SceneConfig | None = None,
     q0: np.ndarray | None = None,
     config: PlanConfig | None = None,
+    critical: Callable[[np.ndarray], np.ndarray] | None = None,
     **settings,
 ) -> Plan:
     """The robot's reproduction of ``model`` in ``scene``: :func:`plan_from_model` on
@@ -109,9 +112,10 @@ def reproduce(
         model: A learned model (:func:`imitate.learn`'s) in the task space of ``gaze``.
         gaze: ``(3, 3)`` gaze frame the model's task space is expressed in (columns right,
             down, forward); ``None`` for the robot's left eye at the rest pose.
-        scene: Obstacles and grasps; ``None`` for ``PouringEnv``'s default scene.
+        scene: Objects, obstacles and grasps; ``None`` for ``SceneConfig()``.
         q0: ``(n,)`` posture [rad] the movement starts from; ``None`` for the rest pose.
         config: The planner's settings; ``None`` for the defaults.
+        critical: The task's critical phase (``Task.critical``), for the oracle weighting.
         **settings: Fields of :class:`PlanConfig` replaced in ``config`` (``collision_weight``,
             ``similarity``, ``max_iter``, ...).
 
@@ -120,7 +124,9 @@ def reproduce(
     """
     config = (config or PlanConfig()).replace(**settings)
     q0 = humanoid.rest_pose() if q0 is None else q0
-    return plan_from_model(planning_task(scene, gaze), model, q0=q0, config=config)
+    return plan_from_model(
+        planning_task(scene, gaze), model, q0=q0, config=config, critical=critical
+    )
 
 
 @dataclass(frozen=True)
@@ -128,28 +134,23 @@ class ReplayResult:
     """Outcome of :func:`replay`.
 
     Attributes:
-        pour_fraction: Fraction of particles in the glass at the end.
-        spilled: Particles in neither container at the end.
+        info: The env's ``info`` of the last step (the task's measures at the end).
         min_distance: Smallest signed distance [m] over all steps between pairs that must not
             touch.
         task_error: ``(T + 1, m)`` task state in physics minus the plan's, at the plan's times
             (fewer rows if the replay stopped early).
-        is_success: The pour fraction is a pour (:func:`imitate.envs.outcome.poured`) and the
-            physics did not diverge.
         diverged_at: Time [s] into the replay at which the physics diverged (the replay stopped
             there), None if it did not.
     """
 
-    pour_fraction: float
-    spilled: int
+    info: Mapping[str, Any]
     min_distance: float
     task_error: np.ndarray
-    is_success: bool
     diverged_at: float | None = None
 
 
 def actions(
-    plan: Plan, env: gym.Env | PouringEnv, *, approach: float = 1.0, settle: float = 1.5
+    plan: Plan, env: gym.Env | BimanualEnv, *, approach: float = 1.0, settle: float = 1.5
 ) -> np.ndarray:
     """The env's actions that play ``plan``, one per env step: ``(N, 18)`` joint targets
     [rad] from the env's joint positions now (call it after ``env.reset``) to the plan's start
@@ -160,12 +161,12 @@ def actions(
 
     Args:
         plan: The plan (``Plan.times`` at the planner's step, 0.08 s by default).
-        env: ``PouringEnv``, or ``gym.make("imitate:imitate/Pouring-v0")`` (its wrappers are
-            looked through).
+        env: A task's env (``BimanualEnv``), or ``gym.make`` of its id (its wrappers are looked
+            through).
         approach: Time [s] from the reset posture to the plan's start.
         settle: Time [s] holding the last posture.
     """
-    env = cast(PouringEnv, env.unwrapped)
+    env = cast(BimanualEnv, env.unwrapped)
     dt = env.dt
     n_approach = int(round(approach / dt))
     blend = 0.5 - 0.5 * np.cos(np.pi * np.arange(1, n_approach + 1) / n_approach)
@@ -180,23 +181,23 @@ def actions(
 
 def replay(
     plan: Plan,
-    env: PouringEnv,
+    env: BimanualEnv,
     *,
     seed: int = 0,
     approach: float = 1.0,
     settle: float = 1.5,
     options: dict | None = None,
-    on_step: Callable[[PouringEnv], None] | None = None,
+    on_step: Callable[[BimanualEnv], None] | None = None,
     gaze: np.ndarray | None = None,
 ) -> ReplayResult:
     """Drives ``env`` along ``plan`` in physics (its :func:`actions` after a reset from
-    ``seed`` with ``options``) and measures the pour, the clearance and the task error.
+    ``seed`` with ``options``) and measures the clearance and the task error.
     ``on_step(env)``, if given, is called after the reset and after every step (to record
     states for a video, say). The task error is measured in ``gaze``, which should be the
     plan's (``None``: :func:`planning_task`'s default).
 
     Where the physics diverges (``info["diverged"]`` of a step), the replay stops and says when
-    (``diverged_at``), with the pour and the clearance measured so far.
+    (``diverged_at``), with the clearance measured so far.
     """
     env.reset(seed=seed, options=options)
     dt = env.dt
@@ -223,13 +224,44 @@ def replay(
     x = np.reshape(reached, (len(reached), plan.x.shape[1]))
     ref = _resample(plan.times - plan.times[0], plan.x, t_play)
     return ReplayResult(
-        pour_fraction=float(info["pour_fraction"]),
-        spilled=int(info["spilled"]),
+        info=dict(info),
         min_distance=float(min_distance),
         task_error=x - ref[: len(x)],
-        is_success=bool(info["is_success"]) and diverged_at is None,
         diverged_at=diverged_at,
     )
+
+
+def measure(
+    task: Task,
+    plan: Plan,
+    env: BimanualEnv,
+    *,
+    seed: int,
+    gaze: np.ndarray,
+    options: Mapping[str, Any],
+    approach: float = 1.0,
+    on_step: Callable[[BimanualEnv], None] | None = None,
+) -> tuple[ReplayResult, dict[str, Any], dict[str, Any]]:
+    """``plan`` replayed in ``env`` (a fresh env of ``task``'s, closed afterwards) from
+    ``seed`` with the task's settings ``options``, watched by the task's watcher.
+
+    Returns:
+        The :class:`ReplayResult`; the replay's record: the task's measures at the end,
+        ``min_distance_m`` [m] and ``diverged``; and the watcher's summary.
+    """
+    watcher = task.watcher()
+
+    def step(env: BimanualEnv) -> None:
+        watcher(env)
+        if on_step is not None:
+            on_step(env)
+
+    result = replay(plan, env, seed=seed, approach=approach,
+                    options=task.reset_options(options), on_step=step, gaze=gaze)
+    env.close()
+    record = {**task.record(result.info), "min_distance_m": result.min_distance,
+              "diverged": result.diverged_at is not None}
+    return result, record, watcher.summary()
 
 
 def _play_times(plan: Plan, dt: float) -> np.ndarray:
@@ -242,16 +274,14 @@ def _resample(times: np.ndarray, values: np.ndarray, at: np.ndarray) -> np.ndarr
     return np.column_stack([np.interp(at, times, values[:, i]) for i in range(values.shape[1])])
 
 
-def _task_state(env: PouringEnv, task: TaskMap, plan: Plan, t: float) -> np.ndarray:
+def _task_state(env: BimanualEnv, task: TaskMap, plan: Plan, t: float) -> np.ndarray:
     """Task state of the objects' physical poses (not the hands'), eq. 1."""
-    d = env.data
-    pb, pg = d.body(objects.BOTTLE).xpos, d.body(objects.GLASS).xpos
-    ab = d.body(objects.BOTTLE).xmat.reshape(3, 3)[:, 2]
-    ag = d.body(objects.GLASS).xmat.reshape(3, 3)[:, 2]
-    x = task_space(pb[None], ab[None], pg[None], ag[None], task.gaze)[0]
-    ref = np.array([np.interp(t, plan.times - plan.times[0], plan.x[:, i]) for i in (3, 5)])
-    x[[3, 5]] += 2 * np.pi * np.round((ref - x[[3, 5]]) / (2 * np.pi))
+    tool, target = (env.data.body(obj) for obj in env.objects)
+    x = task_space(tool.xpos[None], tool.xmat.reshape(3, 3)[None, :, 2],
+                   target.xpos[None], target.xmat.reshape(3, 3)[None, :, 2], task.gaze)[0]
+    ref = np.array([np.interp(t, plan.times - plan.times[0], plan.x[:, i]) for i in ANGLES])
+    x[ANGLES] += 2 * np.pi * np.round((ref - x[ANGLES]) / (2 * np.pi))
     return x
 
 
-__all__ = ["ReplayResult", "narrowed_limits", "planning_task", "replay"]
+__all__ = ["ReplayResult", "measure", "narrowed_limits", "planning_task", "replay"]

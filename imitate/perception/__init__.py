@@ -1,14 +1,14 @@
-"""The robot's stereo perception: it tracks the bottle and glass in its head cameras' images.
+"""The robot's stereo perception: it tracks a task's objects in its head cameras' images.
 
-:mod:`~imitate.perception.camera` (pinhole model, triangulation, gaze frame),
+:mod:`~imitate.perception.camera` (pinhole model, triangulation),
 :mod:`~imitate.perception.colour` (what the robot knows of the objects: colours and shapes),
 :mod:`~imitate.perception.tracker` (the stereo tracker; its docstring describes the method),
-:mod:`~imitate.perception.tracks` (tracks over a sequence, gaps, ``observations.npz``).
+:mod:`~imitate.perception.tracks` (tracks over a sequence, gaps, the observation as arrays).
 Nothing here knows the simulation: images and camera parameters come in as arrays
 (:mod:`imitate.perception.watch` wires it to the simulated session).
 """
 
-from imitate.perception.camera import PinholeCamera, axis_angle, gaze_frame, triangulate
+from imitate.perception.camera import PinholeCamera, triangulate
 from imitate.perception.colour import SKIN, ColourRange, ObjectModel, colour_range, object_models
 from imitate.perception.tracker import (
     Measurement,
@@ -23,8 +23,6 @@ from imitate.perception.tracks import (
     Observations,
     Tracks,
     fill_gaps,
-    load_observations,
-    save_observations,
     track,
     tracks_from_ends,
 )
@@ -42,14 +40,10 @@ __all__ = [
     "StereoTracker",
     "Tracks",
     "ViewMeasurement",
-    "axis_angle",
     "colour_range",
     "fill_gaps",
-    "gaze_frame",
-    "load_observations",
     "object_models",
     "perception_config",
-    "save_observations",
     "track",
     "tracks_from_ends",
     "triangulate",

@@ -8,9 +8,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from imitate import numba_cache
+from imitate._numba import ensure_writable
 
-numba_cache.ensure_writable()  # before the kernels below are declared
+ensure_writable(__file__)  # before the kernels below are declared
 
 
 @numba.njit(cache=True, nogil=True)

@@ -16,9 +16,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from imitate import numba_cache
+from imitate._numba import ensure_writable
 
-numba_cache.ensure_writable()  # before the kernels below are declared
+ensure_writable(__file__)  # before the kernels below are declared
 
 _RIM_POINTS = 24
 _RIM_PHASES = np.linspace(0.0, 2 * np.pi, _RIM_POINTS, endpoint=False)

@@ -1,4 +1,5 @@
-"""The pinhole camera model, triangulation, and the gaze frame the tracks are expressed in."""
+"""The pinhole camera model and triangulation (the gaze frame of a camera is
+:func:`imitate.taskspace.gaze_of_camera` of its :attr:`PinholeCamera.rotation`)."""
 
 from __future__ import annotations
 
@@ -75,22 +76,3 @@ def triangulate(left: PinholeCamera, right: PinholeCamera, pl: np.ndarray, pr: n
     t1, t2 = (b * e - c * d) / denom, (a * e - b * d) / denom
     return 0.5 * (left.position + t1[..., None] * d1 + right.position + t2[..., None] * d2)
 
-
-def gaze_frame(camera: PinholeCamera) -> np.ndarray:
-    """The gaze frame ``(3, 3)`` of ``camera``: columns right, ``forward x right``, forward.
-
-    The middle column points down the image (OpenCV's y). The frame is right-handed, as
-    ``imitate.motion.taskspace`` requires, and its columns are the camera's axes in world
-    coordinates.
-    """
-    return camera.rotation.T.copy()
-
-
-def axis_angle(axis: np.ndarray, gaze: np.ndarray) -> np.ndarray:
-    """Angle [rad] of ``axis (..., 3)`` around the gaze vector: ``atan2(a . g_1, a . g_0)``.
-
-    An upright object seen by a level camera has angle ``-pi/2``; tilting its top towards the
-    image's right brings the angle towards 0.
-    """
-    comp = np.asarray(axis, dtype=float) @ np.asarray(gaze, dtype=float)
-    return np.arctan2(comp[..., 1], comp[..., 0])

@@ -1,18 +1,19 @@
 """What the robot knows about the objects: their colour ranges and shapes.
 
-:func:`object_models` derives them from the scene's bottle and glass
-(:mod:`imitate.models.objects`): a hue range around each one's colour, and its outer profile.
+:func:`object_models` derives them from the scene's objects (:mod:`imitate.models.shapes`, by
+name): a hue range around each one's colour, and its outer profile.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from imitate.errors import ImitateError
-from imitate.models import objects
+from imitate.models import shapes
 
 
 @dataclass(frozen=True)
@@ -116,13 +117,21 @@ def colour_range(rgba, hue_tolerance: int = 12) -> ColourRange:
     )
 
 
-def object_models() -> tuple[ObjectModel, ...]:
-    """The bottle and glass as the robot knows them: colour range and outer radius profile."""
+def object_models(names: Sequence[str]) -> tuple[ObjectModel, ...]:
+    """The objects ``names`` (of :data:`imitate.models.shapes.SHAPES`, e.g. a task's tool and
+    target) as the robot knows them: colour range and outer radius profile.
+
+    Raises:
+        ImitateError: a name of no object.
+    """
+    unknown = [name for name in names if name not in shapes.SHAPES]
+    if unknown:
+        raise ImitateError(f"objects {unknown} unknown; accepted: {list(shapes.SHAPES)}")
     return tuple(
         ObjectModel(
             name=name,
             colour=colour_range(shape.rgba),
             profile=tuple((r + shape.wall / 2, h) for r, h in shape.profile),
         )
-        for name, shape in objects.SHAPES.items()
+        for name, shape in ((name, shapes.SHAPES[name]) for name in names)
     )

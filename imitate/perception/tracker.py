@@ -1,4 +1,4 @@
-"""Stereo colour tracking of the bottle and glass from the robot's head cameras (paper II).
+"""Stereo colour tracking of a task's objects from the robot's head cameras (paper II).
 
 Per object and per image of a stereo pair:
 
@@ -27,7 +27,7 @@ Then per object, from the two views:
 6. **Tracked point**: the middle of the two rim centres, the centre of the object's axis at
    half its height (as the ground truth). **Axis**: the unit vector bottom to top. **Angle**
    around the gaze vector: ``atan2(a . g_1, a . g_0)`` in the gaze frame ``g``
-   (:func:`~imitate.perception.camera.gaze_frame`).
+   (:func:`imitate.taskspace.image_angle`, :func:`imitate.taskspace.gaze_of_camera`).
 
 Steps 3-5 are why the blob centroids are not simply triangulated: a silhouette's centroid is not
 at half height, and a hand shifts it differently in the two views. The loops over the outline
@@ -37,6 +37,7 @@ process's first call, or loaded from numba's on-disk cache); the rest is OpenCV.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -106,9 +107,10 @@ class PerceptionConfig:
             )
 
 
-def perception_config(**overrides) -> PerceptionConfig:
-    """The tracker's settings for the scene's bottle and glass (``overrides`` replace any field)."""
-    return PerceptionConfig(objects=object_models(), **overrides)
+def perception_config(names: Sequence[str], **overrides) -> PerceptionConfig:
+    """The tracker's settings for the objects ``names`` (:func:`object_models`; ``overrides``
+    replace any field)."""
+    return PerceptionConfig(objects=object_models(names), **overrides)
 
 
 @dataclass(frozen=True)

@@ -1,15 +1,15 @@
-"""Object tracks over a sequence of stereo pairs, their gaps, and ``observations.npz``.
+"""Object tracks over a sequence of stereo pairs, their gaps, and the observation as arrays.
 
 :func:`track` runs a :class:`~imitate.perception.tracker.StereoTracker` over the pairs; frames
 in which an object is not found are gaps, which :func:`fill_gaps` interpolates when short and
 reports when long. :class:`Observations` (tracks, cameras, and the ground truth when the frames
-were simulated) is what the observation stage writes.
+were simulated) is what the observation stage writes, as :meth:`Observations.to_arrays`.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -17,10 +17,9 @@ import cv2
 import numpy as np
 
 from imitate.errors import ImitateError
-from imitate.perception.camera import axis_angle, gaze_frame
 from imitate.perception.colour import ObjectModel
 from imitate.perception.tracker import PerceptionConfig, StereoTracker
-from imitate.rundir.artifacts import load_npz, save_npz
+from imitate.taskspace import gaze_of_camera, image_angle
 
 
 @dataclass(frozen=True)
@@ -53,7 +52,8 @@ class Tracks:
         angle: ``(n_objects, n)`` axis angle around the gaze vector [rad], unwrapped; NaN
             likewise.
         detected: ``(n_objects, n)`` whether the object was measured in that frame.
-        gaze: ``(3, 3)`` gaze frame of the left camera, see :func:`gaze_frame`.
+        gaze: ``(3, 3)`` gaze frame of the left camera
+            (:func:`~imitate.taskspace.gaze_of_camera`).
         gaps: every gap, interpolated or not.
     """
 
@@ -108,7 +108,8 @@ def track(tracker: StereoTracker, pairs, times: np.ndarray, timing: dict | None 
         timing["track"] = timing.get("track", 0.0) + elapsed
     if count != len(times):
         raise ImitateError(f"{count} stereo pairs for {len(times)} frame times; one pair per time")
-    return tracks_from_ends(times, objects, ends, gaze_frame(tracker.cameras[0]), tracker.config)
+    gaze = gaze_of_camera(tracker.cameras[0].rotation)
+    return tracks_from_ends(times, objects, ends, gaze, tracker.config)
 
 
 @contextmanager
@@ -164,7 +165,7 @@ def tracks_from_ends(
     position = filled.mean(axis=2)
     axis = filled[:, :, 1] - filled[:, :, 0]
     axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
-    angle = axis_angle(axis, gaze)
+    angle = image_angle(axis, gaze)
     for k in range(len(objects)):
         ok = np.isfinite(angle[k])
         angle[k, ok] = np.unwrap(angle[k, ok])
@@ -232,7 +233,7 @@ class GroundTruth:
 
 @dataclass(frozen=True, eq=False)
 class Observations:
-    """Contents of ``observations.npz``.
+    """What the robot saw: the tracks and its cameras (``observations.npz``).
 
     Attributes:
         tracks: the tracked objects.
@@ -246,50 +247,61 @@ class Observations:
     image_size: tuple[int, int]
     truth: GroundTruth | None = None
 
+    @staticmethod
+    def array_names() -> tuple[str, ...]:
+        """Names of the arrays :meth:`to_arrays` always writes (``truth_*`` only with the
+        ground truth)."""
+        return (
+            *_TRACK_ARRAYS, "projections", "image_size", "gap_object", "gap_span",
+            "gap_interpolated",
+        )
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """The observation as named arrays: the tracks' (``objects`` as strings), the gaps'
+        (``gap_object`` index into ``objects``, ``gap_span`` ``(n_gaps, 2)`` [s],
+        ``gap_interpolated``), the cameras' and, if known, the truth's (``truth_*``)."""
+        t = self.tracks
+        arrays = {name: getattr(t, name) for name in _TRACK_ARRAYS}
+        arrays["objects"] = np.array(t.objects)
+        arrays["gap_object"] = np.array([t.objects.index(g.obj) for g in t.gaps], dtype=int)
+        arrays["gap_span"] = np.array([(g.start, g.end) for g in t.gaps], dtype=float).reshape(
+            -1, 2
+        )
+        arrays["gap_interpolated"] = np.array([g.interpolated for g in t.gaps], dtype=bool)
+        arrays["projections"] = self.projections
+        arrays["image_size"] = np.array(self.image_size)
+        if self.truth is not None:
+            for name in ("position", "axis", "angle", "boundaries"):
+                arrays[f"truth_{name}"] = getattr(self.truth, name)
+        return arrays
+
+    @classmethod
+    def from_arrays(cls, a: Mapping[str, np.ndarray]) -> Observations:
+        """The observation stored by :meth:`to_arrays`."""
+        objects = tuple(str(name) for name in a["objects"])
+        gaps = tuple(
+            Gap(objects[k], float(s), float(e), bool(done))
+            for k, (s, e), done in zip(
+                a["gap_object"], a["gap_span"], a["gap_interpolated"], strict=True
+            )
+        )
+        tracks = Tracks(
+            times=a["times"],
+            objects=objects,
+            position=a["position"],
+            axis=a["axis"],
+            angle=a["angle"],
+            detected=a["detected"],
+            gaze=a["gaze"],
+            gaps=gaps,
+        )
+        truth = None
+        if "truth_position" in a:
+            truth = GroundTruth(
+                a["truth_position"], a["truth_axis"], a["truth_angle"], a["truth_boundaries"]
+            )
+        width, height = (int(v) for v in a["image_size"])
+        return cls(tracks, a["projections"], (width, height), truth)
+
 
 _TRACK_ARRAYS = ("times", "objects", "position", "axis", "angle", "detected", "gaze")
-
-
-def save_observations(path, observations: Observations):
-    """Write ``observations`` to ``path`` (``observations.npz``), atomically."""
-    t = observations.tracks
-    arrays = {name: getattr(t, name) for name in _TRACK_ARRAYS}
-    arrays["objects"] = np.array(t.objects)
-    arrays["gap_object"] = np.array([t.objects.index(g.obj) for g in t.gaps], dtype=int)
-    arrays["gap_span"] = np.array([(g.start, g.end) for g in t.gaps], dtype=float).reshape(-1, 2)
-    arrays["gap_interpolated"] = np.array([g.interpolated for g in t.gaps], dtype=bool)
-    arrays["projections"] = observations.projections
-    arrays["image_size"] = np.array(observations.image_size)
-    if observations.truth is not None:
-        for name in ("position", "axis", "angle", "boundaries"):
-            arrays[f"truth_{name}"] = getattr(observations.truth, name)
-    return save_npz(path, arrays)
-
-
-def load_observations(path) -> Observations:
-    """Read ``observations.npz``; raises ``ImitateError`` naming the file if it is unusable."""
-    a = load_npz(path, required=(*_TRACK_ARRAYS, "projections", "image_size", "gap_object"))
-    objects = tuple(str(name) for name in a["objects"])
-    gaps = tuple(
-        Gap(objects[k], float(s), float(e), bool(done))
-        for k, (s, e), done in zip(
-            a["gap_object"], a["gap_span"], a["gap_interpolated"], strict=True
-        )
-    )
-    tracks = Tracks(
-        times=a["times"],
-        objects=objects,
-        position=a["position"],
-        axis=a["axis"],
-        angle=a["angle"],
-        detected=a["detected"],
-        gaze=a["gaze"],
-        gaps=gaps,
-    )
-    truth = None
-    if "truth_position" in a:
-        truth = GroundTruth(
-            a["truth_position"], a["truth_axis"], a["truth_angle"], a["truth_boundaries"]
-        )
-    width, height = (int(v) for v in a["image_size"])
-    return Observations(tracks, a["projections"], (width, height), truth)

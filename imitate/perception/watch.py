@@ -19,11 +19,10 @@ from imitate.perception import (
     PerceptionConfig,
     PinholeCamera,
     StereoTracker,
-    axis_angle,
-    gaze_frame,
     perception_config,
     track,
 )
+from imitate.taskspace import gaze_of_camera, image_angle
 
 
 def cameras(sess: Session) -> tuple[PinholeCamera, PinholeCamera]:
@@ -35,13 +34,13 @@ def cameras(sess: Session) -> tuple[PinholeCamera, PinholeCamera]:
 def ground_truth(sess: Session, names: tuple[str, ...]) -> GroundTruth:
     """True tracked points, axes and angles of ``names`` at the session's frame times."""
     poses = sess.motion.poses(sess.times)
-    gaze = gaze_frame(cameras(sess)[0])
+    gaze = gaze_of_camera(cameras(sess)[0].rotation)
     points, axes = zip(*(tracked_point(name, *poses[name]) for name in names), strict=True)
     axis = np.array(axes)
     return GroundTruth(
         position=np.array(points),
         axis=axis,
-        angle=np.unwrap(axis_angle(axis, gaze), axis=-1),
+        angle=np.unwrap(image_angle(axis, gaze), axis=-1),
         boundaries=sess.motion.boundaries.copy(),
     )
 
@@ -56,7 +55,8 @@ def watch(
 
     Args:
         config: session and cameras.
-        perception: tracker settings; :func:`imitate.perception.perception_config` by default.
+        perception: tracker settings; by default :func:`imitate.perception.perception_config`
+            of the session's objects (its task's tool and target).
         timing: if given, receives ``"render"`` and ``"track"`` (tracking and triangulation)
             totals [s] and ``"pairs"``.
         progress: show a progress bar (tqdm's); or tqdm's stand-in that wraps the pairs,
@@ -65,8 +65,8 @@ def watch(
     Returns:
         Tracks, camera matrices and ground truth.
     """
-    perception = perception or perception_config()
     sess = session(config)
+    perception = perception or perception_config(sess.motion.objects)
     left, right = cameras(sess)
     timing = {} if timing is None else timing
     pairs: Iterable = frames(sess, timing)

@@ -1,4 +1,4 @@
-"""Run-directory artifacts: written atomically, read back with errors that name the stage to re-run.
+"""Run-directory artifacts: written atomically, read back with errors that name the file.
 
 Every file is first written to a hidden temporary name unique to the writer
 (``.NAME.PID-RANDOM.partial.SUFFIX``) and then renamed, so an interrupted write never leaves a
@@ -26,18 +26,18 @@ import numpy as np
 
 from imitate.errors import ImitateError
 from imitate.rundir import signals
-from imitate.rundir.table import MANIFEST, REPORT, own_names, producer
+from imitate.rundir.layout import EXPORT, MANIFEST, OWN
 
 __all__ = [
     "Arrays", "Staging", "cut_commits", "digest", "leftovers", "load_json", "load_npz",
-    "refuse_link", "remove_temporary", "save_json", "save_npz", "staged", "write_atomic",
+    "refuse_link", "remove_temporary", "save_bytes", "save_json", "save_npz", "staged",
+    "write_atomic",
 ]
 
 # a temporary file (_temporary): .NAME.PID-HEX8.partial.SUFFIX, SUFFIX that of NAME
 _TEMPORARY = re.compile(r"\.(?P<name>.+)\.\d+-[0-9a-f]{8}\.partial(?P<suffix>(\.[^.]*)?)")
 # an export's temporary folder (tempfile.mkdtemp's 8 characters)
 _EXPORT_TEMPORARY = re.compile(r"\.[a-z0-9]+\.[a-z0-9_]{8}\.partial")
-EXPORT = "export"  # the exports' folder in a run directory
 
 
 class Staging:
@@ -196,7 +196,7 @@ def refuse_link(path: Path, root: Path | None = None) -> None:
 
 def leftovers(run_dir: Path) -> list[Path]:
     """What killed commands left in the run directory ``run_dir``: the temporary files of
-    imitate's own names (:func:`_temporary` of an artifact of :mod:`imitate.rundir.table`, in
+    imitate's own names (:func:`_temporary` of a file of :data:`imitate.rundir.layout.OWN`, in
     the run directory and the sub-folders a stage writes) and a killed export's temporary
     folders (``export/.FORMAT.XXXXXXXX.partial``); symbolic links are not followed."""
     run_dir = Path(run_dir)
@@ -259,7 +259,7 @@ def cut_commits(run_dir: Path, left: list[Path]) -> list[str]:
             before = before.get("outputs", {}) if isinstance(before, dict) else {}
             replaced = [
                 name for name, sha in outputs.items()
-                if name in own_names() and sha != before.get(name)
+                if name in OWN and sha != before.get(name)
                 and _sha256(run_dir / name) == sha
             ]
             if replaced:
@@ -279,38 +279,49 @@ def save_npz(path: Path, arrays: Mapping[str, Any]) -> Path:
     )
 
 
+def save_bytes(path: Path, data: bytes) -> Path:
+    """Write ``data`` (a PNG's bytes, say), atomically."""
+    return write_atomic(path, lambda tmp: tmp.write_bytes(data))
+
+
 class Arrays(dict):
     """The arrays of one ``.npz`` artifact by name; a name it lacks raises ``ImitateError``
-    naming the file and the stage that writes it (not ``KeyError``)."""
+    naming the file, followed by ``hint`` (not ``KeyError``)."""
 
-    def __init__(self, path: Path, arrays: Mapping[str, np.ndarray]):
+    def __init__(self, path: Path, arrays: Mapping[str, np.ndarray], hint: str = ""):
         super().__init__(arrays)
-        self.path = Path(path)
+        self.path, self.hint = Path(path), hint
 
     def __missing__(self, name: str) -> np.ndarray:
-        raise ImitateError(f"{self.path} lacks {name!r}; {_rerun_hint(self.path)}")
+        raise ImitateError(_hinted(f"{self.path} lacks {name!r}", self.hint))
 
 
-def load_npz(path: Path, required: tuple[str, ...] = ()) -> Arrays:
+def load_npz(path: Path, required: tuple[str, ...] = (), hint: str = "") -> Arrays:
     """Read an ``.npz`` artifact; every array in ``required`` must be present.
+
+    Args:
+        path: The file.
+        required: The arrays it must hold.
+        hint: What to do about a file that is missing, corrupt or lacks an array (``"re-run
+            ..."``): the end of the error's message.
 
     Raises:
         ImitateError: the file is missing, unreadable, or lacks a required array; the message
-            names the file and the stage that writes it.
+            names the file.
     """
     path = Path(path)
     try:
         with np.load(path, allow_pickle=False) as npz:
-            arrays = Arrays(path, {name: npz[name] for name in npz.files})
+            arrays = Arrays(path, {name: npz[name] for name in npz.files}, hint)
     except FileNotFoundError:
-        raise ImitateError(f"{path} is missing; {_rerun_hint(path)}") from None
+        raise ImitateError(_hinted(f"{path} is missing", hint)) from None
     except PermissionError as err:
         raise _unreadable(path, err) from err
     except (OSError, ValueError, zipfile.BadZipFile, EOFError, MemoryError) as err:
-        raise ImitateError(f"{path} is corrupt ({err}); {_rerun_hint(path)}") from err
+        raise ImitateError(_hinted(f"{path} is corrupt ({err})", hint)) from err
     missing = [name for name in required if name not in arrays]
     if missing:
-        raise ImitateError(f"{path} lacks {missing}; {_rerun_hint(path)}")
+        raise ImitateError(_hinted(f"{path} lacks {missing}", hint))
     return arrays
 
 
@@ -320,17 +331,21 @@ def save_json(path: Path, obj: Any) -> Path:
     return write_atomic(path, lambda tmp: tmp.write_text(text + "\n"))
 
 
-def load_json(path: Path) -> Any:
-    """Read a JSON artifact, with the same errors as :func:`load_npz`."""
+def load_json(path: Path, hint: str = "") -> Any:
+    """Read a JSON artifact, with the same errors (and ``hint``) as :func:`load_npz`."""
     path = Path(path)
     try:
         return json.loads(path.read_text())
     except FileNotFoundError:
-        raise ImitateError(f"{path} is missing; {_rerun_hint(path)}") from None
+        raise ImitateError(_hinted(f"{path} is missing", hint)) from None
     except PermissionError as err:
         raise _unreadable(path, err) from err
     except (OSError, ValueError, RecursionError) as err:  # ValueError: bad UTF-8 too
-        raise ImitateError(f"{path} is corrupt ({err}); {_rerun_hint(path)}") from err
+        raise ImitateError(_hinted(f"{path} is corrupt ({err})", hint)) from err
+
+
+def _hinted(message: str, hint: str) -> str:
+    return f"{message}; {hint}" if hint else message
 
 
 def _unreadable(path: Path, err: PermissionError) -> ImitateError:
@@ -345,7 +360,7 @@ def _own_names() -> dict[str, set[str]]:
     """The names of the artifacts imitate writes, by folder relative to a run directory
     (``""``: the run directory, where a stage also stages those of its sub-folders)."""
     by_folder: dict[str, set[str]] = {"": set()}
-    for name in own_names():
+    for name in OWN:
         folder, _, base = name.rpartition("/")
         by_folder.setdefault(folder, set()).add(base)
         by_folder[""].add(base)
@@ -395,12 +410,6 @@ def _temporary(path: Path) -> Path:
     """A hidden name beside ``path`` that no other writer uses; it keeps the suffix (``np.savez``
     and ``imageio`` go by it)."""
     return path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.partial{path.suffix}")
-
-
-def _rerun_hint(path: Path) -> str:
-    if path.name == REPORT:
-        return "delete it to start a new report"
-    return f"re-run `imitate {producer(path.name)} {path.parent}` to write it"
 
 
 def _to_builtin(value: Any) -> Any:

@@ -23,7 +23,7 @@ from pathlib import Path
 
 from imitate.errors import ImitateError
 from imitate.rundir.artifacts import cut_commits, leftovers, remove_temporary
-from imitate.rundir.table import MANIFEST
+from imitate.rundir.layout import MANIFEST
 
 __all__ = ["LOCK", "left_by_imitate", "locked"]
 

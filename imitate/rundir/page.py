@@ -13,7 +13,7 @@ from html import escape
 from pathlib import Path
 
 from imitate.rundir.artifacts import write_atomic
-from imitate.rundir.table import PAGE, find
+from imitate.rundir.layout import PAGE
 
 __all__ = ["CAPTIONS", "eval_page", "run_page", "save_eval_page", "save_run_page"]
 
@@ -68,12 +68,13 @@ STYLE = "".join((
 
 
 def run_page(
-    report: dict, config: dict, run_dir: str, outdated: Mapping[str, str] | None = None
+    report: dict, config: dict, run_dir: str,
+    outdated: Mapping[str, tuple[str, str]] | None = None,
 ) -> str:
     """The page of a run: ``report`` (``report.json``), ``config`` (``config.json``), and
     ``run_dir`` for the title; links from ``report["artifacts"]``, relative to the run directory.
-    ``outdated``: the stages whose files no longer follow from the run, by name, why; the page
-    says so at its top, with the command that makes them again."""
+    ``outdated``: the stages whose files no longer follow from the run, by name: their files in
+    words and why; the page says so at its top, with the command that makes them again."""
     artifacts, replay = report.get("artifacts", {}), report.get("replay", {})
     verdict = f" — {_yes_no(replay['success'], 'pours', 'does not pour')}" if replay else ""
     body = [
@@ -157,7 +158,8 @@ def eval_page(summary: dict, failures: list[str], links: list[str], title: str) 
 
 
 def save_run_page(
-    run_dir: Path, report: dict, config: dict, outdated: Mapping[str, str] | None = None
+    run_dir: Path, report: dict, config: dict,
+    outdated: Mapping[str, tuple[str, str]] | None = None,
 ) -> Path:
     """Write ``run_dir/report.html`` from the run's report and settings (and the stages whose
     files are ``outdated``, see :func:`run_page`), atomically (inside
@@ -184,12 +186,12 @@ def save_eval_page(out: Path, summary: dict) -> Path:
 # --- Sections ----------------------------------------------------------------------------------
 
 
-def _outdated(outdated: Mapping[str, str], run_dir: str) -> list[str]:
+def _outdated(outdated: Mapping[str, tuple[str, str]], run_dir: str) -> list[str]:
     """A warning per stage whose files no longer follow from the run, with its command."""
     return [
-        f"<p class=bad>Out of date: {escape(find(stage).files)} ({escape(why)}); <code>imitate "
+        f"<p class=bad>Out of date: {escape(files)} ({escape(why)}); <code>imitate "
         f"{escape(stage)} {escape(run_dir)}</code> makes it again.</p>"
-        for stage, why in outdated.items()
+        for stage, (files, why) in outdated.items()
     ]
 
 

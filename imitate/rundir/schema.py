@@ -13,9 +13,11 @@ from pathlib import Path
 from typing import Any
 
 from imitate.errors import ImitateError
+from imitate.rundir.artifacts import load_json
 
 __all__ = [
-    "KINDS", "REPORT_KEYS", "REPORT_SCHEMA", "check_schema", "check_values", "markdown",
+    "KINDS", "REPORT_KEYS", "REPORT_SCHEMA", "check_schema", "check_values", "load_report",
+    "markdown",
 ]
 
 REPORT_SCHEMA = 1  # report["schema"]
@@ -132,7 +134,7 @@ REPORT_KEYS: dict[str, tuple[str, str]] = {
     "replay.outcome": (
         "-",
         "success, plan_collision, physics_contact, spill, low_pour or diverged, of the plan and "
-        "its three pours (imitate.envs.outcome)",
+        "its three pours (imitate.envs.pour.outcome)",
     ),
     "replay.success": ("-", "the outcome is success"),
     "replay.pour_geometry.mouth_above_rim_min_m": (
@@ -189,6 +191,16 @@ def check_schema(report: Any, path: Path) -> dict:
             f"{REPORT_SCHEMA}: run the run again with it, or delete {path.name} to start a new one"
         )
     return report
+
+
+def load_report(path: Path) -> dict:
+    """The report in ``path`` (``report.json``), read and checked by :func:`check_schema`.
+
+    Raises:
+        ImitateError: it is missing, unreadable or not a report of this layout; the message
+            says to delete it to start a new report.
+    """
+    return check_schema(load_json(path, hint="delete it to start a new report"), path)
 
 
 # The kind of each key whose unit is "-" (the others are numbers, or null where not measured).

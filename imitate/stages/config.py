@@ -16,8 +16,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from imitate import defaults
+from imitate.envs import tasks
 from imitate.errors import ImitateError
 from imitate.rundir.artifacts import load_json
+from imitate.stages import table
 
 if TYPE_CHECKING:  # loaded on use: the command line's help reads the declarations only
     from imitate.envs import assembly
@@ -163,6 +165,10 @@ class RunConfig:
     """
 
     seed: int = _setting(0, "seed of the whole run", flag="--seed", metavar="N", low=0)
+    task: str = _setting(
+        tasks.DEFAULT, "the task the teacher demonstrates and the robot reproduces",
+        stage="observe", flag="--task", choices=tasks.NAMES,
+    )
     n_demos: int = _setting(
         5, "demonstrations the teacher shows", stage="observe", flag="--demos", low=2, high=20
     )
@@ -175,10 +181,10 @@ class RunConfig:
     fps: float = _setting(30.0, "camera rate [Hz]", stage="observe", flag="--fps", low=5, high=120)
     teacher_variation: str = _setting(
         defaults.TEACHER_VARIATION, "where the teacher's demonstrations vary: aligned (by "
-        "centimetres in the swing, by millimetres in the pour: low variance where the task is, "
-        "as the paper assumes) or misaligned (the swing the same every time, the pour's position "
-        "spread across the glass by centimetres: low variance where the task is not, a test "
-        "of that premise)", stage="observe", flag="--teacher-variation",
+        "centimetres away from the task's critical phase, by millimetres in it: low variance "
+        "where the task is, as the paper assumes) or misaligned (the rest the same every time, "
+        "the critical phase's position spread by centimetres: low variance where the task is "
+        "not, a test of that premise)", stage="observe", flag="--teacher-variation",
         choices=defaults.TEACHER_VARIATIONS,
     )
     k_max: int = _setting(
@@ -229,25 +235,15 @@ class RunConfig:
         defaults.MAX_ITER, "optimizer iteration limit", stage="optimize", flag="--max-iter",
         low=1, high=10_000,
     )
-    bottle_grasp: float = _setting(
-        defaults.BOTTLE_GRASP,
-        "where the robot holds the bottle, height above its bottom [m]", stage="optimize",
-        flag="--bottle-grasp",
-    )
-    glass_grasp: float = _setting(
-        defaults.GLASS_GRASP,
-        "where the robot holds the glass, height above its bottom [m]", stage="optimize",
-        flag="--glass-grasp",
+    options: dict = _setting(
+        None, "the task's own settings by name (the defaults of those not given), each a flag "
+        "of its own", stage="observe",
     )
     obstacle: assembly.Obstacle | None = _setting(
         None, f"{_OBSTACLE_FORMS}; it stands on the table (footprint on the top, bottom at most "
         f"{defaults.OBSTACLE_MAX_LIFT:g} m above it), clear of the robot and the objects it "
         f"holds at the start.",
         stage="optimize", flag="--obstacle", parse=parse_obstacle, metavar="SHAPE:POS:SIZE",
-    )
-    particles: int = _setting(
-        60, "liquid spheres in the bottle", stage="replay", flag="--particles", low=1,
-        high=defaults.MAX_PARTICLES,
     )
     video_width: int = _setting(
         640, "video width [px]", stage="figures", flag="--video-width", low=64, high=1920,
@@ -274,7 +270,9 @@ class RunConfig:
             object.__setattr__(self, "obstacle", assembly.Obstacle(**values))
         object.__setattr__(self, "sweep", tuple(float(s) for s in self.sweep))
         for name, setting, _ in settings():
-            setting.check(name, getattr(self, name))
+            if name != "options":
+                setting.check(name, getattr(self, name))
+        object.__setattr__(self, "options", task_options(self.task, self.options))
         assembly.check_clearance(self.scene())  # validates the grasps and the obstacle
 
     @classmethod
@@ -282,22 +280,21 @@ class RunConfig:
         """Small images, 3 demonstrations, short optimization: the whole run in well under
         a minute (for tests)."""
         values = dict(
-            n_demos=3, width=320, height=240, fps=20.0, k_max=10, max_iter=30, particles=30,
+            n_demos=3, width=320, height=240, fps=20.0, k_max=10, max_iter=30,
             video_width=320, video_height=240, video_fps=10.0,
         )
+        task = overrides.get("task", tasks.DEFAULT)
+        quick = {n: o.quick for n, o in tasks.options(task).items() if o.quick is not None}
+        values["options"] = {**quick, **(overrides.pop("options", None) or {})}
         return cls(**{**values, **overrides})
 
-    def scene(self, **overrides) -> assembly.SceneConfig:
-        """The robot's scene (objects in its hands)."""
-        from imitate.envs import assembly
+    def scene(self, teacher: bool = False) -> assembly.SceneConfig:
+        """The robot's scene (objects in its hands, the obstacle, the task's own values)."""
+        from imitate.envs.task import get_task
 
-        values = dict(
-            particles=self.particles,
-            obstacles=(self.obstacle,) if self.obstacle else (),
-            bottle_grasp=self.bottle_grasp,
-            glass_grasp=self.glass_grasp,
+        return get_task(self.task).scene(
+            self.options, (self.obstacle,) if self.obstacle else (), teacher=teacher
         )
-        return assembly.SceneConfig(**{**values, **overrides})
 
     def plan_config(self) -> PlanConfig:
         """The planner's settings of the run (the optimize stage's, at its collision weight)."""
@@ -313,7 +310,9 @@ class RunConfig:
         """The teacher's demonstrations."""
         from imitate.envs.teacher_motion import TeacherConfig
 
-        return TeacherConfig(n_demos=self.n_demos, seed=self.seed, variation=self.teacher_variation)
+        return TeacherConfig(
+            n_demos=self.n_demos, task=self.task, seed=self.seed, variation=self.teacher_variation
+        )
 
     def to_json(self) -> dict[str, Any]:
         """The settings as JSON-ready values (the obstacle as a dict)."""
@@ -331,6 +330,34 @@ class RunConfig:
                 f"config.json has unknown settings {shown}{more}; accepted: {sorted(names)}"
             )
         return cls(**values)
+
+
+def task_options(task: str, options: dict | None) -> dict[str, float]:
+    """The task's own settings: ``options`` (names of ``task``'s) checked, with the defaults of
+    those not given, in the task's order.
+
+    Raises:
+        ImitateError: a name not of the task's, or a value out of its range.
+    """
+    declared = tasks.options(task)
+    options = dict(options or {})
+    unknown = sorted(set(options) - set(declared))
+    if unknown:
+        raise ImitateError(
+            f"{', '.join(unknown)} not a setting of task {task!r}; its own: {list(declared)}"
+        )
+    values = {}
+    for name, option in declared.items():
+        value = options.get(name, option.default)
+        kind = "a whole number" if option.integer else "a number"
+        if (isinstance(value, bool) or not isinstance(value, int | float)
+                or (option.integer and value != int(value)) or not np.isfinite(value)
+                or not option.low <= value <= option.high):
+            raise ImitateError(
+                f"{name}={value!r} not accepted: {kind} in {option.low:g}..{option.high:g}"
+            )
+        values[name] = int(value) if option.integer else float(value)
+    return values
 
 
 def settings(stages: Iterable[str | None] | None = None) -> list[tuple[str, Setting, Any]]:
@@ -352,7 +379,7 @@ def load_config(run_dir: Path) -> RunConfig:
             setting of the wrong JSON type or out of range; the message names the file.
     """
     path = Path(run_dir) / "config.json"
-    values = load_json(path)
+    values = load_json(path, hint=table.rerun(path))
     if not isinstance(values, dict):
         raise ImitateError(
             f"{path} holds a JSON {_json_kind_of(values)}, not an object of settings; re-run "
@@ -382,6 +409,10 @@ def _json_fits(value: Any, default: Any) -> bool:
         return isinstance(default, bool) and isinstance(value, bool)
     if isinstance(default, tuple):
         return isinstance(value, list) and all(_json_fits(v, 0.0) for v in value)
+    if isinstance(default, dict) or (default is None and isinstance(value, dict)
+                                     and "shape" not in value):  # the task's options
+        return value is None or (isinstance(value, dict) and all(
+            isinstance(v, int | float) and not isinstance(v, bool) for v in value.values()))
     if default is None:  # the obstacle
         return value is None or (
             isinstance(value, dict) and set(value) == {"shape", "pos", "size"}

@@ -14,14 +14,14 @@ from imitate.envs.teacher_motion import script_demonstrations
 from imitate.envs.video import captioned, penetrations, replay_frames, teacher_frames, write_video
 from imitate.errors import ImitateError
 from imitate.figures import drawing, plots
-from imitate.learning import LearnedModel
 from imitate.models import objects
-from imitate.perception import Observations, Tracks, load_observations
-from imitate.rundir import table
-from imitate.rundir.artifacts import load_npz
+from imitate.perception import Observations, Tracks
+from imitate.rundir import layout
+from imitate.rundir.artifacts import save_bytes, write_atomic
 from imitate.stages.config import RunConfig
+from imitate.stages.files import DemosFile, ModelFile, ObservationsFile, PlanFile, ReplayFile
+from imitate.stages.files.replay import FREE, STATES
 from imitate.stages.progress import bar
-from imitate.stages.replay import STATE_NAMES
 
 SNAPSHOT_SIZE = (480, 360)  # Fig. 8's panels [px]
 TOUCHING_M = 1e-3  # closer than this, parts touch in physics (whose contacts keep them apart)
@@ -39,68 +39,66 @@ VIDEO_THREADS = 2
 
 
 def run(run_dir: Path, config: RunConfig) -> dict:
-    """The figures (``figures/*.png``) and the video: the teacher, then the robot pouring.
+    """The figures (``figures/*.png``) and the video: the teacher, then the robot doing the task.
 
     A worker process (:mod:`imitate.figures.drawing`) draws the figures while this one renders and
     encodes the video."""
-    observations = load_observations(run_dir / "observations.npz")
-    boundaries = load_npz(run_dir / "demos.npz", required=("boundaries",))["boundaries"]
-    arrays = load_npz(run_dir / "model.npz", required=(
-        *LearnedModel.array_names(), *LearnedModel.array_names("raw_"), "bic_fast", "bic_full",
-    ))
-    model, raw = LearnedModel.from_arrays(arrays), LearnedModel.from_arrays(arrays, "raw_")
-    plan = load_npz(run_dir / "plan.npz", required=(
-        "times", "mean", "variance", "weights", "sweep_weights", "sweep_x", "sweep_clearance",
-    ))
-    states = load_npz(run_dir / "replay.npz", required=(
-        *STATE_NAMES, *(f"sweep0_{name}" for name in STATE_NAMES), "state_dt", "plan_start",
-    ))
-    _check_states(states, config, run_dir / "replay.npz")
-    weights = plan["sweep_weights"]
-    sweep = dict(zip(weights, plan["sweep_x"], strict=True))
-    clearance = dict(zip(weights, plan["sweep_clearance"], strict=True))
+    observations = ObservationsFile.load(run_dir).observations
+    boundaries = DemosFile.load(run_dir).boundaries
+    learning = ModelFile.load(run_dir)
+    model = learning.learned.model
+    planned = PlanFile.load(run_dir)
+    plan, weights = planned.plan, planned.sweep.weights
+    replayed = ReplayFile.load(run_dir)
+    _check_states(replayed, config, run_dir / layout.REPLAY)
+    sweep = dict(zip(weights, planned.sweep.x, strict=True))
+    clearance = dict(zip(weights, planned.sweep.clearance, strict=True))
     # name: (plots' function, its arguments); Fig. 8's snapshots rendered below
     drawings: dict[str, tuple[Any, ...]] = {
         "observation": (plots.plot_observation, observations, boundaries),
-        "fig4_gmm_dtw": (plots.plot_gmm_with_and_without_dtw, raw, model),
+        "fig4_gmm_dtw": (plots.plot_gmm_with_and_without_dtw, learning.raw, model),
         "fig5_bic": (plots.plot_bic_curves, {
-            "fast (K-means only)": arrays["bic_fast"], "full (EM)": arrays["bic_full"],
+            "fast (K-means only)": learning.bic_fast, "full (EM)": learning.bic_full,
         }),
-        "gmr": (plots.plot_gmr, model, list(arrays["aligned"])),
+        "gmr": (plots.plot_gmr, model, list(learning.aligned)),
         "fig9_collision_sweep": (
-            plots.plot_collision_sweep, plan["times"], plan["mean"], plan["variance"], sweep,
-            clearance, plan["weights"],
+            plots.plot_collision_sweep, plan.times, plan.mean, plan.variance, sweep, clearance,
+            plan.weights,
         ),
-        "costs": (
-            plots.plot_costs, {w: plan[f"sweep{i}_cost_total"] for i, w in enumerate(weights)}
-        ),
+        "costs": (plots.plot_costs, dict(zip(weights, planned.sweep.cost_total, strict=True))),
     }
+    n_frames = 0
+
+    def video(path: Path) -> None:
+        nonlocal n_frames
+        frames = _video_frames(config, replayed, observations, planned)
+        n_frames = write_video(path, frames, config.video_fps)
+
     with drawing.worker() as worker:
         pngs = {name: worker.submit(plots.png, *draw) for name, draw in drawings.items()}
         try:
             pngs["fig8_snapshots"] = worker.submit(
-                plots.png, plots.plot_snapshots, *_snapshots(config, states, plan)
+                plots.png, plots.plot_snapshots, *_snapshots(config, replayed, planned)
             )
-            n_frames = write_video(
-                run_dir / "video.mp4", _video_frames(config, states, observations, plan),
-                config.video_fps,
-            )
-            for name in bar(table.FIGURES, desc="figures", unit="figure"):
-                plots.save_png(pngs[name].result(), run_dir / "figures" / f"{name}.png")
+            write_atomic(run_dir / layout.VIDEO, video)
+            for name in bar(layout.FIGURES, desc="figures", unit="figure"):
+                save_bytes(run_dir / layout.figure(name), pngs[name].result())
         finally:
             for future in pngs.values():
                 future.cancel()
     return {"video": {"frames": n_frames, "seconds": n_frames / config.video_fps}}
 
 
-def _check_states(states: dict[str, np.ndarray], config: RunConfig, path: Path) -> None:
+def _check_states(replayed: ReplayFile, config: RunConfig, path: Path) -> None:
     """Raise ``ImitateError`` unless the recorded states fit the run's scene (``(n, nq)``
     joint positions, ``(n, nmocap, 3)`` and ``(n, nmocap, 4)`` mocap poses), with the teacher
     mannequin if the replay had it (its mocap poses)."""
-    model = build_model(config.scene(teacher=states["mocap_pos"].shape[1] > 0))
+    recording = replayed.recording
+    model = build_model(config.scene(teacher=recording.mocap_pos.shape[1] > 0))
     shapes = {"qpos": (model.nq,), "mocap_pos": (model.nmocap, 3), "mocap_quat": (model.nmocap, 4)}
-    for name in (*STATE_NAMES, *(f"sweep0_{name}" for name in STATE_NAMES)):
-        found, wanted = states[name].shape, shapes[name.removeprefix("sweep0_")]
+    recorded = {**recording.states(), **{FREE + n: v for n, v in replayed.free.items()}}
+    for name, states in recorded.items():
+        found, wanted = states.shape, shapes[name.removeprefix(FREE)]
         if found[1:] != wanted:
             raise ImitateError(
                 f"{path} holds {name} of shape {found}, not (n, {', '.join(map(str, wanted))}) "
@@ -108,20 +106,21 @@ def _check_states(states: dict[str, np.ndarray], config: RunConfig, path: Path) 
             )
 
 
-def _snapshots(config: RunConfig, states: dict[str, np.ndarray], plan: dict, n: int = 5):
+def _snapshots(config: RunConfig, replayed: ReplayFile, planned: PlanFile, n: int = 5):
     """Fig. 8's rows from the physics replays, the sweep's smallest collision weight's and the
     chosen one's: ``n`` snapshots each at the same plan times [s], one of them where the smallest
     weight's plan comes closest (collides); parts touching or penetrating are marked."""
-    times = plan["times"] - plan["times"][0]
-    closest = times[np.argmin(plan["sweep_clearance"][0])]
+    recording, sweep = replayed.recording, planned.sweep
+    times = planned.plan.times - planned.plan.times[0]
+    closest = times[np.argmin(sweep.clearance[0])]
     at = np.sort(np.r_[np.linspace(0.1, 0.9, n - 1) * times[-1], closest])
-    index = np.round((at + float(states["plan_start"])) / float(states["state_dt"])).astype(int)
-    index = np.minimum(index, len(states["qpos"]) - 1)
-    weights = (float(plan["sweep_weights"][0]), config.collision_weight)
+    index = np.round((at + recording.plan_start) / recording.state_dt).astype(int)
+    index = np.minimum(index, len(recording.qpos) - 1)
+    weights = (float(sweep.weights[0]), config.collision_weight)
     # both rows with one renderer (making one costs about as much as five snapshots on a CPU)
+    states = recording.states()
     shown = {
-        name: np.concatenate([states[prefix + name][index] for prefix in ("sweep0_", "")])
-        for name in STATE_NAMES
+        name: np.concatenate([replayed.free[name][index], states[name][index]]) for name in STATES
     }
     images = list(replay_frames(config.scene(), shown, *SNAPSHOT_SIZE, shadows=True, quick=True))
     marks = [_collision(d, pair) for d, pair in penetrations(config.scene(), shown)]
@@ -135,10 +134,10 @@ def _snapshots(config: RunConfig, states: dict[str, np.ndarray], plan: dict, n: 
 
 def _collision(distance: float, pair: tuple[str, str]) -> str | None:
     """What Fig. 8 writes on a snapshot whose closest pair is ``distance`` [m] apart, if they
-    touch: ``"collision: torso_chest / bottle, 2.1 mm deep"``."""
+    touch: ``"collision: torso_chest / <tool>, 2.1 mm deep"``."""
     if distance >= TOUCHING_M:
         return None
-    # A geom's name as a reader knows the part: bottle_hull_0 is the bottle.
+    # A geom's name as a reader knows the part: <object>_hull_0 is the object.
     a, b = (re.sub(r"_(hull|wall)_\d+$", "", geom) for geom in pair)
     return f"collision: {a} / {b}, " + (
         f"{-1e3 * distance:.1f} mm deep" if distance < 0 else "touching"
@@ -146,7 +145,7 @@ def _collision(distance: float, pair: tuple[str, str]) -> str | None:
 
 
 def _video_frames(
-    config: RunConfig, states: dict[str, np.ndarray], observations: Observations, plan: dict
+    config: RunConfig, replayed: ReplayFile, observations: Observations, planned: PlanFile
 ):
     """The teacher (the robot's eye view and its tracked objects inset), then the robot without
     the collision cost (the sweep's weight-0 plan, from its start until ``FREE_AFTER`` after it
@@ -166,24 +165,26 @@ def _video_frames(
         ),
         TEACHER_CAPTION.format(speedup=config.teacher_speedup),
     )
-    closest = plan["times"][np.argmin(plan["sweep_clearance"][0])] - plan["times"][0]
-    start, dt = float(states["plan_start"]), float(states["state_dt"])
+    times_planned = planned.plan.times
+    closest = times_planned[np.argmin(planned.sweep.clearance[0])] - times_planned[0]
+    recording = replayed.recording
+    start, dt = recording.plan_start, recording.state_dt
     # the weight-0 part from the plan's start (the robot stands still before it, as the last
     # part shows), until FREE_AFTER after it comes closest
     shown = slice(int(round(start / dt)), int((start + closest + FREE_AFTER) / dt))
-    free = len(states["sweep0_qpos"][shown])
+    free = len(replayed.free["qpos"][shown])
     # both robot parts in one sequence: their renderers are made once
+    states = recording.states()
     robot = replay_frames(
         config.scene(),
-        {name: np.concatenate([states["sweep0_" + name][shown], states[name]])
-         for name in STATE_NAMES},
+        {name: np.concatenate([replayed.free[name][shown], states[name]]) for name in STATES},
         *size, threads=VIDEO_THREADS, quick=True,
     )
     parts = (
         teacher, captioned(itertools.islice(robot, free), FREE_CAPTION),
         captioned(robot, ROBOT_CAPTION.format(weight=config.collision_weight)),
     )
-    total = len(times) + free + len(states["qpos"])
+    total = len(times) + free + len(recording.qpos)
     return bar(itertools.chain(*parts), desc="video", unit="frame", total=total)
 
 

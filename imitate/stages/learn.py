@@ -9,26 +9,26 @@ from pathlib import Path
 import numpy as np
 
 from imitate.demos.oracle import true_demos
-from imitate.demos.segment import load_demos, task_demos
+from imitate.demos.segment import task_demos
 from imitate.envs.teacher_motion import script_demonstrations
 from imitate.learning import LearningConfig, learn
 from imitate.learning.bic import bic_sweep
-from imitate.perception import load_observations
-from imitate.rundir.artifacts import save_npz
 from imitate.stages.config import RunConfig
+from imitate.stages.files import DemosFile, Learned, ModelFile, ObservationsFile
 
 
 def run(run_dir: Path, config: RunConfig) -> dict:
     """Task space, DTW, GMM (components by BIC), GMR; the other BIC method for comparison."""
     if config.oracle:
-        tracks = load_observations(run_dir / "observations.npz").tracks
+        tracks = ObservationsFile.load(run_dir).observations.tracks
         motion = script_demonstrations(config.teacher())
         demos, gaze, rate = true_demos(motion, tracks.gaze, tracks.times), tracks.gaze, config.fps
         bridged = 0
     else:
-        segments, names, gaze = load_demos(run_dir / "demos.npz")
-        bridged = sum(int(np.isnan(d.position).any(axis=-1).sum()) for d in segments)
-        demos, rate = task_demos(segments, names, gaze, smoothing=config.smoothing)
+        cut = DemosFile.load(run_dir)
+        gaze = cut.gaze
+        bridged = sum(int(np.isnan(d.position).any(axis=-1).sum()) for d in cut.segments)
+        demos, rate = task_demos(cut.segments, cut.objects, gaze, smoothing=config.smoothing)
     k_max = min(config.k_max, *(len(d) for d in demos))
     settings = LearningConfig(k_max=k_max, bic_method=config.bic, seed=config.seed)
     start = time.perf_counter()
@@ -43,10 +43,10 @@ def run(run_dir: Path, config: RunConfig) -> dict:
         config=dataclasses.replace(settings, n_components=model.gmm.n_components, use_dtw=False),
     )
     assert model.alignment is not None  # learned with DTW (LearningConfig's default)
-    save_npz(run_dir / "model.npz", {
-        **model.to_arrays(), **raw.to_arrays("raw_"), "gaze": gaze, "rate": rate,
-        "bic_fast": curves["fast"], "bic_full": curves["full"], "aligned": model.alignment.aligned,
-    })
+    ModelFile(
+        Learned(model, gaze), raw=raw, rate=rate, bic_fast=curves["fast"],
+        bic_full=curves["full"], aligned=np.asarray(model.alignment.aligned),
+    ).save(run_dir)
     return {
         "learning": {
             "source": "ground truth (oracle)" if config.oracle else "perception",

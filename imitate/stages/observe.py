@@ -8,12 +8,12 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate.demos.segment import StillnessConfig, save_demos, segment
+from imitate.demos.segment import StillnessConfig, segment
 from imitate.envs.observation import ObservationConfig
-from imitate.perception import save_observations
 from imitate.perception.accuracy import demo_counts, tracking_errors
 from imitate.perception.watch import watch
 from imitate.stages.config import RunConfig
+from imitate.stages.files import DemosFile, ObservationsFile
 from imitate.stages.progress import bar
 
 log = logging.getLogger(__name__)
@@ -28,8 +28,9 @@ def run(run_dir: Path, config: RunConfig) -> dict:
     timing: dict[str, float] = {}
     observations = watch(watching, timing=timing, progress=bar)
     demos = segment(observations.tracks, StillnessConfig())
-    save_observations(run_dir / "observations.npz", observations)
-    save_demos(run_dir / "demos.npz", demos, observations.tracks)
+    tracks = observations.tracks
+    ObservationsFile(observations).save(run_dir)
+    DemosFile(tuple(demos), tracks.objects, tracks.gaze).save(run_dir)
     found = np.array([(d.start, d.end) for d in demos])
     assert observations.truth is not None  # watch() simulates the frames: it keeps the truth
     return {

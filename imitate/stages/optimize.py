@@ -8,21 +8,22 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate.learning import LearnedModel
+from imitate.envs.task import get_task
 from imitate.models import humanoid
 from imitate.motion import plan_from_model
-from imitate.motion.metrics import deviation, pour_phase_error
+from imitate.motion.metrics import critical_error, deviation
 from imitate.motion.replay import planning_task
-from imitate.rundir.artifacts import load_npz, save_npz
 from imitate.stages.config import RunConfig
+from imitate.stages.files import ModelFile, PlanFile, Sweep
 from imitate.stages.progress import bar
 
 
 def run(run_dir: Path, config: RunConfig) -> dict:
     """Whole-body attractor optimization at ``collision_weight``, and the Fig. 9 sweep."""
-    arrays = load_npz(run_dir / "model.npz", required=(*LearnedModel.array_names(), "gaze"))
-    model = LearnedModel.from_arrays(arrays)
-    task = planning_task(config.scene(), arrays["gaze"])
+    learned = ModelFile.load_learned(run_dir)
+    model = learned.model
+    job = get_task(config.task)
+    task = planning_task(config.scene(), learned.gaze)
     chosen = config.collision_weight
     weights = sorted({chosen * s for s in config.sweep} | {chosen})
     plans, seconds = {}, {}
@@ -35,18 +36,18 @@ def run(run_dir: Path, config: RunConfig) -> dict:
             config=config.plan_config().replace(
                 collision_weight=w, nullspace_push=config.push and w == chosen
             ),
+            critical=job.critical,
         )
         seconds[w] = time.perf_counter() - start
     main = plans[chosen]
-    save_npz(run_dir / "plan.npz", {
-        **main.to_arrays(),
-        "sweep_weights": np.array(weights),
-        "sweep_x": np.array([plans[w].x for w in weights]),
-        "sweep_q": np.array([plans[w].q for w in weights]),
-        "sweep_clearance": np.array([_clearance(task, plans[w].q) for w in weights]),
-        **{f"sweep{i}_cost_total": plans[w].costs["total"] for i, w in enumerate(weights)},
-    })
-    error_m, error_deg = pour_phase_error(main)
+    PlanFile(main, Sweep(
+        weights=np.array(weights),
+        x=np.array([plans[w].x for w in weights]),
+        q=np.array([plans[w].q for w in weights]),
+        clearance=np.array([_clearance(task, plans[w].q) for w in weights]),
+        cost_total=tuple(plans[w].costs["total"] for w in weights),
+    )).save(run_dir)
+    error_m, error_deg = critical_error(main, job.critical(main.mean))
     first = plans[weights[0]]
     return {
         "optimization": {
@@ -58,8 +59,8 @@ def run(run_dir: Path, config: RunConfig) -> dict:
             "converged": main.converged,
             "min_distance_m": main.min_distance,
             "closest_pair": list(main.closest or ()),
-            "pour_phase_err_m": error_m,
-            "pour_phase_err_deg": error_deg,
+            f"{job.phase}_phase_err_m": error_m,
+            f"{job.phase}_phase_err_deg": error_deg,
             "message": main.message,
             "sweep": [
                 {"weight": w, "min_distance_m": plans[w].min_distance,

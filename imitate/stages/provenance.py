@@ -23,13 +23,14 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 from imitate.errors import ImitateError
-from imitate.rundir import table
+from imitate.rundir import layout
 from imitate.rundir.artifacts import digest, load_json
+from imitate.stages import table
 from imitate.stages.config import RunConfig, settings
 
 __all__ = ["MANIFEST", "code_digest", "digest", "load", "outdated", "recorded", "stale"]
 
-MANIFEST = table.MANIFEST
+MANIFEST = layout.MANIFEST
 
 
 def load(run_dir: Path) -> dict[str, dict]:
@@ -41,7 +42,7 @@ def load(run_dir: Path) -> dict[str, dict]:
     path = Path(run_dir) / MANIFEST
     if not path.exists():
         return {}
-    manifest = load_json(path)
+    manifest = load_json(path, hint=table.rerun(path))
     fields = ("settings", "inputs", "outputs")
     if not (
         isinstance(manifest, dict)
@@ -133,7 +134,7 @@ def outdated(
     found = {}
     for s in table.STAGES:
         rec = manifest.get(s.name)
-        present = [f for f in s.writes if f != table.CONFIG and current(f)]
+        present = [f for f in s.writes if f != layout.CONFIG and current(f)]
         if rec is None:
             if present:
                 found[s.name] = f"{present[0]} is not recorded in {MANIFEST}"

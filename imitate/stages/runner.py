@@ -1,4 +1,4 @@
-"""Runs a stage (see :mod:`imitate.rundir.table`) in a run directory, all or nothing.
+"""Runs a stage (see :mod:`imitate.stages.table`) in a run directory, all or nothing.
 
 Each stage reads the previous stages' artifacts in the run directory and writes its own
 (atomically, see :mod:`imitate.rundir.artifacts`); :func:`run_stage` merges its numbers into
@@ -10,17 +10,19 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable, Sequence
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
 from imitate.errors import ImitateError
-from imitate.rundir import page, table
-from imitate.rundir.artifacts import load_json, refuse_link, save_json, staged
-from imitate.rundir.schema import REPORT_SCHEMA, check_schema, check_values
-from imitate.stages import provenance
+from imitate.rundir import layout, page
+from imitate.rundir.artifacts import refuse_link, save_json, staged
+from imitate.rundir.schema import REPORT_SCHEMA, check_values, load_report
+from imitate.stages import provenance, table
 from imitate.stages.config import RunConfig
 
-__all__ = ["run_stage"]
+__all__ = ["run_stage", "run_stages"]
 
 log = logging.getLogger(__name__)
 
@@ -48,7 +50,7 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
         raise ImitateError(f"{problems[0]}, or add --force to go on anyway")
     for problem in problems:
         log.warning("%s; going on anyway (--force)", problem)
-    for name in (*current.writes, table.REPORT, table.PAGE, provenance.MANIFEST):
+    for name in (*current.writes, layout.REPORT, layout.PAGE, layout.MANIFEST):
         refuse_link(run_dir / name)  # now, not after the stage's work, at its commit
     with staged(run_dir, last=provenance.MANIFEST) as staging:
         start = time.perf_counter()
@@ -58,15 +60,43 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
         manifest = provenance.recorded(manifest, run_dir, current, config, outputs)
         report = _report(current, sections, seconds, previous, config.seed)
         report["artifacts"] = _artifacts(run_dir, set(outputs))
-        save_json(run_dir / "config.json", config.to_json())
-        save_json(run_dir / provenance.MANIFEST, manifest)
-        save_json(run_dir / table.REPORT, report)
-        later = provenance.outdated(run_dir, config, manifest, outputs)
-        for name, why in later.items():
+        save_json(run_dir / layout.CONFIG, config.to_json())
+        save_json(run_dir / layout.MANIFEST, manifest)
+        save_json(run_dir / layout.REPORT, report)
+        later = {
+            name: (table.find(name).files, why)
+            for name, why in provenance.outdated(run_dir, config, manifest, outputs).items()
+        }
+        for name, (files, why) in later.items():
             log.info("out of date: %s (%s); `imitate %s %s` makes it again",
-                        table.find(name).files, why, name, run_dir)
+                        files, why, name, run_dir)
         page.save_run_page(run_dir, report, config.to_json(), later)
     log.debug("%s wrote %s in %.1f s", stage, ", ".join(sorted(outputs)), seconds)
+    return report
+
+
+def run_stages(
+    stages: Sequence[str], run_dir: Path, config: RunConfig, force: bool = False,
+    starting: Callable[[str], None] | None = None,
+) -> dict:
+    """Run ``stages`` in order with :func:`run_stage`, calling ``starting(stage)`` before each;
+    returns the last one's report. When the figures follow learn, their worker process
+    (:func:`imitate.figures.drawing.ahead`) starts with learn, so that its imports are done by
+    then (not with observe, which keeps every core busy).
+
+    Raises:
+        ImitateError: as :func:`run_stage`; the stages before the failed one are kept.
+    """
+    report: dict = {}
+    with ExitStack() as ahead:
+        for stage in stages:
+            if starting is not None:
+                starting(stage)
+            if stage == "learn" and "figures" in stages:
+                from imitate.figures import drawing  # matplotlib: only where figures follow
+
+                ahead.enter_context(drawing.ahead())
+            report = run_stage(stage, run_dir, config, force=force)
     return report
 
 
@@ -97,10 +127,10 @@ def _previous_report(run_dir: Path) -> dict:
             kind than the key's (:func:`~imitate.rundir.schema.check_values`), or lacks one
             the page shows.
     """
-    path = run_dir / table.REPORT
+    path = run_dir / layout.REPORT
     if not path.exists():
         return {}
-    report = check_schema(load_json(path), path)
+    report = load_report(path)
     names = ("timings", "artifacts", *(name for s in table.STAGES for name in s.sections))
     if any(
         not isinstance(report.get(name, {}), dict) for name in names
@@ -115,7 +145,7 @@ def _previous_report(run_dir: Path) -> dict:
 def _artifacts(run_dir: Path, written: set[str]) -> dict[str, str]:
     """Relative paths of the artifacts present or ``written`` now, by name (the report:
     always)."""
-    report = table.REPORT
+    report = layout.REPORT
     names = (*(name for s in table.STAGES for name in s.writes), report)
     return {
         Path(name).stem: name

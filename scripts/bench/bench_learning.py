@@ -40,7 +40,7 @@ from sklearn.cluster import KMeans
 from sklearn.mixture import GaussianMixture
 from threadpoolctl import threadpool_limits
 
-from imitate.demos.synthetic import pouring_demos
+from imitate.demos.synthetic import phased_demos
 from imitate.learning import LearningConfig, learn, time_stacked
 from imitate.learning.bic import _FAST_CHAINS, _FAST_TOL, bic_sweep
 from imitate.learning.dtw import align, dtw
@@ -55,8 +55,8 @@ import time
 start = time.perf_counter()
 import numpy as np
 from imitate.learning import LearningConfig, learn
-from imitate.demos.synthetic import pouring_demos
-sd = pouring_demos()
+from imitate.demos.synthetic import phased_demos
+sd = phased_demos()
 learn([d[:60] for d in sd.demos[:2]], rate=sd.rate, config=LearningConfig(bic_method="fast"))
 print(time.perf_counter() - start)
 """
@@ -100,7 +100,7 @@ def main() -> None:
     reps, slow_reps = args.repeats, max(1, args.repeats // 4)
 
     compile_s, cached_s = _first_call_times()
-    sd = pouring_demos()
+    sd = phased_demos()
     demos = list(sd.demos)
     a, b = demos[0][:450], demos[1][:450]
     alignment = align(demos)

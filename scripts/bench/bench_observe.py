@@ -31,7 +31,7 @@ def run(sess, ahead: bool) -> tuple[dict, object]:
     timing: dict = {}
     cpu = cpu_seconds()
     start = time.perf_counter()
-    tracker = StereoTracker(*cameras(sess), perception_config())
+    tracker = StereoTracker(*cameras(sess), perception_config(sess.motion.objects))
     tracks = track(tracker, frames(sess, timing, ahead=ahead), sess.times, timing)
     timing["wall"] = time.perf_counter() - start
     timing["cpu"] = cpu_seconds() - cpu

@@ -31,10 +31,10 @@ from imitate.perception import (
     Observations,
     StereoTracker,
     perception_config,
-    save_observations,
     track,
 )
 from imitate.perception.watch import cameras, ground_truth
+from imitate.rundir.artifacts import save_npz
 
 
 def run_seed(seed: int, width: int, height: int, out: Path | None = None) -> dict:
@@ -43,8 +43,8 @@ def run_seed(seed: int, width: int, height: int, out: Path | None = None) -> dic
     With ``out``, the observations are kept as ``out/observations_seed{seed}.npz``.
     """
     config = ObservationConfig(teacher=TeacherConfig(seed=seed), width=width, height=height)
-    perception = perception_config()
     sess = session(config)
+    perception = perception_config(sess.motion.objects)
     left, right = cameras(sess)
     timing: dict = {}
     pairs = list(frames(sess, timing))
@@ -55,7 +55,7 @@ def run_seed(seed: int, width: int, height: int, out: Path | None = None) -> dic
     if out is not None:
         projections = np.array([cam.projection for cam in (left, right)])
         observations = Observations(tracks, projections, (width, height), truth)
-        save_observations(out / f"observations_seed{seed}.npz", observations)
+        save_npz(out / f"observations_seed{seed}.npz", observations.to_arrays())
     row = {
         "seed": seed,
         "pairs": len(pairs),

@@ -17,7 +17,7 @@ import time
 import mujoco
 
 from imitate.envs.observation import ObservationConfig, frames, session
-from imitate.envs.pouring import PouringEnv
+from imitate.envs.pour.env import PouringEnv
 from imitate.envs.rendering import backend, make_renderer
 from imitate.models import humanoid
 

@@ -43,13 +43,13 @@ from pathlib import Path
 import numpy as np
 
 from imitate.envs.observation import ObservationConfig, frames, session
-from imitate.perception import StereoTracker, load_observations, perception_config, track
+from imitate.perception import StereoTracker, perception_config, track
 from imitate.perception import tracks as tracks_module
 from imitate.perception.watch import cameras
-from imitate.rundir.artifacts import load_npz
 from imitate.stages import figures
 from imitate.stages import replay as replay_stage
 from imitate.stages.config import load_config
+from imitate.stages.files import ObservationsFile, PlanFile, ReplayFile
 
 
 def timed(label: str, work):
@@ -68,7 +68,8 @@ def observe(run_dir: Path, config, threads) -> None:
     sess = session(watching)
 
     def tracked(pairs):
-        return track(StereoTracker(*cameras(sess), perception_config()), pairs, sess.times)
+        tracker = StereoTracker(*cameras(sess), perception_config(sess.motion.objects))
+        return track(tracker, pairs, sess.times)
 
     pairs = timed(f"observe: render {len(sess.times)} pairs in this thread",
                   lambda: list(frames(sess, ahead=False)))
@@ -106,9 +107,9 @@ def replay(run_dir: Path, config, threads) -> None:
 
 
 def video(run_dir: Path, config, threads) -> None:
-    states = load_npz(run_dir / "replay.npz")  # the replay and the weight-0 one (sweep0_)
-    plan = load_npz(run_dir / "plan.npz", required=("times", "sweep_clearance"))
-    observations = load_observations(run_dir / "observations.npz")
+    states = ReplayFile.load(run_dir)  # the replay and the weight-0 one
+    plan = PlanFile.load(run_dir)
+    observations = ObservationsFile.load(run_dir).observations
     before = figures.VIDEO_THREADS
     try:
         for n in threads:

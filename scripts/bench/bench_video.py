@@ -31,10 +31,9 @@ import imageio.v2 as imageio
 import numpy as np
 
 from imitate.envs.video import ENCODER
-from imitate.perception import load_observations
-from imitate.rundir.artifacts import load_npz
 from imitate.stages import figures
 from imitate.stages.config import RunConfig
+from imitate.stages.files import ObservationsFile, PlanFile, ReplayFile
 
 
 def x264(preset: str, quality: int) -> dict:
@@ -77,9 +76,9 @@ def encode(frames: list[np.ndarray], path: Path, fps: float, settings: dict) -> 
 def render(run_dir: Path, threads: int) -> dict:
     """The run's video frames rendered as the figures stage does, in ``threads`` threads."""
     config = RunConfig.from_json(json.loads((run_dir / "config.json").read_text()))
-    states = load_npz(run_dir / "replay.npz")  # the replay and the weight-0 one (sweep0_)
-    plan = load_npz(run_dir / "plan.npz", required=("times", "sweep_clearance"))
-    observations = load_observations(run_dir / "observations.npz")
+    states = ReplayFile.load(run_dir)  # the replay and the weight-0 one
+    plan = PlanFile.load(run_dir)
+    observations = ObservationsFile.load(run_dir).observations
     figures.VIDEO_THREADS, threads_before = threads, figures.VIDEO_THREADS
     digest = hashlib.sha256()
     cpu, start = time.process_time(), time.perf_counter()

@@ -17,7 +17,7 @@ import imageio.v3 as iio
 import numpy as np
 from tqdm import tqdm
 
-from imitate.envs.pouring import PouringEnv
+from imitate.envs.pour.env import PouringEnv
 from imitate.envs.video import caption, caption_error
 from imitate.models import humanoid, objects
 from imitate.rundir.artifacts import write_atomic

@@ -17,7 +17,8 @@ from pathlib import Path
 
 from imitate.errors import ImitateError
 from imitate.learning.bic import bic_sweep
-from imitate.rundir.artifacts import load_json, load_npz
+from imitate.rundir.artifacts import load_json
+from imitate.stages.files import ModelFile
 
 
 def main() -> None:
@@ -29,10 +30,10 @@ def main() -> None:
     for run in args.runs:
         try:
             seed = load_json(run / "config.json")["seed"]
-            model = load_npz(run / "model.npz", required=("data", "bic_full"))
+            learning = ModelFile.load(run)
         except ImitateError as err:
             sys.exit(f"bic_choices: {err}")
-        data, k_max = model["data"], len(model["bic_full"])
+        data, k_max = learning.learned.model.data, len(learning.bic_full)
         fast, full = (bic_sweep(data, k_max, m, seed).k for m in ("fast", "full"))
         tally["fewer" if fast < full else "more" if fast > full else "as many"] += 1
         print(f"{str(run):<28}{len(data):>6}{fast:>8}{full:>8}")

@@ -27,12 +27,11 @@ import cv2
 import numpy as np
 
 from imitate.envs.assembly import GRASP_RANGE
-from imitate.envs.pouring import PouringEnv
+from imitate.envs.pour.env import PouringEnv
 from imitate.export.episodes import recorded
 from imitate.models import humanoid, objects
 from imitate.perception.colour import object_models
 from imitate.run import load_run
-from imitate.rundir.artifacts import load_npz
 
 SIZE = (160, 120)  # the replays' images (width, height) [px]
 PROBE_SIZE = (80, 60)  # what the probe sees [px]
@@ -42,7 +41,7 @@ RIDGE = 1e-3  # of the standardized features' least squares
 def masks(image: np.ndarray) -> list[np.ndarray]:
     """The bottle's and the glass's colour masks (bool ``(h, w)``) of an RGB image."""
     hsv = cv2.cvtColor(image, cv2.COLOR_RGB2HSV)
-    return [m.colour.mask(hsv) > 0 for m in object_models()]
+    return [m.colour.mask(hsv) > 0 for m in object_models(("bottle", "glass"))]
 
 
 def features(image: np.ndarray) -> np.ndarray:
@@ -74,8 +73,7 @@ def replayed(run, seed: int, options: dict, cameras=(humanoid.WORKSPACE,)):
         "obstacles": [dataclasses.asdict(o) for o in config.scene().obstacles],
         "obs_type": "state_pixels", "width": SIZE[0], "height": SIZE[1], "cameras": cameras,
     }
-    gaze = load_npz(run.path / "model.npz", required=("gaze",))["gaze"]
-    return recorded(run.plan, PouringEnv(**kwargs), kwargs, seed, options, gaze)
+    return recorded(run.plan, PouringEnv(**kwargs), kwargs, seed, options, run.gaze)
 
 
 def visibility(run, out: Path) -> None:

@@ -24,9 +24,8 @@ import numpy as np
 from imitate.evaluation.suite import Suite
 from imitate.evaluation.trial import physics, plan_variation, replay_once
 from imitate.evaluation.variation import draw, path_points
-from imitate.learning import LearnedModel
 from imitate.models import humanoid, objects
-from imitate.rundir.artifacts import load_npz
+from imitate.stages.files import ModelFile
 
 
 class Probe:
@@ -66,8 +65,8 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=20)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
-    arrays = load_npz(args.run_dir / "model.npz", required=(*LearnedModel.array_names(), "gaze"))
-    learned, gaze = LearnedModel.from_arrays(arrays), arrays["gaze"]
+    stored = ModelFile.load_learned(args.run_dir)
+    learned, gaze = stored.model, stored.gaze
     suite = Suite.default()
     path = path_points(learned, gaze, suite["max_iter"])
     print(f"{'id':>3} {'obstacle':>9} {'plan':>7} {'physics':>7} {'gap':>6} {'touch':>6} "

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate.envs.outcome import SUCCESS_FRACTION
+from imitate.envs.pour.outcome import SUCCESS_FRACTION
 from imitate.errors import ImitateError
 from imitate.evaluation.suite_run import last_records
 

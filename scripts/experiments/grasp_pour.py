@@ -20,10 +20,9 @@ from imitate.envs.assembly import GRASP_RANGE, SceneConfig
 from imitate.evaluation.suite import Suite
 from imitate.evaluation.trial import physics, plan_variation, replay_once
 from imitate.evaluation.variation import Variation
-from imitate.learning import LearnedModel
 from imitate.models import objects
 from imitate.motion.metrics import pour_phase_error
-from imitate.rundir.artifacts import load_npz
+from imitate.stages.files import ModelFile
 
 
 def main() -> None:
@@ -31,8 +30,8 @@ def main() -> None:
     parser.add_argument("run_dir", type=Path)
     parser.add_argument("--seeds", type=int, default=3)
     args = parser.parse_args()
-    arrays = load_npz(args.run_dir / "model.npz", required=(*LearnedModel.array_names(), "gaze"))
-    learned, gaze = LearnedModel.from_arrays(arrays), arrays["gaze"]
+    stored = ModelFile.load_learned(args.run_dir)
+    learned, gaze = stored.model, stored.gaze
     suite, default = Suite.default(), SceneConfig()
     grid = {obj: np.linspace(*GRASP_RANGE[obj], 3) for obj in GRASP_RANGE}
     print(f"{'bottle':>6} {'glass':>6} | {'planned with the actual grasp':^29} | "

@@ -17,13 +17,14 @@ import numpy as np
 
 from imitate.demos.oracle import oracle_model
 from imitate.envs.assembly import GRASP_RANGE, Obstacle, SceneConfig
-from imitate.envs.pouring import PouringEnv
+from imitate.envs.pour.env import PouringEnv
 from imitate.figures import plots
 from imitate.models import humanoid, objects
 from imitate.models.scene import TABLE_HEIGHT
 from imitate.motion import PlanConfig, plan_from_model
 from imitate.motion.metrics import deviation, pour_phase_error
 from imitate.motion.replay import planning_task, replay
+from imitate.rundir.artifacts import save_bytes
 from imitate.stages.optimize import _clearance
 
 
@@ -109,12 +110,12 @@ def _figures(plans, task, out: Path) -> None:
     base = next(iter(plans.values()))
     sweep = {weight: p.x for weight, p in plans.items()}
     clearance = {weight: _clearance(task, p.q) for weight, p in plans.items()}
-    plots.save(
-        plots.plot_collision_sweep(base.times, base.mean, base.variance, sweep, clearance),
-        out / "fig9.png",
-    )
-    plots.save(plots.plot_costs({weight: p.costs["total"] for weight, p in plans.items()}),
-               out / "costs.png")
+    save_bytes(out / "fig9.png", plots.figure_png(
+        plots.plot_collision_sweep(base.times, base.mean, base.variance, sweep, clearance)
+    ))
+    save_bytes(out / "costs.png", plots.figure_png(
+        plots.plot_costs({weight: p.costs["total"] for weight, p in plans.items()})
+    ))
 
 
 if __name__ == "__main__":

@@ -13,12 +13,14 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate.demos.segment import StillnessConfig, save_demos, segment
+from imitate.demos.segment import StillnessConfig, segment
 from imitate.envs.observation import ObservationConfig
 from imitate.envs.teacher_motion import TeacherConfig
-from imitate.figures.plots import plot_observation, save
-from imitate.perception import save_observations
+from imitate.figures.plots import figure_png, plot_observation
 from imitate.perception.watch import watch
+from imitate.rundir import layout
+from imitate.rundir.artifacts import save_bytes
+from imitate.stages.files import DemosFile, ObservationsFile
 
 
 def main(argv=None) -> None:
@@ -39,11 +41,12 @@ def main(argv=None) -> None:
     timing = {}
     observations = watch(config, timing=timing, progress=True)
     demos = segment(observations.tracks, StillnessConfig())
-    save_observations(args.out / "observations.npz", observations)
-    save_demos(args.out / "demos.npz", demos, observations.tracks)
-    boundaries = np.array([(d.start, d.end) for d in demos])
-    save(plot_observation(observations, boundaries), args.out / "figures" / "observation.png")
     tracks, truth = observations.tracks, observations.truth
+    ObservationsFile(observations).save(args.out)
+    cut = DemosFile(tuple(demos), tracks.objects, tracks.gaze)
+    cut.save(args.out)
+    figure = plot_observation(observations, cut.boundaries)
+    save_bytes(args.out / layout.figure("observation"), figure_png(figure))
     print(
         f"{timing['pairs']} stereo pairs {args.width}x{args.height}: rendering "
         f"{timing['pairs'] / timing['render']:.1f} pairs/s, tracking + triangulation "

@@ -13,12 +13,18 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate.demos.synthetic import SyntheticConfig, pouring_demos
-from imitate.figures.plots import plot_bic_curves, plot_gmm_with_and_without_dtw, plot_gmr, save
+from imitate.demos.synthetic import SyntheticConfig, phased_demos
+from imitate.figures.plots import (
+    figure_png,
+    plot_bic_curves,
+    plot_gmm_with_and_without_dtw,
+    plot_gmr,
+)
 from imitate.learning import LearningConfig, learn
 from imitate.learning.bic import bic_sweep
 from imitate.learning.gmr import gmr
-from imitate.motion.taskspace import TASK_DIMS
+from imitate.rundir.artifacts import save_bytes
+from imitate.taskspace import TASK_DIMS
 
 
 def main() -> None:
@@ -29,21 +35,22 @@ def main() -> None:
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
 
-    sd = pouring_demos(SyntheticConfig(seed=args.seed))
+    sd = phased_demos(SyntheticConfig(seed=args.seed))
     aligned = learn(
         sd.demos, rate=sd.rate, config=LearningConfig(k_max=args.k_max, bic_method="fast")
     )
     k = aligned.gmm.n_components
     raw = learn(sd.demos, rate=sd.rate, config=LearningConfig(n_components=k, use_dtw=False))
-    save(plot_gmm_with_and_without_dtw(raw, aligned, dim=3), args.out / "fig4_gmm_dtw.png")
+    figure = plot_gmm_with_and_without_dtw(raw, aligned, dim=3)
+    save_bytes(args.out / "fig4_gmm_dtw.png", figure_png(figure))
 
     full = bic_sweep(aligned.data, args.k_max, "full")
     curves = {"fast (K-means only)": aligned.bic_curve, "full (EM)": full.curve}
-    save(plot_bic_curves(curves), args.out / "fig5_bic.png")
-    save(plot_gmr(aligned), args.out / "gmr.png")
+    save_bytes(args.out / "fig5_bic.png", figure_png(plot_bic_curves(curves)))
+    save_bytes(args.out / "gmr.png", figure_png(plot_gmr(aligned)))
     print(f"K chosen: fast {k}, full {full.k}")
 
-    start, end = sd.pour_windows[aligned.alignment.reference]
+    start, end = sd.act_windows[aligned.alignment.reference]
     pour = (aligned.times >= start) & (aligned.times <= end)
     for covariance in ("paper", "total"):
         var = [

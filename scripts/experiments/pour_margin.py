@@ -4,7 +4,7 @@ an evaluation (the last one into EVAL_DIR, the folder ``imitate eval`` printed).
 Usage: ``python scripts/experiments/pour_margin.py EVAL_DIR`` (e.g.
 ``runs/latest/eval/default-w10000-variance``). Nothing is re-run: every replay's record holds its
 pour fraction, its spilled particles and where the stream met the glass
-(:mod:`imitate.envs.pour_geometry`).
+(:mod:`imitate.envs.pour.geometry`).
 
 Prints, per teacher, its default run (the three pours and the geometry of the first) and over
 its replays the share that pour below 0.9; then, over all replays, the pour against the share of
@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-from imitate.envs.outcome import SUCCESS_FRACTION
+from imitate.envs.pour.outcome import SUCCESS_FRACTION
 from imitate.errors import ImitateError
 from imitate.evaluation.suite_run import last_records
 

@@ -28,9 +28,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from imitate.rundir.table import NAMES
 from imitate.stages.config import RunConfig
 from imitate.stages.runner import run_stage
+from imitate.stages.table import NAMES
 
 TARGETS = {
     "w0": lambda r: r["w0"] <= -20.0,

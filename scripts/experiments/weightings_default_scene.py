@@ -22,12 +22,11 @@ from pathlib import Path
 import numpy as np
 
 from imitate.envs.assembly import SceneConfig
-from imitate.learning import LearnedModel
 from imitate.models import humanoid
 from imitate.motion import SIMILARITIES, PlanConfig, plan_from_model
 from imitate.motion.metrics import deviation, pour_phase_error
 from imitate.motion.replay import planning_task
-from imitate.rundir.artifacts import load_npz
+from imitate.stages.files import ModelFile
 
 
 def main() -> None:
@@ -37,9 +36,9 @@ def main() -> None:
     parser.add_argument("--sigma-max-scale", type=float, default=1.0)
     parser.add_argument("--similarity", nargs="+", choices=SIMILARITIES, default=SIMILARITIES)
     args = parser.parse_args()
-    arrays = load_npz(args.run_dir / "model.npz", required=(*LearnedModel.array_names(), "gaze"))
-    model = LearnedModel.from_arrays(arrays)
-    task = planning_task(SceneConfig(), arrays["gaze"])
+    learned = ModelFile.load_learned(args.run_dir)
+    model = learned.model
+    task = planning_task(SceneConfig(), learned.gaze)
     print(f"{'weighting':<10} {'weight':>7} {'clear':>7} {'change':>7} {'at':>5} {'share':>6} "
           f"{'pour [mm':>9} {'deg]':>5}")
     for similarity in args.similarity:

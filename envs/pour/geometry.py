@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from imitate.envs.pouring import PouringEnv
+from imitate.envs.pour.env import PouringEnv
 from imitate.models import objects
 
 __all__ = ["PourGeometry"]

@@ -1,9 +1,10 @@
-"""The stages of a run, in order: what each does, its function, what it writes, what it reports.
+"""The stages of a run, in order: what each does, its function, what it reads and writes, what
+it reports.
 
-The command line, the artifacts' re-run hints and :func:`imitate.stages.runner.run_stage` all
-read :data:`STAGES`. This module imports nothing heavy (the command line parses its arguments before
-MuJoCo loads, and :mod:`imitate.rundir.artifacts` reads it): a stage's function is named as
-``"module:function"`` and imported when the stage runs.
+The command line, the run files' re-run hints (:func:`rerun`) and
+:func:`imitate.stages.runner.run_stage` all read :data:`STAGES`. This module imports nothing
+heavy (the command line parses its arguments before MuJoCo loads): a stage's function is named
+as ``"module:function"`` and imported when the stage runs.
 """
 
 from __future__ import annotations
@@ -11,23 +12,12 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 from imitate.errors import ImitateError
+from imitate.rundir import layout
 
-__all__ = [
-    "CODE", "CONFIG", "FIGURES", "MANIFEST", "NAMES", "PAGE", "REPORT", "RUN_HELP", "STAGES",
-    "Stage", "find", "own_names", "producer",
-]
-
-REPORT = "report.json"  # every stage merges its sections into it
-PAGE = "report.html"  # the report and the settings as a page (imitate.rundir.page), with the report
-CONFIG = "config.json"  # the run's settings, written by every stage
-MANIFEST = "manifest.json"  # what each artifact was made from (imitate.stages.provenance)
-CODE = "code.json"  # a teacher's run: the code its stages ran with (imitate.evaluation.teachers)
-FIGURES = (
-    "observation", "fig4_gmm_dtw", "fig5_bic", "gmr", "fig8_snapshots", "fig9_collision_sweep",
-    "costs",
-)
+__all__ = ["NAMES", "RUN_HELP", "STAGES", "Stage", "find", "producer", "rerun"]
 
 
 @dataclass(frozen=True)
@@ -57,7 +47,7 @@ class Stage:
         """What it writes, in words: ``"figures/*.png, video.mp4"`` (``config.json`` aside)."""
         return ", ".join(dict.fromkeys(
             "figures/*.png" if name.startswith("figures/") else name
-            for name in self.writes if name != "config.json"
+            for name in self.writes if name != layout.CONFIG
         ))
 
     def body(self) -> Callable[..., dict]:
@@ -71,39 +61,39 @@ STAGES = (
         "the teacher demonstrates; track the objects in the robot's eyes; cut the demos",
         "imitate.stages.observe:run",
         (),
-        ("config.json", "observations.npz", "demos.npz"),
+        (layout.CONFIG, layout.OBSERVATIONS, layout.DEMOS),
         ("demos", "perception"),
     ),
     Stage(
         "learn",
         "task space, DTW, GMM (components by BIC), GMR mean and variance",
         "imitate.stages.learn:run",
-        ("observations.npz", "demos.npz"),
-        ("model.npz",),
+        (layout.OBSERVATIONS, layout.DEMOS),
+        (layout.MODEL,),
         ("learning",),
     ),
     Stage(
         "optimize",
         "whole-body attractor optimization of the reproduction, Fig. 9 sweep",
         "imitate.stages.optimize:run",
-        ("model.npz",),
-        ("plan.npz",),
+        (layout.MODEL,),
+        (layout.PLAN,),
         ("optimization",),
     ),
     Stage(
         "replay",
-        "the optimized movement in full physics: pour fraction, spill, clearance",
+        "the optimized movement in full physics: the task's measures, clearance, outcome",
         "imitate.stages.replay:run",
-        ("plan.npz", "model.npz"),
-        ("replay.npz",),
+        (layout.PLAN, layout.MODEL),
+        (layout.REPLAY,),
         ("replay",),
     ),
     Stage(
         "figures",
         "figures/*.png and video.mp4 from the run's artifacts",
         "imitate.stages.figures:run",
-        ("observations.npz", "demos.npz", "model.npz", "plan.npz", "replay.npz"),
-        ("video.mp4", *(f"figures/{name}.png" for name in FIGURES)),
+        (layout.OBSERVATIONS, layout.DEMOS, layout.MODEL, layout.PLAN, layout.REPLAY),
+        (layout.VIDEO, *(layout.figure(name) for name in layout.FIGURES)),
         ("video",),
     ),
 )
@@ -123,15 +113,14 @@ def find(name: str) -> Stage:
     raise ImitateError(f"stage {name!r} unknown; accepted: {NAMES}")
 
 
-def own_names() -> tuple[str, ...]:
-    """Every file imitate writes in a run directory, paths relative to it: the stages'
-    artifacts, the settings, the report and its page, the manifest and a teacher's code
-    record."""
-    return (*dict.fromkeys(n for s in STAGES for n in s.writes), CONFIG, REPORT, PAGE, MANIFEST,
-            CODE)
-
-
 def producer(artifact: str) -> str:
     """The command that writes ``artifact`` (a path relative to the run directory): its stage,
     or ``"run"`` for the report and anything no stage writes."""
     return next((s.name for s in STAGES if artifact in s.writes), "run")
+
+
+def rerun(path: Path) -> str:
+    """What to do about the run file ``path`` when it is missing or unusable: ``"re-run
+    `imitate learn RUN` to write it"`` (the command of :func:`producer`)."""
+    path = Path(path)
+    return f"re-run `imitate {producer(path.name)} {path.parent}` to write it"

@@ -26,9 +26,11 @@ def poured(in_glass: float) -> bool:
     return in_glass >= SUCCESS_FRACTION
 
 
-def outcome(plan_min_distance: float, replays: Sequence[Mapping], particles: int) -> str:
+def outcome(plan_min_distance: float, replays: Sequence[Mapping], options: Mapping) -> str:
     """The outcome (one of :data:`OUTCOMES`) of a plan's clearance [m] and its replays, each
-    ``{"pour_fraction", "spilled", "min_distance_m", "diverged"}`` (``particles`` of liquid)."""
+    ``{"pour_fraction", "spilled", "min_distance_m", "diverged"}`` (``options["particles"]``
+    of liquid)."""
+    particles = options["particles"]
     if any(r["diverged"] for r in replays):
         return "diverged"
     if plan_min_distance < 0:

@@ -1,0 +1,104 @@
+"""The insertion task as a :class:`~imitate.envs.task.Task` (``TASK``)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from imitate.envs.insert.env import InsertingEnv
+from imitate.envs.insert.geometry import InsertGeometry
+from imitate.envs.insert.outcome import OUTCOMES, outcome
+from imitate.envs.task import Task
+from imitate.models import objects
+
+__all__ = ["TASK", "insert_phase"]
+
+_RIM = objects.GLASS_SHAPE.profile[-1][0] - objects.GLASS_SHAPE.wall / 2  # inner radius [m]
+_ABOVE = 0.01  # [m]: how far above the rim the insertion phase starts
+
+
+def insert_phase(mean: np.ndarray) -> np.ndarray:
+    """Steps ``(T,) bool`` where the GMR mean ``(T, 7)`` holds the stick's lower end over the
+    glass's opening (within the rim's inner radius of the glass's axis) and at most 1 cm above
+    the rim: the low-variance descent into the glass. Where it never does, the steps where the
+    end is nearest to the glass's axis (within 1 cm of the nearest)."""
+    offset = np.hypot(mean[:, 0], mean[:, 1])
+    phase = (offset < _RIM) & (mean[:, 2] <= objects.GLASS_SHAPE.height + _ABOVE)
+    return phase if phase.any() else offset <= offset.min() + 0.01
+
+
+def report(records: Sequence[Mapping[str, Any]], watched: Mapping[str, Any]) -> dict[str, Any]:
+    """The report's inserting keys of the replay section (see :data:`KEYS`)."""
+    depths = [r["insert_depth"] for r in records]
+    return {
+        "insert_depth": records[0]["insert_depth"],
+        "insert_offset": records[0]["insert_offset"],
+        "insert_depth_mean": float(np.mean(depths)),
+        "insert_depth_min": float(np.min(depths)),
+        "insert_depths": depths,
+        "insert_geometry": dict(watched),
+    }
+
+
+# The report keys the inserting task adds to the replay section: unit and meaning.
+KEYS = {
+    "replay.insert_depth": (
+        "m",
+        "the deepest the stick's lower end went into the glass in the replay, below the rim "
+        "(0: never in it)",
+    ),
+    "replay.insert_offset": ("m", "its distance from the glass's axis there"),
+    "replay.insert_depth_mean": (
+        "m",
+        "mean insertion depth over three replays from seeds `seed`, `seed + 1`, `seed + 2` of "
+        "the initial-state noise",
+    ),
+    "replay.insert_depth_min": ("m", "the smallest of them (30 mm or more: success)"),
+    "replay.insert_depths": ("m", "the three"),
+    "replay.insert_geometry.depth_m": (
+        "m",
+        "in the first replay, at the deepest point in the glass: the lower end's depth below "
+        "the rim, in the glass's frame",
+    ),
+    "replay.insert_geometry.offset_m": (
+        "m",
+        "its distance from the glass's axis (the inner radius is 34 mm at the bottom, 40 mm at "
+        "the rim)",
+    ),
+    "replay.insert_geometry.tilt_deg": ("deg", "the angle between the stick's and glass's axes"),
+    "replay.insert_geometry.entry_offset_m": (
+        "m",
+        "the lower end's distance from the glass's axis as it went below the rim",
+    ),
+    "replay.insert_geometry.offset_max_m": ("m", "its largest distance from the axis in the glass"),
+    "replay.insert_geometry.seconds_inside": ("s", "time the lower end was in the glass"),
+    "replay.insert_geometry.lowest_below_rim_m": (
+        "m",
+        "the lowest the lower end came, below the rim's plane, in the glass or not",
+    ),
+}
+
+TASK = Task(
+    name="insert",
+    env=InsertingEnv,
+    env_id="imitate/Inserting-v0",
+    dims=("dx", "dy", "dz", "stick_angle", "stick_gaze", "glass_angle", "glass_gaze"),
+    summary="puts the stick in its right hand into the glass in its left",
+    phase="insert",
+    outcomes=OUTCOMES,
+    measures={
+        "insert_depth": (
+            "m", "the deepest the stick's lower end went into the glass, below its rim",
+        ),
+        "insert_offset": ("m", "its distance from the glass's axis there"),
+    },
+    keys=KEYS,
+    report=report,
+    outcome=outcome,
+    critical=insert_phase,
+    watcher=InsertGeometry,
+    suites=Path(__file__).parent / "suites",
+)

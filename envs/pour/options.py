@@ -1,0 +1,19 @@
+"""The pouring task's own run settings (light: the command line's help reads them)."""
+
+from imitate.envs.tasks import Option
+from imitate.models.shapes import BOTTLE, GLASS, GRASP, GRASP_RANGE, MAX_PARTICLES
+
+OPTIONS = {
+    "bottle_grasp": Option(
+        GRASP[BOTTLE], "where the robot holds the bottle, height above its bottom [m]",
+        *GRASP_RANGE[BOTTLE],
+    ),
+    "glass_grasp": Option(
+        GRASP[GLASS], "where the robot holds the glass, height above its bottom [m]",
+        *GRASP_RANGE[GLASS],
+    ),
+    "particles": Option(
+        60, "liquid spheres in the bottle", 1, MAX_PARTICLES, integer=True, stage="replay",
+        quick=30,
+    ),
+}

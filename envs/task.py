@@ -1,0 +1,143 @@
+"""``Task``: what makes a task the task, as one value the generic layers receive.
+
+The learner, the tracker, the planner, the stages, the evaluation and the exports know a task
+only through this value (:func:`get_task`): its objects (the tool, moved to the
+target), its env, the labels of its task space, its own settings, how a replay is measured and
+judged, and its critical phase.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from imitate.envs import tasks
+from imitate.envs.assembly import Obstacle, SceneConfig
+from imitate.envs.bimanual import BimanualEnv
+from imitate.errors import ImitateError
+
+__all__ = ["Task", "Watcher", "get_task"]
+
+
+class Watcher(Protocol):
+    """Watches a replay: called with the env after its reset and after every step."""
+
+    def __call__(self, env: BimanualEnv) -> None: ...
+
+    def summary(self) -> dict[str, Any]:
+        """What it saw, for the report."""
+        ...
+
+
+@dataclass(frozen=True)
+class Task:
+    """A bimanual task (see the module docstring).
+
+    Attributes:
+        name: Its name, one of ``imitate.envs.tasks.NAMES``.
+        env: Its env class; its ``objects`` are the tool (right hand) and the target (left).
+        env_id: Its Gymnasium id.
+        dims: Labels of the 7 task-space columns (eq. 1) in figures and exports.
+        summary: What the robot does, one sentence without a full stop.
+        phase: The name of its critical phase (report keys ``<phase>_phase_err_m``).
+        outcomes: The outcomes of a reproduction, ``"success"`` first.
+        measures: The keys of a replay's record that the task adds (from the env's ``info`` at
+            the end), with unit and meaning.
+        keys: The report keys it adds (``replay.*``), with unit and meaning.
+        report: ``report(records, watched) -> dict``: the task's keys of the report's replay
+            section, from the replays' records (``measures`` plus ``min_distance_m`` and
+            ``diverged``) and the first replay's :class:`Watcher` summary.
+        outcome: ``outcome(plan_min_distance [m], records, options) -> str``, one of
+            ``outcomes``.
+        critical: ``critical(mean (T, 7)) -> (T,) bool``: the steps of a learned mean in the
+            task's critical phase (where its success is decided).
+        watcher: Makes the :class:`Watcher` of a replay.
+        suites: Folder of its evaluation suites (``*.toml``).
+        replays: Physics replays per reproduction, each from its own seed; the outcome asks
+            every one to succeed.
+    """
+
+    name: str
+    env: type[BimanualEnv]
+    env_id: str
+    dims: tuple[str, ...]
+    summary: str
+    phase: str
+    outcomes: tuple[str, ...]
+    measures: Mapping[str, tuple[str, str]]
+    keys: Mapping[str, tuple[str, str]]
+    report: Callable[[Sequence[Mapping[str, Any]], Mapping[str, Any]], dict[str, Any]]
+    outcome: Callable[[float, Sequence[Mapping[str, Any]], Mapping[str, Any]], str]
+    critical: Callable[[np.ndarray], np.ndarray]
+    watcher: Callable[[], Watcher]
+    suites: Path
+    replays: int = 3
+
+    @property
+    def objects(self) -> tuple[str, str]:
+        """The tool and the target (body names)."""
+        return self.env.objects
+
+    @property
+    def options(self) -> dict[str, tasks.Option]:
+        """Its own run settings (:func:`imitate.envs.tasks.options`)."""
+        return tasks.options(self.name)
+
+    def settings(self, options: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        """Its own settings: the defaults with ``options`` replacing some of them."""
+        options = dict(options or {})
+        unknown = sorted(set(options) - set(self.options))
+        if unknown:
+            raise ImitateError(
+                f"settings {unknown} are not task {self.name!r}'s; its own: {list(self.options)}"
+            )
+        return {name: options.get(name, o.default) for name, o in self.options.items()}
+
+    def reset_options(self, options: Mapping[str, Any] | None = None) -> dict[str, float]:
+        """The env's reset options (the grasps) for these settings."""
+        values = self.settings(options)
+        return {f"{obj}_grasp": values[f"{obj}_grasp"] for obj in self.objects}
+
+    def scene(
+        self,
+        options: Mapping[str, Any] | None = None,
+        obstacles: Sequence[Obstacle] = (),
+        teacher: bool = False,
+    ) -> SceneConfig:
+        """The scene of these settings, ``obstacles`` and (or not) the teacher."""
+        values = self.settings(options)
+        grasps = tuple(float(values[f"{obj}_grasp"]) for obj in self.objects)
+        return SceneConfig(
+            **self._scene_values(values), objects=self.objects, grasps=grasps,
+            obstacles=tuple(obstacles), teacher=teacher, tool_inside=self.env.tool_inside,
+        )
+
+    def make_env(self, scene: SceneConfig, **kwargs: Any) -> BimanualEnv:
+        """Its env of ``scene`` (obstacles, teacher and the task's own scene values; the grasps
+        are reset options), with the env's other arguments ``kwargs``."""
+        return self.env(
+            obstacles=scene.obstacles, teacher=scene.teacher, **self._scene_values(scene), **kwargs
+        )
+
+    def record(self, info: Mapping[str, Any]) -> dict[str, Any]:
+        """The task's measures of a replay, from the env's ``info`` at its end."""
+        return {key: info[key] for key in self.measures}
+
+    def _scene_values(self, values: Any) -> dict[str, Any]:
+        """The scene values (beyond the grasps) of settings or of a scene: the particles."""
+        names = [n for n in self.options if not n.endswith("_grasp")]
+        get = values.get if isinstance(values, Mapping) else lambda n: getattr(values, n)
+        return {name: get(name) for name in names}
+
+
+def get_task(name: str) -> Task:
+    """The task ``name`` (one of ``imitate.envs.tasks.NAMES``; imports its package).
+
+    Raises:
+        ImitateError: an unknown name, with the known ones.
+    """
+    return tasks.module(name, "task").TASK

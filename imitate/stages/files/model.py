@@ -1,0 +1,90 @@
+"""``model.npz``: the learned model, its gaze frame and what the figures show of learning
+(``learn`` writes it)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from imitate.learning import LearnedModel
+from imitate.rundir.artifacts import save_npz
+from imitate.rundir.layout import MODEL
+from imitate.stages.files._npz import read, reading
+
+__all__ = ["Learned", "ModelFile"]
+
+RAW = "raw_"  # the prefix of the model learned without DTW
+
+
+@dataclass(frozen=True, eq=False)
+class Learned:
+    """A learned model in its task space's frame: what planning needs of ``model.npz``.
+
+    Attributes:
+        model: The model (GMM and GMR, learned with DTW).
+        gaze: ``(3, 3)`` gaze frame its task space is expressed in.
+    """
+
+    model: LearnedModel
+    gaze: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class ModelFile:
+    """Contents of ``model.npz``: the model's arrays (:meth:`LearnedModel.to_arrays`), those of
+    the model learned without DTW (prefixed ``raw_``), ``gaze``, ``rate``, ``bic_fast``,
+    ``bic_full`` and ``aligned``.
+
+    Attributes:
+        learned: The model learned with DTW and its gaze frame.
+        raw: The model learned without DTW, with as many components (Fig. 4).
+        rate: Rate of the demonstrations it was learned from [Hz].
+        bic_fast: ``(k_max,)`` BIC of each number of components, by the fast K-means heuristic
+            (Fig. 5).
+        bic_full: ``(k_max,)`` the same by the full BIC (EM for every K).
+        aligned: ``(n_demos, T, 7)`` the demonstrations after DTW, in the task space.
+    """
+
+    learned: Learned
+    raw: LearnedModel
+    rate: float
+    bic_fast: np.ndarray
+    bic_full: np.ndarray
+    aligned: np.ndarray
+
+    def save(self, run_dir: Path) -> Path:
+        """Write ``run_dir/model.npz``, atomically (staged inside a stage)."""
+        return save_npz(Path(run_dir) / MODEL, {
+            **self.learned.model.to_arrays(), **self.raw.to_arrays(RAW),
+            "gaze": self.learned.gaze, "rate": self.rate, "bic_fast": self.bic_fast,
+            "bic_full": self.bic_full, "aligned": self.aligned,
+        })
+
+    @classmethod
+    def load(cls, run_dir: Path) -> ModelFile:
+        """Read ``run_dir/model.npz``, all of it.
+
+        Raises:
+            ImitateError: it is missing or unusable (an array missing, not finite, or of
+                shapes that disagree); the message names it and the stage to re-run.
+        """
+        a = read(run_dir, MODEL, (
+            *LearnedModel.array_names(), *LearnedModel.array_names(RAW), "gaze", "rate",
+            "bic_fast", "bic_full", "aligned",
+        ))
+        with reading(a.path):
+            return cls(
+                Learned(LearnedModel.from_arrays(a), a["gaze"]),
+                raw=LearnedModel.from_arrays(a, RAW), rate=float(a["rate"]),
+                bic_fast=a["bic_fast"], bic_full=a["bic_full"], aligned=a["aligned"],
+            )
+
+    @staticmethod
+    def load_learned(run_dir: Path) -> Learned:
+        """Read the learned model and its gaze frame of ``run_dir/model.npz`` (the other arrays
+        are neither read nor needed), as :meth:`load` does."""
+        a = read(run_dir, MODEL, (*LearnedModel.array_names(), "gaze"))
+        with reading(a.path):
+            return Learned(LearnedModel.from_arrays(a), a["gaze"])

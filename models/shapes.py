@@ -1,0 +1,76 @@
+"""The task objects as data: names, shapes, colours and where a hand may hold each (light: no
+MuJoCo, no trimesh; :mod:`imitate.models.objects` builds them).
+
+Each object is a container whose frame sits at the centre of its bottom, ``z`` along its long
+axis: the bottle and the glass of the pouring task, and the stick (a closed, narrow tube) that the
+insertion task puts into the glass.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+BOTTLE, GLASS, STICK = "bottle", "glass", "stick"
+PARTICLE_PREFIX = "particle_"
+
+@dataclass(frozen=True)
+class ContainerShape:
+    """A thin-walled vessel, open at the top, as a profile of wall segments.
+
+    Attributes:
+        profile: ``(n, 2)`` points ``(radius, height)`` of the wall's mid-surface, bottom to
+            rim [m].
+        wall: wall thickness [m].
+        segments: boxes per ring of the collision wall.
+        rgba: the one uniform colour.
+    """
+
+    profile: tuple[tuple[float, float], ...]
+    wall: float
+    segments: int
+    rgba: tuple[float, float, float, float]
+
+    @property
+    def height(self) -> float:
+        """Height of the rim above the bottom [m]."""
+        return self.profile[-1][1]
+
+    @property
+    def inner_radius(self) -> float:
+        """Smallest inner radius of the wall [m] (the bottle's neck, the glass's foot)."""
+        return min(r for r, _ in self.profile) - self.wall / 2
+
+
+# Saturated hues far from everything else in the scene: green bottle, blue glass.
+BOTTLE_SHAPE = ContainerShape(
+    profile=((0.034, 0.0), (0.034, 0.15), (0.016, 0.195), (0.016, 0.235)),
+    wall=0.004,
+    segments=16,
+    rgba=(0.10, 0.72, 0.22, 1.0),
+)
+GLASS_SHAPE = ContainerShape(
+    profile=((0.036, 0.0), (0.042, 0.10)),
+    wall=0.004,
+    segments=18,
+    rgba=(0.12, 0.30, 0.92, 1.0),
+)
+# A narrow magenta tube, longer than the glass is deep, held near its top: its hue is as far from
+# the glass's blue as from the teacher's skin and hair (an orange one shared their hues).
+STICK_SHAPE = ContainerShape(
+    profile=((0.010, 0.0), (0.010, 0.24)),
+    wall=0.004,
+    segments=10,
+    rgba=(0.78, 0.12, 0.74, 1.0),
+)
+SHAPES = {BOTTLE: BOTTLE_SHAPE, GLASS: GLASS_SHAPE, STICK: STICK_SHAPE}  # the objects by name
+# Where a hand may hold each object, height above its bottom [m], and where it does by default.
+GRASP_RANGE = {BOTTLE: (0.05, 0.13), GLASS: (0.03, 0.08), STICK: (0.14, 0.20)}
+GRASP = {BOTTLE: 0.09, GLASS: 0.05, STICK: 0.17}
+MAX_PARTICLES = 120  # what fits in the bottle below its shoulder
+PARTICLE_RADIUS = 0.005  # [m]
+PARTICLE_DENSITY = 1000.0  # [kg/m^3], water
+# Red juice: it stands out on the white robot, the grey floor and the beige table, and its hue
+# is far from the bottle's green and the glass's blue.
+PARTICLE_RGBA = (0.82, 0.06, 0.12, 1.0)
+
+

@@ -1,0 +1,67 @@
+"""Tasks are plug-ins: the generic packages name no task, and every task gives what they use."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from imitate.envs import tasks
+from imitate.envs.task import get_task
+from imitate.errors import ImitateError
+
+ROOT = Path(__file__).resolve().parents[1]
+# The packages that receive a task as a value and must not know any one task.
+GENERIC = ("learning", "perception", "motion", "demos", "stages", "evaluation", "rundir",
+           "figures", "export")
+TASK_WORDS = re.compile(r"pour|bottle|glass|liquid|particle", re.IGNORECASE)
+
+
+def task_words(root: Path = ROOT) -> list[str]:
+    """``path:line: text`` of every line of the generic packages under ``root`` that names a
+    task word."""
+    found = []
+    for name in GENERIC:
+        for path in sorted((root / "imitate" / name).rglob("*")):
+            if path.suffix not in (".py", ".toml") or "__pycache__" in path.parts:
+                continue
+            for number, line in enumerate(path.read_text().splitlines(), 1):
+                if TASK_WORDS.search(line):
+                    found.append(f"{path.relative_to(root)}:{number}: {line.strip()}")
+    return found
+
+
+def test_the_generic_packages_name_no_task():
+    found = task_words()
+    assert not found, f"{len(found)} lines name a task:\n" + "\n".join(found[:40])
+
+
+def test_the_word_check_finds_a_task_word(tmp_path):
+    """The check is not blind: a task word written into a generic package is found."""
+    package = tmp_path / "imitate" / "motion"
+    package.mkdir(parents=True)
+    (package / "mod.py").write_text('"""Plans the Pour."""\n')
+    assert task_words(tmp_path) == ['imitate/motion/mod.py:1: """Plans the Pour."""']
+
+
+@pytest.mark.parametrize("name", tasks.NAMES)
+def test_every_task_gives_what_the_generic_layers_use(name):
+    task = get_task(name)
+    assert task.name == name and task.outcomes[0] == "success"
+    assert len(task.dims) == 7 and len(task.objects) == 2
+    assert all(f"{obj}_grasp" in task.options for obj in task.objects)
+    assert sorted(p.stem for p in task.suites.glob("*.toml")), "a task ships its suites"
+    scene = task.scene()
+    assert scene.objects == task.objects
+    assert set(task.reset_options()) == {f"{obj}_grasp" for obj in task.objects}
+
+
+def test_an_unknown_task_is_refused_with_the_known_ones():
+    with pytest.raises(ImitateError, match=r"task 'stir' unknown; accepted: \['pour', 'insert'\]"):
+        get_task("stir")
+
+
+def test_a_setting_of_another_task_is_refused():
+    with pytest.raises(ImitateError, match="particles"):
+        get_task("insert").settings({"particles": 30})
