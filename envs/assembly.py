@@ -18,7 +18,7 @@ import mujoco
 import numpy as np
 
 from imitate import defaults
-from imitate.envs.collision import EXEMPT
+from imitate.envs.collision import INSIDE, inside
 from imitate.errors import ImitateError
 from imitate.models import humanoid, model_path, objects, scene, shapes, teacher
 
@@ -143,16 +143,16 @@ class SceneConfig:
         grasps: height along the tool and along the target at which each is held [m], see
             ``GRASP_RANGE``.
         tool_inside: the tool goes into the target (a stick into the glass): the clearance
-            does not ask the two to keep apart (the target's hulls are solid), while in physics
-            they touch as ever.
+            keeps the tool clear of the target's walls instead of its solid hulls
+            (:func:`clearance_geoms`).
     """
 
     teacher: bool = True
     particles: int = 0
     obstacles: tuple[Obstacle, ...] = field(default_factory=tuple)
     holder: str = "robot"
-    objects: tuple[str, str] = (shapes.BOTTLE, shapes.GLASS)
-    grasps: tuple[float, float] = (shapes.GRASP[shapes.BOTTLE], shapes.GRASP[shapes.GLASS])
+    objects: tuple[str, ...] = (shapes.BOTTLE, shapes.GLASS)
+    grasps: tuple[float, ...] = (shapes.GRASP[shapes.BOTTLE], shapes.GRASP[shapes.GLASS])
     tool_inside: bool = False
 
     def __post_init__(self):
@@ -233,7 +233,7 @@ def build_spec(config: SceneConfig = SceneConfig()) -> mujoco.MjSpec:
     for obj in config.objects:
         objects.add_container(spec, spec.worldbody, obj, shapes.SHAPES[obj])
     if config.tool_inside:
-        spec.add_text(name=EXEMPT, data=" ".join(config.objects))
+        spec.add_text(name=INSIDE, data=" ".join(config.objects))
     objects.add_particles(spec, config.particles)
     for i, obstacle in enumerate(config.obstacles):
         body = spec.worldbody.add_body(name=f"{scene.OBSTACLE_PREFIX}{i}", pos=obstacle.pos)
@@ -391,16 +391,19 @@ def particle_count(model: mujoco.MjModel) -> int:
 def clearance_geoms(model: mujoco.MjModel) -> list[int]:
     """Ids of the geoms that must keep clear of each other.
 
-    The robot's collision capsules, the objects' hulls, the table top and the obstacles. Pairs
-    among them are filtered by ``imitate.envs.collision.CollisionPairs.between`` (not the tool
-    and the target of a scene whose ``tool_inside``).
+    The robot's collision capsules, the objects' hulls, the table top and the obstacles; in a
+    scene whose tool goes into its target (``SceneConfig.tool_inside``), the target's walls and
+    floor too, which the tool keeps clear of instead of the target's hulls. Pairs among them are
+    filtered by ``imitate.envs.collision.CollisionPairs.between``.
     """
     root = model.body(humanoid.ROOT_BODY).id
     robot = {b for b in range(model.nbody) if model.body_rootid[b] == root}
+    target = (inside(model) or (-1, -1))[1]
     keep = []
     for g in range(model.ngeom):
         name = model.geom(g).name
-        if (model.geom_bodyid[g] in robot and model.geom_contype[g]) or (
+        body, physical = model.geom_bodyid[g], model.geom_contype[g]
+        if ((body in robot or body == target) and physical) or (
             "_hull_" in name or name == scene.TABLE_TOP or name.startswith(scene.OBSTACLE_PREFIX)
         ):
             keep.append(g)

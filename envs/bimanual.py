@@ -22,8 +22,8 @@ import numpy as np
 
 from imitate.envs import assembly
 from imitate.envs.collision import CollisionPairs, signed_distances
+from imitate.envs.mannequin import pose_arm, shoulder_position
 from imitate.envs.rendering import make_renderer
-from imitate.envs.teacher_motion import pose_arm, shoulder_position
 from imitate.errors import ImitateError
 from imitate.models import humanoid, shapes
 from imitate.models import scene as scene_names
@@ -261,16 +261,7 @@ class BimanualEnv(gym.Env):
 
     def inside(self, container: str, points: np.ndarray) -> np.ndarray:
         """``(n,) bool``: which ``points`` (n, 3) [m] lie inside the object ``container``."""
-        shape = shapes.SHAPES[container]
-        frame = self.data.body(container)
-        local = (points - frame.xpos) @ frame.xmat.reshape(3, 3)
-        profile = np.transpose(shape.profile)
-        radius = np.interp(local[:, 2], profile[1], profile[0])
-        return (
-            (local[:, 2] > 0.0)
-            & (local[:, 2] < shape.height)
-            & (np.hypot(local[:, 0], local[:, 1]) < radius)
-        )
+        return inside(self.data, container, points)
 
     def _min_distance(self) -> float:
         dist, _ = signed_distances(self.model, self.data, self._pairs)
@@ -311,6 +302,21 @@ class BimanualEnv(gym.Env):
         for side in teacher_names.SIDES:
             hand = shoulder_position(side) + np.array([0.0, 0.0, -TEACHER_HAND_DROP])
             pose_arm(self.model, self.data, side, hand, np.array([0.0, 0.0, 0.0, 1.0]))
+
+
+def inside(data: mujoco.MjData, container: str, points: np.ndarray) -> np.ndarray:
+    """``(n,) bool``: which ``points`` (n, 3) [m] lie inside the object ``container`` (a body
+    of :data:`imitate.models.shapes.SHAPES`) at ``data``'s pose."""
+    shape = shapes.SHAPES[container]
+    frame = data.body(container)
+    local = (points - frame.xpos) @ frame.xmat.reshape(3, 3)
+    profile = np.transpose(shape.profile)
+    radius = np.interp(local[:, 2], profile[1], profile[0])
+    return (
+        (local[:, 2] > 0.0)
+        & (local[:, 2] < shape.height)
+        & (np.hypot(local[:, 0], local[:, 1]) < radius)
+    )
 
 
 def _check_choice(name: str, value, accepted) -> None:

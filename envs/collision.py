@@ -3,9 +3,11 @@
 A pair is kept once, at construction, when MuJoCo would not already ignore it for the robot:
 geoms of the same body, of bodies welded together, of a parent and its child (unless one of
 them is welded to the world: a free object still collides with the table and the obstacles,
-as in MuJoCo's parent filter), pairs the model excludes explicitly (a hand and the object it
-holds) and pairs of bodies its text :data:`EXEMPT` names (a tool that goes into its target,
-whose solid hulls then overlap: physics still has them touch) are dropped.
+as in MuJoCo's parent filter), and pairs the model excludes explicitly (a hand and the object
+it holds) are dropped. A tool that goes into its target (the bodies its text :data:`INSIDE`
+names) keeps clear of the target's walls, not of its solid hulls: the pairs of the tool with the
+target's hulls are dropped, and the target's physical geoms (walls and floor, among ``geoms``)
+pair with the tool alone.
 """
 
 from __future__ import annotations
@@ -16,9 +18,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-# Name of a model text listing body pairs whose clearance is not asked, ``"a b"`` per pair,
-# pairs separated by ``";"``.
-EXEMPT = "clearance_exempt"
+# Name of a model text ``"tool target"``: the body names of a tool that goes into its target.
+INSIDE = "clearance_inside"
 
 
 @dataclass(frozen=True)
@@ -48,7 +49,9 @@ class CollisionPairs:
     @classmethod
     def between(cls, model: mujoco.MjModel, geoms: Sequence[int]) -> CollisionPairs:
         """All pairs among ``geoms`` (ids) that may come into contact and must not."""
-        excluded = {int(s) for s in model.exclude_signature} | _exempt(model)
+        excluded = {int(s) for s in model.exclude_signature}
+        tool, target = inside(model) or (-1, -1)
+        wall = model.geom_contype != 0  # of the target's geoms: its walls, not its hulls
         geom_body = model.geom_bodyid
         weld = model.body_weldid
         parent = model.body_parentid
@@ -64,23 +67,23 @@ class CollisionPairs:
                 # MuJoCo's exclude signature packs the two body ids as (min << 16) + max.
                 if (min(b1, b2) << 16) + max(b1, b2) in excluded:
                     continue
+                walls = [g for g, b in ((g1, b1), (g2, b2)) if b == target and wall[g]]
+                if ({b1, b2} == {tool, target} and not walls) or (walls and tool not in (b1, b2)):
+                    continue
                 first.append(g1)
                 second.append(g2)
         return cls(np.array(first, dtype=int), np.array(second, dtype=int))
 
 
-def _exempt(model: mujoco.MjModel) -> set[int]:
-    """The :data:`EXEMPT` body pairs of ``model`` as exclude signatures."""
-    text = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXT, EXEMPT)
+def inside(model: mujoco.MjModel) -> tuple[int, int] | None:
+    """The body ids ``(tool, target)`` of a tool that goes into its target (``model``'s text
+    :data:`INSIDE`), ``None`` where there is none."""
+    text = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXT, INSIDE)
     if text < 0:
-        return set()
+        return None
     start = model.text_adr[text]
-    pairs = bytes(model.text_data[start : start + model.text_size[text] - 1]).decode()
-    signatures = set()
-    for pair in pairs.split(";"):
-        b1, b2 = (model.body(name).id for name in pair.split())
-        signatures.add((min(b1, b2) << 16) + max(b1, b2))
-    return signatures
+    tool, target = bytes(model.text_data[start : start + model.text_size[text] - 1]).split()
+    return model.body(tool.decode()).id, model.body(target.decode()).id
 
 
 def signed_distances(

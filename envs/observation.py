@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from imitate.envs import tasks, teacher_motion
+from imitate.envs import mannequin, tasks, teacher_motion
 from imitate.envs.assembly import SceneConfig, build_model, hold
 from imitate.envs.rendering import in_thread, make_renderer
 from imitate.errors import ImitateError
@@ -231,7 +231,7 @@ def _render_pair(sess: Session, eyes, poses: dict, i: int, out: np.ndarray) -> N
     """Render frame ``i`` of ``sess`` (object ``poses`` at all its times) with ``eyes``
     (:func:`_eye_renderer`) into ``out`` ``(2, height, width, 3)`` uint8."""
     renderer, option = eyes
-    teacher_motion.show(
+    mannequin.show(
         sess.model, sess.data, {obj: (p[i], q[i]) for obj, (p, q) in poses.items()}
     )
     for k, eye in enumerate(EYES):

@@ -9,7 +9,7 @@ judged, and its critical phase.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -20,17 +20,35 @@ from imitate.envs.assembly import Obstacle, SceneConfig
 from imitate.envs.bimanual import BimanualEnv
 from imitate.errors import ImitateError
 
-__all__ = ["Task", "Watcher", "get_task"]
+__all__ = ["Score", "Task", "Watcher", "get_task"]
 
 
 class Watcher(Protocol):
     """Watches a replay: called with the env after its reset and after every step."""
 
-    def __call__(self, env: BimanualEnv) -> None: ...
+    def __call__(self, env: Any) -> None: ...
 
     def summary(self) -> dict[str, Any]:
         """What it saw, for the report."""
         ...
+
+
+@dataclass(frozen=True)
+class Score:
+    """The replay measure a task's success is judged by, higher being better: a reproduction
+    succeeds only if every replay's reaches ``threshold`` (and nothing touched or diverged).
+
+    Attributes:
+        measure: Its key in a replay's record (one of ``Task.measures``); the task's report
+            lists the replays' values as ``<measure>s``.
+        threshold: The least value of a success, in the measure's unit.
+        name: Its short name in the evaluation's keys and text: a variation's record holds
+            ``<name>_mean`` and ``<name>_min`` over its replays.
+    """
+
+    measure: str
+    threshold: float
+    name: str
 
 
 @dataclass(frozen=True)
@@ -57,6 +75,19 @@ class Task:
             task's critical phase (where its success is decided).
         watcher: Makes the :class:`Watcher` of a replay.
         suites: Folder of its evaluation suites (``*.toml``).
+        score: The replay measure its success is judged by (:class:`Score`).
+        verbs: The run page's verdict on a run that succeeds and on one that does not
+            (``("pours", "does not pour")``).
+        noun: The reproduction as a noun, in captions (``"the pour"``).
+        instruction: What the robot is asked to do, a dataset's task (``"pour from the bottle
+            into the glass"``).
+        headline: ``headline(replay) -> [(label, text)]``: the run page's headline rows of the
+            task's numbers, from the report's replay section.
+        kinds: The kind (a type or a tuple of types) of each of its report keys (``keys``)
+            whose value is no number: unit ``-``, or a list.
+        exported: ``exported(record, info) -> dict``: the task's part of the metadata of an
+            exported episode of an evaluated variation, from the evaluation's record of the
+            variation and the env's ``info`` after the episode's last step.
         replays: Physics replays per reproduction, each from its own seed; the outcome asks
             every one to succeed.
     """
@@ -75,6 +106,13 @@ class Task:
     critical: Callable[[np.ndarray], np.ndarray]
     watcher: Callable[[], Watcher]
     suites: Path
+    score: Score
+    verbs: tuple[str, str]
+    noun: str
+    instruction: str
+    headline: Callable[[Mapping[str, Any]], list[tuple[str, str]]]
+    kinds: Mapping[str, type | tuple[type, ...]]
+    exported: Callable[[Mapping[str, Any], Mapping[str, Any]], dict[str, Any]]
     replays: int = 3
 
     @property
@@ -101,6 +139,19 @@ class Task:
         """The env's reset options (the grasps) for these settings."""
         values = self.settings(options)
         return {f"{obj}_grasp": values[f"{obj}_grasp"] for obj in self.objects}
+
+    def scene_reset(self, scene: SceneConfig) -> dict[str, float]:
+        """The env's reset options (the grasps) of ``scene``."""
+        return {f"{obj}_grasp": float(g) for obj, g in zip(self.objects, scene.grasps, strict=True)}
+
+    def env_kwargs(self, scene: SceneConfig) -> dict[str, Any]:
+        """The kwargs of its env of ``scene`` as an env spec records them (JSON-ready): the
+        task's own scene values and the obstacles as dicts; the grasps are reset options
+        (:meth:`scene_reset`) and the teacher is left out (absent: the env's default)."""
+        return {
+            **self._scene_values(scene),
+            "obstacles": [asdict(o) for o in scene.obstacles],
+        }
 
     def scene(
         self,

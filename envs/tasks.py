@@ -8,7 +8,9 @@
 from __future__ import annotations
 
 import importlib
+import math
 from dataclasses import dataclass
+from typing import Any
 
 from imitate.errors import ImitateError
 
@@ -29,6 +31,8 @@ class Option:
         integer: Whether it is a whole number.
         stage: The stage that first uses it.
         quick: Its value in a quick run (``RunConfig.quick``); ``None``: the default.
+        suite: Its range ``(low, high)`` in the built-in evaluation suite, drawn uniformly;
+            ``None``: the whole accepted range.
     """
 
     default: float
@@ -38,6 +42,24 @@ class Option:
     integer: bool = False
     stage: str = "optimize"
     quick: float | None = None
+    suite: tuple[float, float] | None = None
+
+
+    def value(self, name: str, value: Any) -> float:
+        """``value`` as this setting's type (``int`` or ``float``).
+
+        Raises:
+            ImitateError: naming ``name``, ``value`` and what is accepted, unless it is a number
+                in range (a whole one if ``integer``).
+        """
+        if (isinstance(value, bool) or not isinstance(value, int | float)
+                or not math.isfinite(value) or not self.low <= value <= self.high
+                or (self.integer and value != int(value))):
+            kind = "a whole number" if self.integer else "a number"
+            raise ImitateError(
+                f"{name}={value!r} not accepted: {kind} in {self.low:g}..{self.high:g}"
+            )
+        return int(value) if self.integer else float(value)
 
 
 def check(name: str) -> None:

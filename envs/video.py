@@ -1,4 +1,4 @@
-"""The run's video and snapshots: the teacher demonstrating, then the robot pouring.
+"""The run's video and snapshots: the teacher demonstrating, then the robot doing the task.
 
 Frames are rendered from kinematic states only (no physics here): the teacher's scripted object
 poses (:mod:`imitate.envs.teacher_motion`) and the states a replay recorded
@@ -23,11 +23,11 @@ import imageio.v2 as imageio
 import mujoco
 import numpy as np
 
-from imitate.envs import teacher_motion
+from imitate.envs import mannequin, teacher_motion
 from imitate.envs.assembly import SceneConfig, build_model, clearance_geoms
+from imitate.envs.bimanual import BimanualEnv
 from imitate.envs.collision import CollisionPairs, signed_distances
 from imitate.envs.observation import ObservationConfig, watching_scene
-from imitate.envs.pour.env import PouringEnv
 from imitate.envs.rendering import interleaved, make_renderer
 from imitate.models import humanoid, objects
 from imitate.models import scene as scene_names
@@ -51,7 +51,7 @@ class StateRecorder:
         self.mocap_pos: list[np.ndarray] = []
         self.mocap_quat: list[np.ndarray] = []
 
-    def __call__(self, env: PouringEnv) -> None:
+    def __call__(self, env: BimanualEnv) -> None:
         if self._calls % self.every == 0:
             self.qpos.append(env.data.qpos.copy())
             self.mocap_pos.append(env.data.mocap_pos.copy())
@@ -97,7 +97,7 @@ def teacher_frames(
     """
 
     def part(every: slice) -> Iterator[np.ndarray]:
-        model, data = watching_scene(ObservationConfig())
+        model, data = watching_scene(ObservationConfig(teacher=motion.config))
         inset_size = (2 * (width // 6), 2 * (height // 6))
         renderer = frame_renderer(model, height, width, quick=quick)
         model.vis.quality.offsamples = 0  # the eye as the robot saw (fast_render): 2x faster
@@ -105,7 +105,7 @@ def teacher_frames(
         try:
             for i in range(len(times))[every]:
                 poses = motion.poses(times[i : i + 1])
-                teacher_motion.show(
+                mannequin.show(
                     model, data, {obj: (p[0], q[0]) for obj, (p, q) in poses.items()}
                 )
                 renderer.update_scene(data, scene_names.TEACHER_VIEW)
@@ -199,7 +199,7 @@ def penetrations(
     config: SceneConfig, states: dict[str, np.ndarray]
 ) -> list[tuple[float, tuple[str, str]]]:
     """Per recorded state, the smallest signed distance [m] between geoms that must not touch
-    (as ``PouringEnv`` measures it) and the names of that pair."""
+    (as the task env measures it) and the names of that pair."""
     model = build_model(_as_recorded(config, states))
     data = mujoco.MjData(model)
     pairs = CollisionPairs.between(model, clearance_geoms(model))
@@ -213,7 +213,7 @@ def penetrations(
 
 
 def _as_recorded(config: SceneConfig, states: dict[str, np.ndarray]) -> SceneConfig:
-    """``config`` with the teacher where the ``states`` have its mocap poses (``PouringEnv``
+    """``config`` with the teacher where the ``states`` have its mocap poses (the task env
     has it only with ``teacher=True``)."""
     return dataclasses.replace(config, teacher=states["mocap_pos"].shape[1] > 0)
 

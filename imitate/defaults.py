@@ -8,8 +8,8 @@ The modules that use them take them from here (the table's extent from
 from imitate.models.scene import TABLE_X, TABLE_Y
 
 __all__ = [
-    "BIC_METHODS", "BOTTLE_GRASP", "COLLISION_WEIGHT", "DEFAULT_BIC", "EXPORT_FORMATS",
-    "GLASS_GRASP", "GRASP_RANGE", "MAX_ITER", "MAX_WEIGHT", "MAX_PARTICLES", "NULLSPACE_PUSH",
+    "BIC_METHODS", "COLLISION_WEIGHT", "DEFAULT_BIC", "EXPORT_FORMATS",
+    "MAX_ITER", "MAX_WEIGHT", "NULLSPACE_PUSH",
     "OBSTACLE_MAX_LIFT", "OBSTACLE_SHAPES", "PATH_LENGTH_WEIGHT", "SIGMA_MAX_SCALE", "SIMILARITIES",
     "SIMILARITY", "SMOOTHING", "TABLE_X", "TABLE_Y", "TEACHER_VARIATION", "TEACHER_VARIATIONS",
 ]
@@ -32,12 +32,8 @@ SIGMA_MAX_SCALE = 1.0
 NULLSPACE_PUSH = True
 MAX_ITER = 100
 PATH_LENGTH_WEIGHT = 0.01
-# the scene (imitate.envs.assembly), lengths [m]
-BOTTLE_GRASP = 0.09
-GLASS_GRASP = 0.05
-GRASP_RANGE = {"bottle": (0.05, 0.13), "glass": (0.03, 0.08)}  # above each object's bottom
+# the scene (imitate.envs.assembly; a task's objects and grasps: imitate.models.shapes)
 OBSTACLE_SHAPES = ("box", "cylinder")
 OBSTACLE_MAX_LIFT = 0.5
-MAX_PARTICLES = 120
 # imitate.export.FORMATS
 EXPORT_FORMATS = ("minari", "hdf5", "lerobot")

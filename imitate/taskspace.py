@@ -58,9 +58,6 @@ __all__ = [
 
 TASK_DIMS = ("dx", "dy", "dz", "tool_angle", "tool_gaze", "target_angle", "target_gaze")
 TASK_UNITS = ("m", "m", "m", "rad", "1", "rad", "1")
-# The labels pouring's figures and exports print for TASK_DIMS (bottle: tool, glass: target),
-# until they take the task's own.
-_POUR_DIMS = ("dx", "dy", "dz", "bottle_angle", "bottle_gaze", "glass_angle", "glass_gaze")
 POSITION = slice(0, 3)  # the columns of p_tool - p_target [m]
 ANGLES = np.array((3, 5))  # the columns of the tool's and the target's angles [rad]
 ANGLES.flags.writeable = False

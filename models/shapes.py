@@ -54,18 +54,19 @@ GLASS_SHAPE = ContainerShape(
     segments=18,
     rgba=(0.12, 0.30, 0.92, 1.0),
 )
-# A narrow magenta tube, longer than the glass is deep, held near its top: its hue is as far from
-# the glass's blue as from the teacher's skin and hair (an orange one shared their hues).
+# A narrow magenta tube, three times as long as the glass is deep, held above its middle: its top
+# shows beyond the hand holding it while its lower end is in the glass. Its hue is as far from the
+# glass's blue as from the teacher's skin and hair (an orange one shared their hues).
 STICK_SHAPE = ContainerShape(
-    profile=((0.010, 0.0), (0.010, 0.24)),
+    profile=((0.010, 0.0), (0.010, 0.30)),
     wall=0.004,
     segments=10,
     rgba=(0.78, 0.12, 0.74, 1.0),
 )
 SHAPES = {BOTTLE: BOTTLE_SHAPE, GLASS: GLASS_SHAPE, STICK: STICK_SHAPE}  # the objects by name
 # Where a hand may hold each object, height above its bottom [m], and where it does by default.
-GRASP_RANGE = {BOTTLE: (0.05, 0.13), GLASS: (0.03, 0.08), STICK: (0.14, 0.20)}
-GRASP = {BOTTLE: 0.09, GLASS: 0.05, STICK: 0.17}
+GRASP_RANGE = {BOTTLE: (0.05, 0.13), GLASS: (0.03, 0.08), STICK: (0.14, 0.22)}
+GRASP = {BOTTLE: 0.09, GLASS: 0.05, STICK: 0.18}
 MAX_PARTICLES = 120  # what fits in the bottle below its shoulder
 PARTICLE_RADIUS = 0.005  # [m]
 PARTICLE_DENSITY = 1000.0  # [kg/m^3], water

@@ -135,10 +135,11 @@ def test_recorded_states_that_do_not_fit_the_scene_are_one_line(quick_run, tmp_p
     [
         (["run", "--demos", "1"], "n_demos=1 not accepted: a value in 2..20"),
         (["run", "--collision-weight", "-1"], "collision_weight=-1.0 not accepted"),
-        (["run", "--particles", "500"], "particles=500 not accepted: a value in 1..120"),
+        (["run", "--particles", "500"], "particles=500 not accepted: a whole number in 1..120"),
         (["run", "--obstacle", "box:9,9,9:0.1,0.1,0.1"], "outside the table"),
         (["run", "--obstacle", "sphere"], "box:X,Y,Z:SX,SY,SZ"),
-        (["run", "--bottle-grasp", "2"], "bottle grasp height 2.0 m not accepted"),
+        (["run", "--bottle-grasp", "2"], "bottle_grasp=2.0 not accepted: a number in 0.05..0.13"),
+        (["run", "--task", "insert", "--particles", "30"], "particles not a setting of task"),
         (["run", "--demos", "two"], "invalid int value"),
         (["run", "--bic", "slow"], "invalid choice: 'slow'"),
     ],

@@ -9,17 +9,11 @@ import pytest
 
 from imitate.cli import main
 from imitate.demos.oracle import oracle_model
+from imitate.envs.task import get_task
 from imitate.errors import ImitateError
 from imitate.evaluation import Suite, evaluate, named_suite
-from imitate.evaluation.compare import (
-    compare,
-    dose,
-    markdown,
-    paired,
-    parse_sweep,
-    plot_comparison,
-    settings_digest,
-)
+from imitate.evaluation.compare import compare, dose, paired, parse_sweep, settings_digest
+from imitate.evaluation.compare_report import markdown, plot_comparison
 from imitate.evaluation.inference import crossing, ed50, teacher_effect
 from imitate.evaluation.report import wilson
 from imitate.evaluation.suite_run import RESULTS, default_out, last_records
@@ -30,6 +24,7 @@ from imitate.rundir.artifacts import save_npz
 from imitate.stages import provenance, runner
 from imitate.stages.config import RunConfig, load_config
 
+POUR = get_task("pour")
 TINY = {"max_iter": 3, "replays": 1, "particles": [4, 6], "obstacle_share": 0.5}
 
 
@@ -122,15 +117,15 @@ def test_compare_plans_the_same_variations_for_every_weighting(model_dir):
     assert again["run"]["ran"] == 0  # resumed: nothing to run
     shuffled = {**by, "inverted": by["inverted"][::-1]}
     with pytest.raises(ImitateError, match="not of the same variations"):
-        paired(shuffled)
+        paired(shuffled, POUR)
 
 
 def test_shipped_suites_load_and_a_bad_name_is_refused_in_one_line(capsys, model_dir):
-    name, suite = named_suite("effort")
+    name, suite = named_suite("effort", POUR)
     assert name == "effort" and suite["path_length_weight"][0] > 1 and suite["obstacle_share"] == 0
-    assert named_suite(None) == ("default", Suite.default())
+    assert named_suite(None, POUR) == ("default", Suite.default())
     with pytest.raises(ImitateError, match="--suite nope not accepted: one of default, .*effort"):
-        named_suite("nope")
+        named_suite("nope", POUR)
     assert main(["compare", str(model_dir), "--similarity", "variance,flat"]) == 1
     # the last line: what the library logged before main() set up logging comes first
     err = capsys.readouterr().err.strip().splitlines()[-1]
@@ -159,11 +154,11 @@ def test_a_weighting_that_always_succeeds_is_plotted_with_a_zero_error_bar(n):
     result = {"suite_name": "s", "suite": {}, "seed": 0, "teachers": [0, 1],
               "variations_per_teacher": n,
               **paired({"variance": _records("variance", {0: [True] * n, 1: [True] * n}),
-                        "uniform": _records("uniform", {0: [False] * n, 1: [True] * n})})}
-    plot_comparison(result)  # no negative yerr
-    assert f"| variance | 100 % | {n}/{n}, {n}/{n} | {2 * n}/{2 * n} (" in markdown(result)
+                        "uniform": _records("uniform", {0: [False] * n, 1: [True] * n})}, POUR)}
+    plot_comparison(result, POUR)  # no negative yerr
+    assert f"| variance | 100 % | {n}/{n}, {n}/{n} | {2 * n}/{2 * n} (" in markdown(result, POUR)
     assert "push changed (the attractors alone kept less than the margin): variance 2/" in \
-        markdown(result)
+        markdown(result, POUR)
 
 
 def test_the_teacher_level_interval_finds_a_known_effect_and_no_effect():
@@ -181,7 +176,7 @@ def test_the_teacher_level_interval_finds_a_known_effect_and_no_effect():
     a = {t: list(rng.random(n) < p + 0.2) for t, p in enumerate(base)}
     b = {t: list(rng.random(n) < p) for t, p in enumerate(base)}
     (pair,) = paired({"variance": _records("variance", a),
-                      "uniform": _records("uniform", b)})["pairs"]
+                      "uniform": _records("uniform", b)}, POUR)["pairs"]
     success = pair["teacher_level"]["success_rate"]
     assert success["teachers"] == 10 and success["ci95"][0] > 0
     assert pair["teacher_level"]["mahalanobis_rms"]["mean"] == -1.0
@@ -226,7 +221,8 @@ def test_a_weighting_that_never_clears_counts_as_twice_as_high_not_as_unknown():
             for s, t in by.items()
         }}
 
-    found = dose([10.0, 100.0, 1000.0], [level(0.0, -5.0), level(1.0, 12.0), level(1.0, 14.0)])
+    found = dose([10.0, 100.0, 1000.0], [level(0.0, -5.0), level(1.0, 12.0), level(1.0, 14.0)],
+                 POUR)
     assert found["rising"] is True
     variance, uniform = found["weightings"]["variance"], found["weightings"]["uniform"]
     assert variance["ed50"] == pytest.approx(np.sqrt(10 * 100)) and uniform["ed50"] == ">1000"

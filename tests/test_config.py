@@ -11,6 +11,7 @@ import pytest
 from imitate.cli import main
 from imitate.cli.parser import build_parser, config_for
 from imitate.defaults import MAX_WEIGHT
+from imitate.envs import tasks
 from imitate.envs.teacher_motion import TeacherConfig
 from imitate.envs.video import write_video
 from imitate.errors import ImitateError
@@ -149,3 +150,12 @@ def test_push_and_teacher_variation_are_recorded_and_rerun_their_stages(tmp_path
     (tmp_path / "config.json").write_text(json.dumps({"seed": 0, "n_demos": 5}))
     old = load_config(tmp_path)
     assert old.push and old.teacher_variation == "aligned"
+
+
+def test_a_config_json_written_before_the_task_was_a_setting_is_the_default_tasks(tmp_path):
+    """Its task's own settings stood among the others: they are read as the default task's."""
+    old = {k: v for k, v in RunConfig().to_json().items() if k not in ("task", "options")}
+    (tmp_path / "config.json").write_text(json.dumps({**old, "particles": 40}))
+    config = load_config(tmp_path)
+    assert config.task == tasks.DEFAULT and config.options["particles"] == 40
+    assert config == RunConfig(options={"particles": 40})

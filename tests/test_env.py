@@ -9,7 +9,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import imitate
-from imitate.envs import pouring
+from imitate.envs import bimanual
 from imitate.envs.assembly import Obstacle
 from imitate.envs.pour.env import PouringEnv
 from imitate.envs.rendering import make_renderer
@@ -93,7 +93,7 @@ def visible(image):
 def test_the_workspace_camera_sees_both_objects_through_a_pour_like_motion(monkeypatch):
     """The right arm lifts and tips the bottle over towards the glass, the left brings the
     glass in, the torso turns: both objects stay in every image (64x48, no shadows)."""
-    monkeypatch.setattr(pouring, "make_renderer", functools.partial(make_renderer, shadows=False))
+    monkeypatch.setattr(bimanual, "make_renderer", functools.partial(make_renderer, shadows=False))
     env = PouringEnv(obs_type="pixels", width=64, height=48, particles=0)
     obs, _ = env.reset(seed=0)
     seen = [visible(obs["pixels"]["workspace"])]
@@ -292,7 +292,7 @@ def test_replay_stops_where_the_physics_diverges():
             env.data.qvel[:] = 1e30
 
     result = replay(plan, env, approach=0.1, settle=0.1, on_step=corrupt)
-    assert result.diverged_at == pytest.approx(0.08) and not result.is_success
+    assert result.diverged_at == pytest.approx(0.08) and result.info["diverged"]
     assert len(calls) == 4  # the reset and three steps: none after the fourth, which diverged
 
 

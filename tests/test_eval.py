@@ -15,11 +15,13 @@ import pytest
 
 from imitate.cli import main
 from imitate.demos.oracle import oracle_model
+from imitate.envs import tasks
 from imitate.envs.pour.outcome import outcome
+from imitate.envs.task import get_task
 from imitate.errors import ImitateError
 from imitate.evaluation import Suite, evaluate, load_suite
 from imitate.evaluation.report import summarize, text, wilson
-from imitate.evaluation.suite import KEYS
+from imitate.evaluation.suite import keys
 from imitate.evaluation.suite_run import RESULTS, default_out, last_records, read_records
 from imitate.evaluation.variation import Variation, draw
 from imitate.learning import LearnedModel, LearningConfig
@@ -29,6 +31,7 @@ from imitate.rundir.artifacts import save_json, save_npz
 from imitate.stages import provenance
 from imitate.stages.files import Learned, ModelFile
 
+POUR = get_task("pour")
 # Three variations that run in seconds: few particles, a short optimization, two replays.
 TINY = {
     "variations": 3, "max_iter": 3, "replays": 2, "particles": [4, 6], "obstacle_share": 1.0,
@@ -107,7 +110,7 @@ def test_eval_help_documents_every_suite_key(capsys):
     with pytest.raises(SystemExit):
         main(["eval", "--help"])
     documented = set(re.findall(r"^  (\w+) \(.*\): \S", capsys.readouterr().out, re.MULTILINE))
-    assert documented == set(KEYS)
+    assert documented == {name for task in tasks.NAMES for name in keys(task)}
 
 
 def test_variations_are_drawn_per_id_and_round_trip():
@@ -152,7 +155,7 @@ def test_records_that_could_name_a_file_outside_are_skipped(tmp_path):
     ]
     path = tmp_path / RESULTS
     path.write_text("\n".join(json.dumps(r) for r in [good, *crafted]) + "\n")
-    assert read_records(path, "d") == [good]
+    assert read_records(path, "d", POUR) == [good]
 
 
 def test_a_line_not_utf8_or_a_record_lacking_what_the_summary_reads_is_skipped(tmp_path):
@@ -167,8 +170,8 @@ def test_a_line_not_utf8_or_a_record_lacking_what_the_summary_reads_is_skipped(t
     path = tmp_path / RESULTS
     lines = [json.dumps(r).encode() for r in bad] + [b'{"digest": "d", "note": "caf\xe9"}']
     path.write_bytes(b"\n".join([*lines, json.dumps(good).encode()]) + b"\n")
-    assert read_records(path, "d") == [good]
-    assert summarize(read_records(path, "d"))["variations"] == 1
+    assert read_records(path, "d", POUR) == [good]
+    assert summarize(read_records(path, "d", POUR), POUR)["variations"] == 1
 
 
 def test_eval_holds_the_run_directory(tmp_path, model_arrays):
@@ -205,7 +208,7 @@ def test_evaluations_of_another_weight_or_weighting_keep_the_others(tmp_path, mo
     for out, summary in zip(outs, summaries, strict=True):
         assert json.loads((out / "summary.json").read_text()) == summary
         assert (out / "report.html").is_file()
-        assert read_records(out / RESULTS, summary["suite_digest"])
+        assert read_records(out / RESULTS, summary["suite_digest"], POUR)
     elsewhere = evaluate(run_dir, control, n=1, workers=1, videos=0, out=tmp_path / "control")
     assert elsewhere["suite_digest"] == summaries[1]["suite_digest"]
     assert (tmp_path / "control" / "report.html").is_file()
@@ -234,19 +237,20 @@ def _replay(pour, spilled=0, distance=0.01, diverged=False):
     ],
 )
 def test_outcome(plan, replays, expected):
-    assert outcome(plan, replays, particles=20) == expected
+    assert outcome(plan, replays, {"particles": 20}) == expected
 
 
 def test_a_variation_whose_physics_diverges_is_recorded_and_the_next_goes_on(
     model_arrays, monkeypatch
 ):
     from imitate.evaluation import trial
+    from imitate.motion import replay as replaying
 
     suite = Suite.from_dict({**TINY, "obstacle_share": 0.0, "replays": 1})
     first, second = (draw(suite, 0, i, np.zeros((2, 3))) for i in range(2))
     learned = Learned(LearnedModel.from_arrays(model_arrays), model_arrays["gaze"])
-    runner = trial.Trial(learned)
-    replay = trial.replay
+    runner = trial.Trial(learned, POUR)
+    replay = replaying.replay
 
     def diverging(plan, env, on_step, **kwargs):
         def step(env):
@@ -256,10 +260,10 @@ def test_a_variation_whose_physics_diverges_is_recorded_and_the_next_goes_on(
 
         return replay(plan, env, on_step=step, **kwargs)
 
-    monkeypatch.setattr(trial, "replay", diverging)
+    monkeypatch.setattr(replaying, "replay", diverging)
     record = runner.run(first)
     assert record["outcome"] == "diverged" and record["replays"][0]["diverged"]
-    monkeypatch.setattr(trial, "replay", replay)
+    monkeypatch.setattr(replaying, "replay", replay)
     assert runner.run(second)["outcome"] != "diverged"
 
 
@@ -268,7 +272,7 @@ def two_workers(tmp_path_factory, model_arrays):
     """The tiny suite's records on two local workers, and its summary."""
     run_dir = _run_dir(tmp_path_factory.mktemp("two"), model_arrays)
     summary = evaluate(run_dir, Suite.from_dict(TINY), workers=2, videos=0)
-    return read_records(_out(run_dir) / RESULTS, summary["suite_digest"]), summary
+    return read_records(_out(run_dir) / RESULTS, summary["suite_digest"], POUR), summary
 
 
 def test_tiny_evaluation_same_on_one_worker_after_a_resume(
@@ -281,7 +285,7 @@ def test_tiny_evaluation_same_on_one_worker_after_a_resume(
         f.write('{"digest": "cut sh')  # an interrupted write
     summary = evaluate(run_dir, suite, workers=1, videos=1)
     assert summary["run"]["ran"] == 1 and summary["variations"] == 3
-    records = read_records(_out(run_dir) / RESULTS, summary["suite_digest"])
+    records = read_records(_out(run_dir) / RESULTS, summary["suite_digest"], POUR)
     assert len(records) == 3
     assert _without_timings(records) == _without_timings(two_workers[0])
     failures = sorted((_out(run_dir) / "failures" / summary["suite_digest"]).glob("*"))
@@ -306,7 +310,7 @@ def test_tiny_evaluation_same_on_ray(tmp_path, model_arrays, two_workers):
         summary = evaluate(run_dir, Suite.from_dict(TINY), ray="auto", videos=0)
     finally:
         ray.shutdown()
-    records = read_records(_out(run_dir) / RESULTS, summary["suite_digest"])
+    records = read_records(_out(run_dir) / RESULTS, summary["suite_digest"], POUR)
     assert _without_timings(records) == _without_timings(two_workers[0])
 
 
@@ -329,6 +333,11 @@ def test_eval_command_errors(tmp_path, model_arrays, capsys):
     with pytest.raises(SystemExit):
         main(["eval", str(run_dir), "--videos", "-1"])
     assert "-1 not accepted: a whole number >= 0" in capsys.readouterr().err
+    assert main(["eval", str(run_dir), "--task", "insert"]) == 1  # a model alone: the default
+    assert (f"--task insert not accepted: the run in {run_dir} is of task 'pour'"
+            in capsys.readouterr().err)
+    with pytest.raises(ImitateError, match="the suite is of task 'insert', the run in .* 'pour'"):
+        evaluate(run_dir, Suite.default("insert"), n=1, workers=1, videos=0)
 
 
 def test_ctrl_c_stops_eval_and_its_workers_in_one_line(tmp_path, model_arrays, in_a_terminal):
@@ -381,14 +390,15 @@ def test_summary_counts_the_plans_that_keep_the_margin_and_those_pushed():
         record(12, 11, 1.0, pushed=True), record(12, -1, 1.0), record(13, 12, 0.8, pushed=True),
         record(5, -2, 0.5),
     ]
-    summary = summarize(records)
+    summary = summarize(records, POUR)
     assert summary["kept_margin"] == {
         "margin_m": 0.011, "pour_threshold": 0.9, "plans": 3, "physics_contact": 1, "low_pour": 1,
     }
     run = {"ran": 4, "wall_seconds": 4.0, "backend": "local", "workers": 1,
            "load_average_start": [0.0] * 3, "load_average_end": [0.0] * 3}
-    printed = text({**summary, "run": run, "suite_digest": "d"}, Path("eval"))
-    assert "margin: 3; of them touching in physics 1, pouring below 0.9 in a replay 1" in printed
+    printed = text({**summary, "run": run, "suite_digest": "d"}, Path("eval"), POUR)
+    assert "margin: 3; of them touching in physics 1, pour_fraction below 0.9 in a replay 1" in (
+        printed)
     assert summary["nullspace_push"] == {"plans": 2, "success": 1}
     assert "plans with the null-space push: 2; of them successes 1" in printed
 

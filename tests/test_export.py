@@ -20,15 +20,15 @@ import pytest
 
 import imitate
 from imitate.cli import main
-from imitate.envs import pouring
+from imitate.envs import bimanual
+from imitate.envs.pour.env import PouringEnv
 from imitate.envs.rendering import make_renderer
+from imitate.envs.task import get_task
 from imitate.evaluation.variation import Variation
 from imitate.export import export, to_hdf5, to_lerobot, to_minari
 from imitate.export.episodes import (
-    OBJECTS,
     OBSTACLE,
     PLACES,
-    TASK,
     robot_episode,
     teacher_episodes,
 )
@@ -37,6 +37,10 @@ from imitate.motion.replay import replay
 from imitate.perception.colour import object_models
 from imitate.run import load_run
 
+POUR = get_task("pour")  # the quick run's task
+OBJECTS, TASK = POUR.objects, POUR.instruction
+ROBOT_ID, TEACHER_ID = to_minari.dataset_ids(POUR.env_id)
+
 
 @pytest.fixture(scope="module")
 def run(quick_run):
@@ -44,7 +48,7 @@ def run(quick_run):
 
 
 def reset_options(run):
-    return {"bottle_grasp": run.config.bottle_grasp, "glass_grasp": run.config.glass_grasp}
+    return POUR.reset_options(run.config.options)
 
 
 def check_robot(run, actions, rewards, pour_fraction, success, dt, atol=1e-12):
@@ -59,7 +63,7 @@ def check_robot(run, actions, rewards, pour_fraction, success, dt, atol=1e-12):
     play = np.column_stack([np.interp(t_play, plan.times - plan.times[0], q) for q in plan.q.T])
     assert len(actions) == n_approach + len(play) + n_settle
     # the actions lead the targets by their speed (the replay's feed-forward, linear): undo it
-    lead = pouring.PouringEnv(particles=0).servo_lag + dt / 2
+    lead = PouringEnv(particles=0).servo_lag + dt / 2
     speed = np.gradient(np.eye(len(actions)), dt, axis=0)  # np.gradient as a matrix
     targets = np.column_stack([
         np.linalg.solve(np.eye(len(actions)) + lag * speed, a)
@@ -91,12 +95,13 @@ def check_teacher(run, episodes):
 def test_minari(run, tmp_path, monkeypatch):
     root = export(run.path, "minari", tmp_path / "minari")
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(root))
-    robot = minari.load_dataset(to_minari.ROBOT_ID)
+    assert (ROBOT_ID, TEACHER_ID) == ("imitate/pouring/robot-v0", "imitate/pouring/teacher-v0")
+    robot = minari.load_dataset(ROBOT_ID)
     assert robot.total_episodes == 1
     episode = robot[0]
     spec = robot.spec.env_spec
     assert spec.id == imitate.ENV_ID and spec.entry_point == gym.spec(imitate.ENV_ID).entry_point
-    assert spec.kwargs == {"particles": run.config.particles, "obstacles": []}
+    assert spec.kwargs == {"particles": run.config.options["particles"], "obstacles": []}
     assert spec.max_episode_steps == len(episode.actions) == robot.total_steps
     assert episode.observations.shape == (len(episode.actions) + 1, 50)
     assert episode.truncations[-1] and not episode.truncations[:-1].any()
@@ -109,7 +114,7 @@ def test_minari(run, tmp_path, monkeypatch):
     assert episode.infos["pour_fraction"][0] == 0.0
     obs, _ = env.reset(seed=run.config.seed, options=reset_options(run))
     np.testing.assert_array_equal(obs, episode.observations[0])
-    teacher = minari.load_dataset(to_minari.TEACHER_ID)
+    teacher = minari.load_dataset(TEACHER_ID)
     pyproject = (Path(__file__).parents[1] / "pyproject.toml").read_text()
     assert re.search(r'^name = "(.+)"$', pyproject, re.M)[1] == to_minari.DISTRIBUTION
     for dataset in (robot, teacher):
@@ -277,7 +282,7 @@ def fast_renderer(model, height, width, shadows=True):
 def test_images_in_every_format(quick_run, tmp_path, monkeypatch):
     """The robot's workspace camera and the teacher's stereo eyes, at 64x48, rendered fast: the
     robot's images show both objects in every frame."""
-    monkeypatch.setattr(pouring, "make_renderer", fast_renderer)
+    monkeypatch.setattr(bimanual, "make_renderer", fast_renderer)
     run_dir = tmp_path / "run"
     shutil.copytree(quick_run, run_dir, ignore=shutil.ignore_patterns("*.mp4", "figures"))
     config = json.loads((run_dir / "config.json").read_text())
@@ -298,7 +303,7 @@ def test_images_in_every_format(quick_run, tmp_path, monkeypatch):
         (tmp_path / name).mkdir()
         module.write(tmp_path / name, [robot], teacher)
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
-    for dataset_id, episodes in ((to_minari.ROBOT_ID, [robot]), (to_minari.TEACHER_ID, teacher)):
+    for dataset_id, episodes in ((ROBOT_ID, [robot]), (TEACHER_ID, teacher)):
         for read, episode in zip(minari.load_dataset(dataset_id), episodes, strict=True):
             images = read.observations.get("pixels", read.observations)  # robot: as the env keys
             assert {c: images[c].shape for c in episode.images} == {
@@ -370,7 +375,7 @@ def test_minari_without_out_goes_into_minaris_datasets_root(quick_run, tmp_path,
     (root / "someone" / "else-v0").mkdir(parents=True)  # a root with other datasets
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(root))
     assert export(quick_run, "minari") == root.absolute()
-    for dataset_id in (to_minari.ROBOT_ID, to_minari.TEACHER_ID):
+    for dataset_id in (ROBOT_ID, TEACHER_ID):
         assert minari.load_dataset(dataset_id).total_episodes >= 1
     assert (root / "someone" / "else-v0").is_dir() and not list(root.glob(".*partial"))
     from imitate.errors import ImitateError

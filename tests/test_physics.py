@@ -4,9 +4,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from imitate.envs import assembly, teacher_motion
+from imitate.envs import assembly, mannequin
+from imitate.envs.bimanual import inside
+from imitate.envs.pour.env import PouringEnv
 from imitate.envs.pour.geometry import PourGeometry
-from imitate.envs.pour.env import PouringEnv, _inside
 from imitate.models import objects
 
 
@@ -26,7 +27,7 @@ def _hold_still(env, seconds):
 
 def _fraction_in(env, body, shape):
     points = env.data.xpos[env._particle_bodies]
-    return float(np.mean(_inside(env.data, body, shape, points)))
+    return float(np.mean(inside(env.data, body, points)))
 
 
 def test_rest_pose_is_collision_free(env):
@@ -73,10 +74,10 @@ def test_particles_leave_bottle_tilted_120_degrees():
     bottle_at = np.array([1.0, -0.1, 1.0])
 
     def pose(angle):
-        hand_pos, hand_quat = teacher_motion.hand_pose_for_object(
+        hand_pos, hand_quat = mannequin.hand_pose_for_object(
             model, objects.BOTTLE, bottle_at, _tilted(angle)
         )
-        teacher_motion.pose_arm(model, data, "left", hand_pos, hand_quat)
+        mannequin.pose_arm(model, data, "left", hand_pos, hand_quat)
 
     pose(0.0)
     assembly.hold(model, data, "teacher")
@@ -87,7 +88,7 @@ def test_particles_leave_bottle_tilted_120_degrees():
         mujoco.mj_step(model, data)
     mujoco.mj_step(model, data, nstep=500)
     ids = [model.body(f"{objects.PARTICLE_PREFIX}{i}").id for i in range(60)]
-    in_bottle = _inside(data, objects.BOTTLE, objects.BOTTLE_SHAPE, data.xpos[ids])
+    in_bottle = inside(data, objects.BOTTLE, data.xpos[ids])
     assert in_bottle.mean() < 0.1
 
 

@@ -15,12 +15,15 @@ import numpy as np
 import pytest
 
 from imitate.cli import main
+from imitate.envs import tasks
+from imitate.envs.task import get_task
 from imitate.errors import ImitateError
 from imitate.rundir.artifacts import Staging, leftovers
 from imitate.rundir.lock import LOCK, locked
-from imitate.rundir.schema import KINDS, REPORT_KEYS, check_values
+from imitate.rundir.schema import check_values
 from imitate.stages import provenance
 from imitate.stages.config import load_config
+from imitate.stages.runner import run_keys
 
 TEMP = "{name}.4242-0123abcd.partial{suffix}"  # a killed writer's temporary name of NAME
 
@@ -196,8 +199,11 @@ def test_a_report_value_of_the_wrong_kind_is_one_line(run_dir, section, change, 
 
 
 def test_every_report_key_without_a_unit_has_a_kind(quick_run):
-    assert {k for k, (unit, _) in REPORT_KEYS.items() if unit == "-"} - {"schema"} <= set(KINDS)
-    check_values(json.loads((quick_run / "report.json").read_text()), quick_run / "report.json")
+    for name in tasks.NAMES:
+        keys, kinds = run_keys(get_task(name))
+        assert {k for k, (unit, _) in keys.items() if unit == "-"} - {"schema"} <= set(kinds)
+    path = quick_run / "report.json"
+    check_values(json.loads(path.read_text()), path, *run_keys(get_task("pour")))
 
 
 def test_replay_of_a_plan_of_nan_is_one_line(run_dir, capsys):

@@ -5,11 +5,14 @@ import json
 from html.parser import HTMLParser
 from pathlib import Path
 
+from imitate.envs.task import get_task
 from imitate.evaluation.report import summarize
 from imitate.rundir import layout
 from imitate.rundir.page import CAPTIONS, save_eval_page, save_run_page
 from imitate.rundir.schema import REPORT_SCHEMA
 from imitate.stages.config import RunConfig
+
+POUR = get_task("pour")
 
 
 class References(HTMLParser):
@@ -53,6 +56,7 @@ def test_run_page_links_every_artifact_and_shows_the_key_numbers(quick_run):
     ):
         assert number in text, number
     assert ("pours" if replay["success"] else "does not pour") in text
+    assert "GMM over time on the bottle's angle" in text and "reproduces the pour" in text
 
 
 def test_partial_run_has_a_page_of_what_exists(tmp_path):
@@ -65,7 +69,7 @@ def test_partial_run_has_a_page_of_what_exists(tmp_path):
     }
     for name in report["artifacts"].values():
         (tmp_path / name).write_text("")
-    found = references(save_run_page(tmp_path, report, RunConfig.quick().to_json()))
+    found = references(save_run_page(tmp_path, report, RunConfig.quick().to_json(), POUR))
     text = " ".join(found.text)
     assert "5 of 5" in text and "4.2 mm median" in text and "seed 4" in text
     assert not any(path.endswith((".png", ".mp4")) for path in found.paths)
@@ -79,7 +83,7 @@ def test_strings_of_a_crafted_report_are_escaped(tmp_path):
         "learning": {"n_components": "<img src=x onerror=alert(1)>", "bic": "full",
                      "n_components_fast_bic": 3, "n_components_full_bic": 4},
     }
-    page = (save_run_page(tmp_path, report, RunConfig.quick().to_json())).read_text()
+    page = (save_run_page(tmp_path, report, RunConfig.quick().to_json(), POUR)).read_text()
     assert "<script>" not in page and "<img src=x" not in page
     assert "&lt;script&gt;" in page and "&lt;img src=x" in page
 
@@ -94,14 +98,14 @@ def test_eval_page_links_its_files_and_failure_videos(tmp_path):
     ]
     summary = {
         "suite_digest": digest, "seed": 0, "suite": {"variations": 3, "shapes": ["box"]},
-        "path_points": 10, **summarize(records),
+        "path_points": 10, **summarize(records, POUR),
         "run": {"ran": 3, "wall_seconds": 6.0, "backend": "local", "workers": 2},
     }
     video = f"failures/{digest}/0002-spill.mp4"
     (out / "failures" / digest).mkdir(parents=True)
     for name in ("summary.json", "results.jsonl", "outcomes.png", video):
         (out / name).write_text("")
-    found = references(save_eval_page(out, summary))
+    found = references(save_eval_page(out, summary, POUR.score.name))
     assert video in found.paths and "outcomes.png" in found.paths
     assert "../report.html" not in found.paths  # the run has no page
     text = " ".join(found.text)
@@ -120,7 +124,8 @@ def test_run_page_explains_its_numbers(quick_run):
     report = json.loads((quick_run / layout.REPORT).read_text())
     config = json.loads((quick_run / "config.json").read_text())
     opt = report["optimization"]
-    text = " ".join("".join(References(run_page(report, config, str(quick_run))).text).split())
+    page = run_page(report, config, str(quick_run), POUR)
+    text = " ".join("".join(References(page).text).split())
     assert "fractions of collision_weight" in text
     for entry, fraction in zip(opt["sweep"], config["sweep"], strict=True):
         assert f"{fraction:g}" in text and f"{entry['weight']:g}" in text
@@ -136,8 +141,8 @@ def test_eval_page_says_how_many_variations_ran(tmp_path):
                 "settings": {"obstacle": None, "in_path": False}}] * 6
     summary = {
         "suite_digest": "0123456789abcdef", "seed": 0, "suite": {"variations": 100},
-        "path_points": 10, **summarize(records),
+        "path_points": 10, **summarize(records, POUR),
         "run": {"ran": 6, "wall_seconds": 6.0, "backend": "local", "workers": 2},
     }
-    text = " ".join(References(save_eval_page(tmp_path, summary).read_text()).text)
+    text = " ".join(References(save_eval_page(tmp_path, summary, POUR.score.name).read_text()).text)
     assert "6 ran (--n; the suite's own 100)" in text

@@ -167,7 +167,7 @@ def test_4_stage_failing_after_it_wrote_leaves_nothing(run_dir, monkeypatch, cap
 @pytest.mark.parametrize(
     ("key", "value"),
     [("collision_weight", "abc"), ("n_demos", "5"), ("sweep", ["x"]), ("oracle", 1),
-     ("obstacle", 5), ("particles", 2.5)],
+     ("obstacle", 5), ("options", {"particles": 2.5}), ("task", "stir")],
 )
 def test_6_config_of_the_wrong_type_names_file_and_key(run_dir, key, value, capsys):
     config = json.loads((run_dir / "config.json").read_text())
@@ -175,7 +175,8 @@ def test_6_config_of_the_wrong_type_names_file_and_key(run_dir, key, value, caps
     before = snapshot(run_dir)
     assert main(["optimize", str(run_dir)]) == 1
     line = one_error_line(capsys.readouterr().err, "optimize")
-    assert "config.json" in line and f"{key}=" in line
+    named = next(iter(value)) if key == "options" else key  # a task's setting by its own name
+    assert "config.json" in line and f"{named}=" in line
     assert snapshot(run_dir) == before
 
 

@@ -117,7 +117,7 @@ def test_variants():
 
 
 def test_weld_holds_object_at_grasp():
-    model = assembly.build_model(assembly.SceneConfig(particles=0, bottle_grasp=0.12))
+    model = assembly.build_model(assembly.SceneConfig(particles=0, grasps=(0.12, 0.05)))
     data = _data_at_rest(model)
     grip = data.site(humanoid.RIGHT_GRIP).xpos
     bottom = data.body(objects.BOTTLE).xpos
@@ -132,9 +132,11 @@ def test_weld_holds_object_at_grasp():
         ({"particles": 500}, "0..120"),
         ({"holder": "nobody"}, "holder='nobody'"),
         ({"teacher": False, "holder": "teacher"}, "needs teacher=True"),
-        ({"bottle_grasp": 0.3}, "bottle grasp height"),
-        ({"bottle_grasp": float("nan")}, "bottle grasp height nan"),
-        ({"glass_grasp": "abc"}, "glass grasp height 'abc'"),
+        ({"grasps": (0.3, 0.05)}, "bottle grasp height"),
+        ({"grasps": (float("nan"), 0.05)}, "bottle grasp height nan"),
+        ({"grasps": (0.09, "abc")}, "glass grasp height 'abc'"),
+        ({"grasps": (0.09,)}, "two heights"),
+        ({"objects": ("bottle", "spoon")}, "a tool and a target of"),
         ({"teacher": None}, "teacher=None not accepted"),
     ],
 )

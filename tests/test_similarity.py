@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from imitate.demos.oracle import oracle_model
+from imitate.envs.task import get_task
 from imitate.errors import ImitateError
 from imitate.learning import LearningConfig
 from imitate.models import humanoid
@@ -161,5 +162,9 @@ def test_every_weighting_plans_and_its_plan_keeps_the_diagonals(precision_proble
     assert start.weights.ndim == 3 and np.any(start.weights[:, 0, 1] != 0)
     for similarity in SIMILARITIES:
         config = PlanConfig(dt=0.1, collision_weight=0.0, max_iter=3, similarity=similarity)
-        plan = plan_from_model(task, learned, q0=humanoid.rest_pose(), config=config)
+        plan = plan_from_model(task, learned, q0=humanoid.rest_pose(), config=config,
+                               critical=get_task("pour").critical)
         assert plan.weights.shape == plan.mean.shape and np.all(np.isfinite(plan.x))
+    with pytest.raises(ImitateError, match="oracle.*needs the task's critical phase"):
+        plan_from_model(task, learned, q0=humanoid.rest_pose(),
+                        config=PlanConfig(dt=0.1, max_iter=3, similarity="oracle"))

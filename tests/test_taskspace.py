@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from imitate.envs.task import get_task
 from imitate.errors import ImitateError
 from imitate.motion.kinematics import Kinematics
 from imitate.motion.taskspace import TaskMap
 from imitate.taskspace import (
-    _POUR_DIMS,
     ANGLES,
     POSITION,
     TASK_DIMS,
@@ -256,14 +256,14 @@ def test_bad_input_is_rejected():
 
 
 def test_columns_name_the_position_and_the_angles():
-    assert len(TASK_DIMS) == len(TASK_UNITS) == len(_POUR_DIMS) == TaskMap.m
+    assert len(TASK_DIMS) == len(TASK_UNITS) == TaskMap.m
     assert TASK_DIMS[POSITION] == ("dx", "dy", "dz")
     assert [TASK_DIMS[i] for i in ANGLES] == ["tool_angle", "target_angle"]
     assert [TASK_UNITS[i] for i in ANGLES] == ["rad", "rad"]
     assert [TASK_DIMS[i + 1] for i in ANGLES] == ["tool_gaze", "target_gaze"]
     # Pouring prints its own words for the columns: the bottle is the tool, the glass the target.
     renamed = tuple(d.replace("tool", "bottle").replace("target", "glass") for d in TASK_DIMS)
-    assert _POUR_DIMS == renamed
+    assert get_task("pour").dims == renamed
     with pytest.raises(ValueError, match="read-only"):
         ANGLES[0] = 4
 

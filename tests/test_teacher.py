@@ -4,19 +4,14 @@ the misaligned variation, and its pours in physics."""
 import numpy as np
 import pytest
 
+from imitate.envs.mannequin import _cross
 from imitate.envs.observation import tracked_point
 from imitate.envs.pour.outcome import SUCCESS_FRACTION
-from imitate.envs.teacher_motion import (
-    _POUR_ROWS,
-    _SWING_ROWS,
-    _WAYPOINTS,
-    TEACHER_VARIATIONS,
-    TeacherConfig,
-    _cross,
-    script_demonstrations,
-    teacher_pour,
-)
+from imitate.envs.pour.teacher import SCRIPT, teacher_pour
+from imitate.envs.teacher_motion import TEACHER_VARIATIONS, TeacherConfig, script_demonstrations
 from imitate.errors import ImitateError
+
+_WAYPOINTS, _SWING_ROWS, _POUR_ROWS = SCRIPT.waypoints, SCRIPT.swing_rows, SCRIPT.agree_rows
 
 
 def test_same_seed_same_motion_other_seed_other_motion():
@@ -145,7 +140,7 @@ def test_misaligned_teacher_varies_in_the_pour_and_agrees_in_the_swing(seed):
 def test_misaligned_offsets_are_bounded_and_move_only_the_bottle():
     """Same seed, same session but for where the bottle's mouth is: the timing, the tremor, the
     tilt planes and the glass are the aligned teacher's; the mouth's offsets along the stream while
-    pouring are evenly spread over +-pour_offset and centred."""
+    pouring are evenly spread over +-offset and centred."""
     aligned, misaligned = (
         script_demonstrations(TeacherConfig(seed=5, variation=v)) for v in TEACHER_VARIATIONS
     )
@@ -184,7 +179,7 @@ def test_misaligned_demonstrations_still_pour_with_little_margin():
     outer = {}
     for offset in (0.025, 0.035):
         motion = script_demonstrations(
-            TeacherConfig(seed=0, variation="misaligned", pour_offset=offset)
+            TeacherConfig(seed=0, variation="misaligned", offset=offset)
         )
         y = np.array([path(0.6)[5] for path in motion.paths])
         outer[offset] = [teacher_pour(motion, int(d)) for d in (np.argmin(y), np.argmax(y))]

@@ -79,7 +79,7 @@ def test_video_shows_liquid_in_the_glass_while_pouring(quick_run):
     video = iio.imread(quick_run / "video.mp4")
     states = ReplayFile.load(quick_run).recording.states()
     robot = video[len(video) - len(states["qpos"]) :]  # the video ends with the replay
-    model = build_model(config.scene())
+    model = build_model(config.scene(teacher=True))
     data = mujoco.MjData(model)
     height, width = robot.shape[1:3]
     counts = []

@@ -1,7 +1,7 @@
 """``InsertingEnv``: the humanoid puts the stick in its right hand into the glass in its left.
 
 ## Description
-A fixed-base, ASIMO-like humanoid holds a stick (a narrow magenta tube, 0.24 m long) in its
+A fixed-base, ASIMO-like humanoid holds a stick (a narrow magenta tube, 0.30 m long) in its
 right hand and a glass in its left, at a table (the teacher mannequin across it only with
 ``teacher=True``). Actions are joint position targets for its 18 position actuators; the physics
 is MuJoCo's, objects held by weld constraints, the stick and the glass touching as solid walls
@@ -24,7 +24,8 @@ the ``"state"`` vector and the ``"pixels"``. Images are ``(height, width, 3) uin
 ``reward_insert``: ``insert_weight`` times the increase, since the last step, of the deepest
 insertion so far as a share of the success depth (capped at 1: the sum over an episode is 1 for
 an insertion). ``reward_collision``: ``-collision_weight`` on every step where two geoms that
-must not touch penetrate (``min_distance < 0``; the stick in the glass is not such a pair).
+must not touch penetrate (``min_distance < 0``; the stick counts against the glass's walls,
+not its solid hull, so in the glass clear of them it is no collision).
 ``info`` also has ``insert_depth`` (the deepest the stick's lower end has been in the glass since
 the reset, below its rim [m], 0 if never), ``insert_offset`` (its distance from the glass's axis
 there [m]), ``end_depth`` and ``end_offset`` (the lower end now: below the rim, negative above,
@@ -56,21 +57,25 @@ such as ``max_episode_steps`` (500 by default: 10 s at the default frame_skip).
 
 ## Reset options
 ``stick_grasp`` and ``glass_grasp``: where the hand holds each object, height above its lower
-end or bottom [m] (ranges in ``imitate.models.shapes.GRASP_RANGE``). All are checked before any
-is applied: a refused reset leaves the env as it was.
+end or bottom [m] (defaults and ranges in :mod:`imitate.envs.insert.options`: the glass low, as
+the left hand's collision capsule reaches into the glass). All are checked before any is
+applied: a refused reset leaves the env as it was.
 
 ``step`` before the first ``reset`` raises ``ImitateError``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from numbers import Real
 from typing import Any
 
 import numpy as np
 
+from imitate.envs import assembly
 from imitate.envs.bimanual import BimanualEnv
 from imitate.envs.insert.geometry import stick_end
+from imitate.envs.insert.options import OPTIONS
 from imitate.envs.insert.outcome import SUCCESS_DEPTH, inserted
 from imitate.errors import ImitateError
 from imitate.models import objects
@@ -82,6 +87,9 @@ class InsertingEnv(BimanualEnv):
     """The insertion task in full physics (see the module docstring)."""
 
     objects = (objects.STICK, objects.GLASS)
+    _insert_weight: float
+    _deepest: tuple[float, float]
+    _progress: float
     tool_inside = True
 
     def __init__(self, *args: Any, insert_weight: float = 1.0, **kwargs: Any):
@@ -95,6 +103,11 @@ class InsertingEnv(BimanualEnv):
         self._deepest = (0.0, 0.0)  # depth in the glass [m], offset from its axis there [m]
         self._progress = 0.0
         super().__init__(*args, **kwargs)
+
+    def _scene_config(self, **kwargs: Any) -> assembly.SceneConfig:
+        scene = super()._scene_config(**kwargs)
+        grasps = tuple(OPTIONS[f"{obj}_grasp"].default for obj in self.objects)
+        return dataclasses.replace(scene, grasps=grasps)
 
     def _task_reset(self) -> None:
         self._deepest = (0.0, 0.0)

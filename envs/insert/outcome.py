@@ -4,11 +4,12 @@
 An insertion: the stick's lower end went at least :data:`SUCCESS_DEPTH` below the glass's rim,
 inside the glass (:func:`imitate.envs.insert.geometry.stick_end`), at the deepest point of the
 movement. Outcomes, the first that applies: ``diverged`` (a replay's physics blew up),
-``plan_collision`` (the plan itself comes closer than 0 to something; the stick in the glass is
-not a collision), ``physics_contact`` (the plan keeps clear, a replay does not), ``missed`` (in
-some replay the end never was in the glass: it met the rim or passed beside it), ``shallow``
-(it was, but in some replay less than :data:`SUCCESS_DEPTH` deep), ``success``. As for pouring,
-every replay has to insert: the smallest depth over the replays decides.
+``plan_collision`` (the plan itself comes closer than 0 to something; the stick in the glass,
+clear of its walls, is not a collision), ``physics_contact`` (the plan keeps clear, a replay
+does not: the stick meeting the glass's wall is one), ``missed`` (in some replay the end never
+was in the glass: it met the rim or passed beside it), ``shallow`` (it was, but in some replay
+less than :data:`SUCCESS_DEPTH` deep), ``success``. As for pouring, every replay has to insert:
+the smallest depth over the replays decides.
 """
 
 from __future__ import annotations

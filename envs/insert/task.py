@@ -10,8 +10,8 @@ import numpy as np
 
 from imitate.envs.insert.env import InsertingEnv
 from imitate.envs.insert.geometry import InsertGeometry
-from imitate.envs.insert.outcome import OUTCOMES, outcome
-from imitate.envs.task import Task
+from imitate.envs.insert.outcome import OUTCOMES, SUCCESS_DEPTH, outcome
+from imitate.envs.task import Score, Task
 from imitate.models import objects
 
 __all__ = ["TASK", "insert_phase"]
@@ -40,6 +40,26 @@ def report(records: Sequence[Mapping[str, Any]], watched: Mapping[str, Any]) -> 
         "insert_depth_min": float(np.min(depths)),
         "insert_depths": depths,
         "insert_geometry": dict(watched),
+    }
+
+
+def headline(replay: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """The run page's headline row of the insertion, from the report's replay section."""
+    return [(
+        "insertion depth",
+        f"{1e3 * replay['insert_depth']:.1f} mm (mean {1e3 * replay['insert_depth_mean']:.1f}, "
+        f"min {1e3 * replay['insert_depth_min']:.1f} over the replays), "
+        f"{1e3 * replay['insert_offset']:.1f} mm from the glass's axis",
+    )]
+
+
+def exported(record: Mapping[str, Any], info: Mapping[str, Any]) -> dict[str, Any]:
+    """An exported evaluated episode's inserting metadata: the evaluation's smallest depth over
+    the variation's replays (``insert_min``), this episode's depth and whether it inserted (the
+    env's ``is_success``)."""
+    return {
+        "insert_min": record["insert_min"], "insert_depth": float(info["insert_depth"]),
+        "inserted": bool(info["is_success"]),
     }
 
 
@@ -101,4 +121,11 @@ TASK = Task(
     critical=insert_phase,
     watcher=InsertGeometry,
     suites=Path(__file__).parent / "suites",
+    score=Score("insert_depth", SUCCESS_DEPTH, "insert"),
+    verbs=("inserts", "does not insert"),
+    noun="the insertion",
+    instruction="put the stick into the glass",
+    headline=headline,
+    kinds={"replay.insert_depths": list},
+    exported=exported,
 )

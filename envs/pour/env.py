@@ -82,6 +82,9 @@ class PouringEnv(BimanualEnv):
     """The pouring task in full physics (see the module docstring)."""
 
     objects = (objects.BOTTLE, objects.GLASS)
+    _pour_weight: float
+    _pour_fraction: float
+    _particle_bodies: np.ndarray
 
     def __init__(self, *args: Any, particles: int = 60, pour_weight: float = 1.0, **kwargs: Any):
         if not isinstance(pour_weight, Real) or not np.isfinite(pour_weight) or pour_weight < 0:

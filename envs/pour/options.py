@@ -14,6 +14,6 @@ OPTIONS = {
     ),
     "particles": Option(
         60, "liquid spheres in the bottle", 1, MAX_PARTICLES, integer=True, stage="replay",
-        quick=30,
+        quick=30, suite=(30, 60),
     ),
 }

@@ -10,8 +10,8 @@ import numpy as np
 
 from imitate.envs.pour.env import PouringEnv
 from imitate.envs.pour.geometry import PourGeometry
-from imitate.envs.pour.outcome import OUTCOMES, outcome
-from imitate.envs.task import Task
+from imitate.envs.pour.outcome import OUTCOMES, SUCCESS_FRACTION, outcome
+from imitate.envs.task import Score, Task
 
 __all__ = ["TASK", "pour_phase"]
 
@@ -33,6 +33,25 @@ def report(records: Sequence[Mapping[str, Any]], watched: Mapping[str, Any]) -> 
         "pour_fraction_min": float(np.min(pours)),
         "pour_fractions": pours,
         "pour_geometry": dict(watched),
+    }
+
+
+def headline(replay: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """The run page's headline row of the pour, from the report's replay section."""
+    return [(
+        "pour fraction",
+        f"{replay['pour_fraction']:.2f} (mean {replay['pour_fraction_mean']:.2f}, min "
+        f"{replay['pour_fraction_min']:.2f} over the replays), {replay['spilled']} spilled",
+    )]
+
+
+def exported(record: Mapping[str, Any], info: Mapping[str, Any]) -> dict[str, Any]:
+    """An exported evaluated episode's pouring metadata: the evaluation's smallest pour over
+    the variation's replays (``pour_min``), this episode's pour fraction and whether it poured
+    (the env's ``is_success``)."""
+    return {
+        "pour_min": record["pour_min"], "pour_fraction": float(info["pour_fraction"]),
+        "poured": bool(info["is_success"]),
     }
 
 
@@ -99,4 +118,11 @@ TASK = Task(
     critical=pour_phase,
     watcher=PourGeometry,
     suites=Path(__file__).parent / "suites",
+    score=Score("pour_fraction", SUCCESS_FRACTION, "pour"),
+    verbs=("pours", "does not pour"),
+    noun="the pour",
+    instruction="pour from the bottle into the glass",
+    headline=headline,
+    kinds={"replay.spilled": int, "replay.pour_fractions": list},
+    exported=exported,
 )

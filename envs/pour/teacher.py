@@ -29,7 +29,8 @@ import mujoco
 import numpy as np
 
 from imitate.envs.assembly import SceneConfig, build_model, fill_tool, hold
-from imitate.envs.teacher_motion import Script, TeacherMotion, hand_pose_for_object, holding_side
+from imitate.envs.mannequin import hand_pose_for_object, holding_side
+from imitate.envs.teacher_motion import Script, TeacherMotion
 from imitate.errors import ImitateError
 from imitate.models import humanoid, objects, teacher
 

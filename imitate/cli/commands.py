@@ -127,7 +127,9 @@ def stages_command(args: argparse.Namespace, command_line: str) -> int:
             )
     if outcome.status:
         return outcome.status
-    print(console.summary(report, names, run_dir))
+    from imitate.envs.task import get_task  # loaded by the stages
+
+    print(console.summary(report, names, run_dir, get_task(config.task)))
     return 0
 
 
@@ -209,12 +211,20 @@ def _manifest_id(run_dir: Path) -> tuple[int, int] | None:
 
 
 def eval_command(args: argparse.Namespace) -> int:
-    """``imitate eval`` or ``imitate compare`` of ``args.run_dir``; prints its summary."""
+    """``imitate eval`` or ``imitate compare`` of ``args.run_dir`` (of the run's task, which
+    ``--task`` must name if given); prints its summary."""
     from imitate import evaluation  # MuJoCo and the planner: once the arguments are fine
-    from imitate.evaluation import compare
+    from imitate.envs.task import get_task
+    from imitate.evaluation import compare, compare_report
 
     with exits(args.command, "the finished variations are kept; run it again to go on") as outcome:
-        name, suite = evaluation.named_suite(args.suite)
+        task = get_task(evaluation.run_task(args.run_dir))
+        if args.task is not None and args.task != task.name:
+            raise ImitateError(
+                f"--task {args.task} not accepted: the run in {args.run_dir} is of task "
+                f"{task.name!r}; give --task {task.name} or leave it out"
+            )
+        name, suite = evaluation.named_suite(args.suite, task)
         if args.weight is not None:
             suite = suite.replace(collision_weight=args.weight)
         if args.command == "eval" and args.weighting is not None:
@@ -225,14 +235,14 @@ def eval_command(args: argparse.Namespace) -> int:
             folder = compare.out_folder(args.run_dir, name, args.levels)
         outcome.kept = f"the finished variations are kept in {folder}; run it again to go on"
         if args.command == "compare":
-            sweep = compare.parse_sweep(args.levels) if args.levels else None
+            sweep = compare.parse_sweep(args.levels, task.name) if args.levels else None
             result = compare.compare(
                 args.run_dir, suite, args.weightings.split(","), name=name, n=args.n,
                 seed=args.seed, n_teachers=args.teachers, sweep=sweep, workers=args.workers,
                 ray=args.ray,
             )
             ran = result["run"]
-            text = (f"{compare.markdown(result)}\n\nran {ran['ran']} variations in "
+            text = (f"{compare_report.markdown(result, task)}\n\nran {ran['ran']} variations in "
                     f"{ran['wall_seconds']:.0f} s ({ran['backend']}, workers "
                     f"{ran['workers']}); results: {folder}")
         else:
@@ -240,7 +250,7 @@ def eval_command(args: argparse.Namespace) -> int:
                 args.run_dir, suite, n=args.n, seed=args.seed, n_teachers=args.teachers,
                 workers=args.workers, ray=args.ray, videos=args.videos, out=folder,
             )
-            text = evaluation.text(summary, folder)
+            text = evaluation.text(summary, folder, task)
     if outcome.status:
         return outcome.status
     print(text)

@@ -22,8 +22,12 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from imitate.rundir.layout import PAGE
+
+if TYPE_CHECKING:  # the task's package loads MuJoCo: not for `imitate --help`
+    from imitate.envs.task import Task
 
 __all__ = [
     "Terminated", "fail", "log_to_stderr", "prepare", "stopped", "summary",
@@ -143,8 +147,9 @@ def fail(command: str, message: str, status: int) -> int:
     return status
 
 
-def summary(report: dict, stages: tuple[str, ...], run_dir: Path) -> str:
-    """The stage-timing table and the headline numbers of ``report``."""
+def summary(report: dict, stages: tuple[str, ...], run_dir: Path, task: Task) -> str:
+    """The stage-timing table and the headline numbers of ``report``, those of the run's
+    ``task`` among them (its critical phase's error, its measures)."""
     lines = ["", f"{'stage':<10} {'seconds':>8}"]
     timings = report.get("timings", {})
     lines += [f"{stage:<10} {timings[stage]:8.1f}" for stage in stages]
@@ -153,8 +158,10 @@ def summary(report: dict, stages: tuple[str, ...], run_dir: Path) -> str:
         "demos": ("detected", "expected"),
         "perception": ("pos_err_mm_median", "pos_err_mm_p95", "angle_err_deg_median"),
         "learning": ("bic", "n_components", "n_components_fast_bic", "n_components_full_bic"),
-        "optimization": ("min_distance_m", "pour_phase_err_m", "pour_phase_err_deg"),
-        "replay": ("pour_fraction", "spilled", "min_distance_m", "success"),
+        "optimization": (
+            "min_distance_m", f"{task.phase}_phase_err_m", f"{task.phase}_phase_err_deg",
+        ),
+        "replay": (*task.measures, "min_distance_m", "success"),
     }
     lines.append("")
     for section, keys in headline.items():

@@ -34,7 +34,7 @@ EXPORT_HELP = (
 EVAL_HELP = "reproduce a run's learned model in seeded variations (obstacles, grasps, physics)"
 COMPARE_HELP = (
     "similarity weightings on the same variations, paired: success (McNemar) and how far the "
-    "pour moved (Wilcoxon)"
+    "task moved (Wilcoxon)"
 )
 COMMANDS = {
     **{s.name: s.help for s in STAGES}, "run": RUN_HELP, "export": EXPORT_HELP,
@@ -162,7 +162,7 @@ def _add_task_options(group, stage: str) -> None:
     from imitate.envs import tasks
 
     owners: dict[str, list[str]] = {}
-    declared = {}
+    declared: dict[str, tasks.Option] = {}
     for task in tasks.NAMES:
         for name, option in tasks.options(task).items():
             if option.stage == stage:
@@ -170,8 +170,13 @@ def _add_task_options(group, stage: str) -> None:
                 declared.setdefault(name, option)
     for name, option in declared.items():
         kind = int if option.integer else float
+
+        def read(text: str, name: str = name, option: tasks.Option = option) -> float:
+            return option.value(name, (int if option.integer else float)(text))
+
+        read.__name__ = kind.__name__  # argparse names it in "invalid float value"
         group.add_argument(
-            f"--{name.replace('_', '-')}", dest=OPTION + name, type=kind,
+            f"--{name.replace('_', '-')}", dest=OPTION + name, type=_argument_type(read),
             default=argparse.SUPPRESS, metavar=kind.__name__.upper(),
             help=f"{option.help}, {option.low:g}..{option.high:g} (default {option.default:g}; "
             f"task {', '.join(owners[name])})",
@@ -233,7 +238,6 @@ def _add_eval(sub: argparse.ArgumentParser) -> None:
     """The ``eval`` sub-command's arguments (see :mod:`imitate.evaluation`); the suite's keys
     in its help."""
     from imitate.defaults import SIMILARITIES
-    from imitate.evaluation.suite import KEYS
 
     _add_variations(sub, teachers=1)
     sub.add_argument("--out", type=Path, metavar="DIR",
@@ -246,8 +250,25 @@ def _add_eval(sub: argparse.ArgumentParser) -> None:
                      help="videos of the first K failures (default 3)")
     sub.formatter_class = argparse.RawDescriptionHelpFormatter
     sub.epilog = "suite keys (a .toml or .json file of them; the default of each):\n" + "\n".join(
-        f"  {name} ({_fmt_default(key.default)}): {key.help}" for name, key in KEYS.items()
+        f"  {name} ({_fmt_default(key.default)}): {key.help}{owners}"
+        for name, (key, owners) in _suite_keys().items()
     )
+
+
+def _suite_keys() -> dict[str, tuple[Any, str]]:
+    """Every task's suite keys, each once, with the tasks that have it (``" (task ...)"``; ``""``
+    for the keys of every task); a key's default is the first task's."""
+    from imitate.envs import tasks
+    from imitate.evaluation.suite import KEYS, keys
+
+    found: dict[str, tuple[Any, list[str]]] = {}
+    for task in tasks.NAMES:
+        for name, key in keys(task).items():
+            found.setdefault(name, (key, []))[1].append(task)
+    return {
+        name: (key, "" if name in KEYS else f" (task {', '.join(owners)})")
+        for name, (key, owners) in found.items()
+    }
 
 
 def _count(text: str) -> int:
@@ -286,14 +307,18 @@ def _add_compare(sub: argparse.ArgumentParser) -> None:
 
 
 def _add_variations(sub, teachers: int) -> None:
-    """The arguments ``eval`` and ``compare`` share: the run, the suite and its draw, the
-    teachers, where the variations run."""
-    from imitate.evaluation.suite import SUITE_NAMES
+    """The arguments ``eval`` and ``compare`` share: the run and its task, the suite and its
+    draw, the teachers, where the variations run."""
+    from imitate.envs import tasks
 
     sub.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="run directory with model.npz")
+    sub.add_argument("--task", choices=tasks.NAMES, metavar="NAME",
+                     help=f"the run's task, checked (default: the run's config.json's, else "
+                     f"{tasks.DEFAULT}); one of {', '.join(tasks.NAMES)}")
     sub.add_argument("--suite", metavar="NAME|FILE",
-                     help=f"suite of variations: a shipped one ({', '.join(SUITE_NAMES)}) or "
-                     "a .toml or .json file (default: the built-in one)")
+                     help="suite of variations of the run's task: default (the built-in one), "
+                     "one the task ships (the stems of its suites/*.toml) or a .toml or .json "
+                     "file (default: the built-in one)")
     sub.add_argument("--n", type=int, metavar="N",
                      help="variations to run (default: the suite's 'variations', 100 built in)")
     sub.add_argument("--seed", type=_count, default=0, metavar="S",

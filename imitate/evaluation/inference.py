@@ -4,7 +4,7 @@ teachers.
 The variations one learned model reproduces share that model, so they are not independent
 evidence about a weighting: a pooled test over them speaks of those models only. A teacher
 (another session of demonstrations, so another learned model) is the unit here: each teacher's
-paired difference between two weightings (its success rate, mean pour, ...) is one observation,
+paired difference between two weightings (its success rate, mean score, ...) is one observation,
 and :func:`teacher_effect` gives their mean with a t interval and an exact sign-flip permutation
 test over teachers. :func:`ed50` finds where a dose-response curve (success against a swept
 setting) crosses 50 %, with a bootstrap interval over teachers.

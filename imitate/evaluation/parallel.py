@@ -1,7 +1,7 @@
 """Variations in parallel: local worker processes or Ray tasks, results yielded as they finish.
 
 A job is a variation, the teacher whose learned model reproduces it and the digest its record
-is filed under. Each record depends on
+is filed under; every job of a call is of one task. Each record depends on
 its teacher's model and the variation's settings alone (``Trial.run`` seeds everything from
 them), so the two back-ends and any number of workers give the same records, timings aside.
 Local workers are spawned, not forked (MuJoCo's rendering contexts and fork do not mix), set
@@ -18,7 +18,9 @@ import signal
 import threading
 import time
 from collections.abc import Generator, Sequence
+from typing import Any
 
+from imitate.envs.task import get_task
 from imitate.errors import ImitateError
 from imitate.evaluation.trial import Trial
 from imitate.evaluation.variation import Variation
@@ -36,15 +38,18 @@ Job = tuple[str, int, Variation]  # (digest, teacher seed, variation)
 Models = dict[int, Learned]  # the learned model and its gaze frame by teacher seed
 
 
-def run_local(models: Models, jobs: Sequence[Job], workers: int) -> Generator[dict, None, None]:
-    """Records of ``jobs`` from ``workers`` spawned processes, in the order they finish, each
-    with its ``digest`` and ``teacher``; ``models``: each teacher's learned model. If the
-    caller stops (Ctrl-C, an error, closing the iterator), the workers are terminated at once:
-    Ctrl-C reaches this process only."""
+def run_local(
+    models: Models, jobs: Sequence[Job], workers: int, task: str
+) -> Generator[dict[str, Any], None, None]:
+    """Records of ``jobs`` (variations of the task named ``task``) from ``workers`` spawned
+    processes (:class:`~imitate.evaluation.record.TrialRecord`), in the order they finish,
+    each after its ``digest`` and ``teacher``; ``models``: each teacher's learned model. If
+    the caller stops (Ctrl-C, an error, closing the iterator), the workers are terminated at
+    once: Ctrl-C reaches this process only."""
     for name in _SINGLE_THREAD:  # inherited by the spawned workers
         os.environ.setdefault(name, "1")
     context = multiprocessing.get_context("spawn")
-    pool = context.Pool(workers, initializer=_start, initargs=(models,))
+    pool = context.Pool(workers, initializer=_start, initargs=(models, task))
     try:
         yield from pool.imap_unordered(_run, [(d, t, v.to_json()) for d, t, v in jobs])
         pool.close()
@@ -53,7 +58,9 @@ def run_local(models: Models, jobs: Sequence[Job], workers: int) -> Generator[di
         pool.join()
 
 
-def run_ray(models: Models, jobs: Sequence[Job], address: str) -> Generator[dict, None, None]:
+def run_ray(
+    models: Models, jobs: Sequence[Job], address: str, task: str
+) -> Generator[dict[str, Any], None, None]:
     """As :func:`run_local`, one Ray task (one CPU) per variation, on the Ray instance this
     process is connected to, or else on the cluster at ``address`` (``"auto"``: the one Ray
     finds). The workers need ``imitate`` installed.
@@ -72,9 +79,9 @@ def run_ray(models: Models, jobs: Sequence[Job], address: str) -> Generator[dict
             ray.init(address=address, log_to_driver=False)
         except (ConnectionError, RuntimeError, ValueError) as err:
             raise ImitateError(f"no Ray cluster at --ray {address}: {err}") from None
-    task = ray.remote(num_cpus=1)(_run_with)
+    remote = ray.remote(num_cpus=1)(_run_with)
     shared = {teacher: ray.put(learned) for teacher, learned in models.items()}
-    pending = [task.remote(shared[t], d, t, v.to_json()) for d, t, v in jobs]
+    pending = [remote.remote(shared[t], task, d, t, v.to_json()) for d, t, v in jobs]
     try:
         while pending:
             done, pending = ray.wait(pending, num_returns=1)
@@ -84,13 +91,14 @@ def run_ray(models: Models, jobs: Sequence[Job], address: str) -> Generator[dict
             ray.cancel(ref)
 
 
-def _start(models: Models) -> None:
+def _start(models: Models, task: str) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
     parent = os.getppid()
     if not _killed_with_parent() or os.getppid() != parent:
         threading.Thread(target=_exit_with, args=(parent,), daemon=True).start()
     os.environ.setdefault("MUJOCO_GL", "egl")
-    _worker.update({teacher: Trial(learned) for teacher, learned in models.items()})
+    found = get_task(task)
+    _worker.update({teacher: Trial(learned, found) for teacher, learned in models.items()})
 
 
 def _killed_with_parent() -> bool:
@@ -112,15 +120,17 @@ def _exit_with(parent: int) -> None:
     os._exit(1)
 
 
-def _run(job: tuple[str, int, dict]) -> dict:
+def _run(job: tuple[str, int, dict]) -> dict[str, Any]:
     digest, teacher, variation = job
     record = _worker[teacher].run(Variation.from_json(variation))
     return {"digest": digest, "teacher": teacher, **record}
 
 
-def _run_with(learned: Learned, digest: str, teacher: int, variation: dict) -> dict:
-    """A Ray task: one variation with the ``learned`` model (a Ray worker may serve several
-    evaluations, so nothing is kept)."""
+def _run_with(
+    learned: Learned, task: str, digest: str, teacher: int, variation: dict
+) -> dict[str, Any]:
+    """A Ray task: one variation of the task named ``task`` with the ``learned`` model (a Ray
+    worker may serve several evaluations, so nothing is kept)."""
     os.environ.setdefault("MUJOCO_GL", "egl")
-    record = Trial(learned).run(Variation.from_json(variation))
+    record = Trial(learned, get_task(task)).run(Variation.from_json(variation))
     return {"digest": digest, "teacher": teacher, **record}

@@ -1,5 +1,7 @@
 """What an evaluation reports: the summary (success rate with its Wilson interval, outcome
-counts, pours, clearances, timings), the outcome figure and the videos of failures."""
+counts, the task's score, clearances, timings), the outcome figure and the videos of failures.
+The task (:class:`~imitate.envs.task.Task`) names the outcomes and the score
+(``Task.score``)."""
 
 from __future__ import annotations
 
@@ -12,24 +14,28 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Patch, Rectangle
 
-from imitate.envs.pour.outcome import OUTCOMES, SUCCESS_FRACTION
+from imitate.envs.task import Task
 from imitate.envs.video import StateRecorder, captioned, replay_frames, write_video
-from imitate.evaluation.trial import physics, plan_variation, replay_once
+from imitate.evaluation.record import score_keys
+from imitate.evaluation.trial import physics, plan_variation
 from imitate.evaluation.variation import Variation
 from imitate.learning import LearnedModel
 from imitate.models.scene import TABLE_X
 from imitate.motion import PlanConfig
+from imitate.motion.replay import measure
 from imitate.rundir.artifacts import write_atomic
 
 __all__ = [
-    "failure_video", "plot_outcomes", "summarize", "summarize_teachers", "teacher_table", "text",
-    "wilson",
+    "colours", "failure_video", "plot_outcomes", "summarize", "summarize_teachers",
+    "teacher_table", "text", "wilson",
 ]
 
+# The colours of the outcomes every task has, and of a task's own, in its order.
 COLOURS = {
     "success": "tab:green", "plan_collision": "tab:red", "physics_contact": "tab:orange",
-    "spill": "tab:purple", "low_pour": "tab:blue", "diverged": "black",
+    "diverged": "black",
 }
+OWN_COLOURS = ("tab:purple", "tab:blue", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")
 PLACES = ("none", "random", "in_path")  # where a variation's obstacle was placed
 MARGIN = PlanConfig().margin  # [m], the clearance every variation's plan aims for
 
@@ -47,6 +53,12 @@ def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
     return low, high
 
 
+def colours(task: Task) -> dict[str, str]:
+    """The colour of each of ``task``'s outcomes."""
+    own = iter(OWN_COLOURS)
+    return {o: COLOURS.get(o) or next(own) for o in task.outcomes}
+
+
 def place(record: dict) -> str:
     """Where the record's obstacle is: one of :data:`PLACES`."""
     settings = record["settings"]
@@ -55,9 +67,13 @@ def place(record: dict) -> str:
     return "in_path" if settings["in_path"] else "random"
 
 
-def summarize(records: Sequence[dict]) -> dict:
-    """``summary.json``'s numbers over ``records`` (``results.jsonl`` lines)."""
+def summarize(records: Sequence[dict], task: Task) -> dict:
+    """``summary.json``'s numbers over ``records`` (``results.jsonl`` lines of ``task``): the
+    score's keys are named after it (``Task.score``: ``<name>_mean``, ``<name>_min``,
+    ``<name>_threshold``, ``low_<name>``)."""
     n = len(records)
+    name, threshold = task.score.name, task.score.threshold
+    mean_key, min_key = score_keys(task)
     outcomes = [r["outcome"] for r in records]
     successes = outcomes.count("success")
     low, high = wilson(successes, n)
@@ -70,24 +86,24 @@ def summarize(records: Sequence[dict]) -> dict:
         gap.update(median=float(np.median(values)), p95=float(np.percentile(values, 95)),
                    max=float(values.max()))
     by_place = {
-        p: {o: sum(place(r) == p and r["outcome"] == o for r in records) for o in OUTCOMES}
+        p: {o: sum(place(r) == p and r["outcome"] == o for r in records) for o in task.outcomes}
         for p in PLACES
     }
     kept = [r for r in records if r["plan"]["min_distance_m"] >= MARGIN]
     margin = {  # what physics does with the plans that keep the planner's margin
-        "margin_m": MARGIN, "pour_threshold": SUCCESS_FRACTION, "plans": len(kept),
+        "margin_m": MARGIN, f"{name}_threshold": threshold, "plans": len(kept),
         "physics_contact": sum(r["physics_min_distance_m"] < 0 for r in kept),
-        "low_pour": sum(r["pour_min"] < SUCCESS_FRACTION for r in kept),
+        f"low_{name}": sum(r[min_key] < threshold for r in kept),
     }
     pushed = [r for r in records if r["plan"].get("nullspace_push", False)]
     return {
         "variations": n,
         "success_rate": successes / n,
         "success_wilson95": [low, high],
-        "outcomes": {o: outcomes.count(o) for o in OUTCOMES},
+        "outcomes": {o: outcomes.count(o) for o in task.outcomes},
         "outcomes_by_obstacle": by_place,
-        "pour_mean": float(np.mean([r["pour_mean"] for r in records])),
-        "pour_min": float(np.min([r["pour_min"] for r in records])),
+        mean_key: float(np.mean([r[mean_key] for r in records])),
+        min_key: float(np.min([r[min_key] for r in records])),
         "clearance_gap_mm": gap,
         "kept_margin": margin,
         "nullspace_push": {  # plans the attractors alone could not keep clear
@@ -101,12 +117,15 @@ def summarize(records: Sequence[dict]) -> dict:
 
 
 def summarize_teachers(
-    records: Sequence[dict], digests: dict[int, str], default_runs: dict[int, dict | None]
+    records: Sequence[dict], digests: dict[int, str], default_runs: dict[int, dict | None],
+    task: Task,
 ) -> list[dict]:
-    """Per teacher (seed: digest of its records): its success with the Wilson interval, the pour
-    over its variations (the mean of each variation's smallest and mean pour, and the smallest),
-    its failures (id, outcome, where the obstacle was) and its default run (``default_runs``:
-    the ``replay`` section of its report, or ``None``)."""
+    """Per teacher (seed: digest of its records): its success with the Wilson interval, the
+    task's score over its variations (the smallest, the mean of each variation's smallest and
+    the mean of their means: ``<name>_min``, ``<name>_min_mean``, ``<name>_mean``), its failures
+    (id, outcome, where the obstacle was) and its default run (``default_runs``: the ``replay``
+    section of its report, or ``None``)."""
+    mean_key, min_key = score_keys(task)
     rows = []
     for teacher, digest in digests.items():
         own = [r for r in records if r["digest"] == digest]
@@ -115,9 +134,9 @@ def summarize_teachers(
             "seed": teacher, "digest": digest, "variations": len(own), "success": successes,
             "success_rate": successes / max(len(own), 1),
             "success_wilson95": list(wilson(successes, len(own))),
-            "pour_min": float(min(r["pour_min"] for r in own)) if own else None,
-            "pour_min_mean": float(np.mean([r["pour_min"] for r in own])) if own else None,
-            "pour_mean": float(np.mean([r["pour_mean"] for r in own])) if own else None,
+            min_key: float(min(r[min_key] for r in own)) if own else None,
+            f"{min_key}_mean": float(np.mean([r[min_key] for r in own])) if own else None,
+            mean_key: float(np.mean([r[mean_key] for r in own])) if own else None,
             "failures": [
                 {"id": r["id"], "outcome": r["outcome"], "obstacle": place(r)}
                 for r in own if r["outcome"] != "success"
@@ -127,11 +146,13 @@ def summarize_teachers(
     return rows
 
 
-def teacher_table(rows: Sequence[dict]) -> str:
+def teacher_table(rows: Sequence[dict], task: Task) -> str:
     """The teachers of :func:`summarize_teachers` as a markdown table."""
+    name, measure = task.score.name, task.score.measure
+    min_key = score_keys(task)[1]
     lines = [
-        "| teacher seed | default run: pours | success | Wilson 95 % | smallest pour "
-        "| mean of the smallest pours | failures (id: outcome) |",
+        f"| teacher seed | default run: {measure} per replay | success | Wilson 95 % "
+        f"| smallest {name} | mean of the smallest | failures (id: outcome) |",
         "|---|---|---|---|---|---|---|",
     ]
     for t in rows:
@@ -139,19 +160,22 @@ def teacher_table(rows: Sequence[dict]) -> str:
         failures = ", ".join(f"{f['id']}: {f['outcome']}" for f in t["failures"]) or "none"
         run = t["default_run"]
         default = "-" if run is None else (
-            f"{' '.join(f'{p:.3f}' for p in run.get('pour_fractions', []))}"
+            f"{' '.join(f'{p:.3f}' for p in run.get(f'{measure}s', []))}"
             f" ({'success' if run['success'] else 'failure'})"
         )
         lines.append(
             f"| {t['seed']} | {default} | {t['success']}/{t['variations']} | {low:.3f}..{high:.3f} "
-            f"| {t['pour_min']:.3f} | {t['pour_min_mean']:.3f} | {failures} |"
+            f"| {t[min_key]:.3f} | {t[f'{min_key}_mean']:.3f} | {failures} |"
         )
     return "\n".join(lines)
 
 
-def text(summary: dict, out: Path) -> str:
-    """The summary in a few lines (what ``imitate eval`` prints); ``out``: the eval folder."""
+def text(summary: dict, out: Path, task: Task) -> str:
+    """The summary of an evaluation of ``task`` in a few lines (what ``imitate eval`` prints);
+    ``out``: the eval folder."""
     n, run = summary["variations"], summary["run"]
+    name, measure = task.score.name, task.score.measure
+    mean_key, min_key = score_keys(task)
     low, high = summary["success_wilson95"]
     successes = summary["outcomes"]["success"]
     workers = run["workers"]
@@ -162,7 +186,7 @@ def text(summary: dict, out: Path) -> str:
     gap, seconds = summary["clearance_gap_mm"], summary["seconds_per_variation"]
     kept, push = summary["kept_margin"], summary["nullspace_push"]
     teachers = summary.get("teachers", [])
-    per_teacher = [teacher_table(teachers)] if len(teachers) > 1 else []
+    per_teacher = [teacher_table(teachers, task)] if len(teachers) > 1 else []
     return "\n".join([
         f"eval: {n} variations of {len(teachers) or 1} teacher{'s' * (len(teachers) > 1)} "
         f"({run['ran']} run now on {where} in {run['wall_seconds']:.1f} s, "
@@ -173,12 +197,12 @@ def text(summary: dict, out: Path) -> str:
         *per_teacher,
         "outcomes: " + ", ".join(f"{o} {c}" for o, c in summary["outcomes"].items()),
         f"successes by obstacle: {by_place}",
-        f"pour over the replays: mean {summary['pour_mean']:.3f}, min {summary['pour_min']:.3f}",
+        f"{name} over the replays: mean {summary[mean_key]:.3f}, min {summary[min_key]:.3f}",
         f"plan - physics clearance over the {gap['plans']} plans that keep clear [mm]: "
         + ", ".join(f"{k} {v:.2f}" for k, v in gap.items() if k != "plans"),
         f"plans that keep the {kept['margin_m'] * 1000:g} mm margin: {kept['plans']}; of them "
-        f"touching in physics {kept['physics_contact']}, pouring below "
-        f"{kept['pour_threshold']:g} in a replay {kept['low_pour']}",
+        f"touching in physics {kept['physics_contact']}, {measure} below "
+        f"{kept[f'{name}_threshold']:g} in a replay {kept[f'low_{name}']}",
         f"plans with the null-space push: {push['plans']}; of them successes {push['success']}",
         f"seconds per variation: mean {seconds['mean']:.1f}, median {seconds['median']:.1f}, "
         f"max {seconds['max']:.1f}",
@@ -187,10 +211,11 @@ def text(summary: dict, out: Path) -> str:
     ])
 
 
-def plot_outcomes(records: Sequence[dict], path: np.ndarray) -> Figure:
+def plot_outcomes(records: Sequence[dict], path: np.ndarray, task: Task) -> Figure:
     """Top view of the front of the table: each obstacle's footprint (filled: placed in the
-    path), edged by its outcome, over the weight-0 path points ``path`` (P, 3); beside it the
-    outcome counts by where the obstacle is."""
+    path), edged by its outcome (of ``task``'s), over the weight-0 path points ``path`` (P, 3);
+    beside it the outcome counts by where the obstacle is."""
+    colour_of = colours(task)
     figure = Figure(figsize=(11, 5), layout="constrained")
     top, bars = figure.subplots(1, 2, width_ratios=(3, 2))
     for r in records:
@@ -198,7 +223,7 @@ def plot_outcomes(records: Sequence[dict], path: np.ndarray) -> Figure:
         if obstacle is None:
             continue
         (x, y, _), size = obstacle["pos"], obstacle["size"]
-        colour = COLOURS[r["outcome"]]
+        colour = colour_of[r["outcome"]]
         style: dict[str, Any] = dict(
             edgecolor=colour, facecolor=colour if r["settings"]["in_path"] else "none",
             alpha=0.8, lw=1.2,
@@ -210,41 +235,40 @@ def plot_outcomes(records: Sequence[dict], path: np.ndarray) -> Figure:
     if len(path):
         top.plot(path[:, 0], path[:, 1], ".", ms=3, color="0.3", label="held objects at weight 0")
     top.axvline(TABLE_X[0], color="0.4", lw=1, ls="--", label="table edge")
-    handles = [Patch(color=COLOURS[o], label=o) for o in OUTCOMES]
+    handles = [Patch(color=colour_of[o], label=o) for o in task.outcomes]
     top.legend(handles=[*top.get_legend_handles_labels()[0], *handles], fontsize=8,
                loc="upper left", bbox_to_anchor=(1.02, 1.0))
     top.set(xlim=(TABLE_X[0] - 0.1, 0.85), ylim=(-0.45, 0.45), aspect="equal", xlabel="x [m]",
             ylabel="y [m]", title="obstacles by outcome (filled: placed in the path)")
     bottom = np.zeros(len(PLACES))
-    for outcome in OUTCOMES:
+    for outcome in task.outcomes:
         counts = np.array(
             [sum(place(r) == p and r["outcome"] == outcome for r in records) for p in PLACES]
         )
-        bars.bar(PLACES, counts, bottom=bottom, color=COLOURS[outcome], label=outcome)
+        bars.bar(PLACES, counts, bottom=bottom, color=colour_of[outcome], label=outcome)
         bottom += counts
     bars.set(ylabel="variations", title="outcomes by obstacle")
     return figure
 
 
 def failure_video(
-    path: Path, learned: LearnedModel, gaze: np.ndarray, record: dict, fps: float = 25.0
+    path: Path, learned: LearnedModel, gaze: np.ndarray, record: dict, task: Task,
+    fps: float = 25.0,
 ) -> int:
-    """Video of a failed variation's worst replay (the one with the smallest pour, or the
+    """Video of a failed variation's worst replay (the one with the smallest score, or the
     first that touched), replayed again from its settings; returns the number of frames."""
     variation = Variation.from_json(record["settings"])
     replays = record["replays"]
     touched = [r for r in replays if r["min_distance_m"] < 0]
-    worst = touched[0] if touched else min(replays, key=lambda r: r["pour_fraction"])
-    plan = plan_variation(learned, gaze, variation)
-    env = physics(variation)
+    worst = touched[0] if touched else min(replays, key=lambda r: r[task.score.measure])
+    plan = plan_variation(learned, gaze, variation, task)
+    env = physics(variation, task)
     recorder = StateRecorder(every=max(1, round(1.0 / (fps * env.dt))))
-    try:
-        replay_once(plan, env, variation, worst["seed"], gaze, on_step=recorder)
-    finally:
-        env.close()
+    measure(task, plan, env, seed=worst["seed"], gaze=gaze, options=variation.options,
+            on_step=recorder)
     caption = f"variation {variation.id}: {record['outcome'].replace('_', ' ')}"
     states = recorder.arrays()
-    frames = captioned(replay_frames(variation.scene(), states, 640, 480), caption)
+    frames = captioned(replay_frames(variation.scene(task), states, 640, 480), caption)
     counted: list[int] = []
     write_atomic(path, lambda tmp: counted.append(write_video(tmp, frames, fps)))
     return counted[0]

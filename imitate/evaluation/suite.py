@@ -1,11 +1,12 @@
 """The evaluation suite: the distribution the variations of ``imitate eval`` are drawn from.
 
-A suite is a TOML or JSON file of top-level keys, each optional (the built-in default suite
-fills the rest); :data:`KEYS` declares every key once with its default, range and meaning. A
-range key takes ``[low, high]`` (drawn uniformly) or one number (fixed), a switch ``true`` or
-``false``. Unknown keys,
-out-of-range values, ``low > high`` and an empty file are refused with an ``ImitateError``
-naming the entry.
+A suite is of one task. It is a TOML or JSON file of top-level keys, each optional (the
+built-in default suite fills the rest); :data:`KEYS` declares every key that is no task's once
+with its default, range and meaning, and :func:`keys` adds a range key per setting of the task's
+own (:func:`imitate.envs.tasks.options`). A range key takes ``[low, high]`` (drawn uniformly) or
+one number (fixed), a switch ``true`` or ``false``. Unknown keys, out-of-range values,
+``low > high`` and an empty file are refused with an ``ImitateError`` naming the entry. The
+named suites are the built-in default and the files in the task's ``suites`` folder.
 """
 
 from __future__ import annotations
@@ -15,13 +16,11 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from imitate.defaults import (  # plain constants: `imitate eval --help` shows KEYS quickly
     COLLISION_WEIGHT,
-    GRASP_RANGE,
     MAX_ITER,
-    MAX_PARTICLES,
     MAX_WEIGHT,
     NULLSPACE_PUSH,
     OBSTACLE_SHAPES,
@@ -31,13 +30,13 @@ from imitate.defaults import (  # plain constants: `imitate eval --help` shows K
     TABLE_X,
     TABLE_Y,
 )
+from imitate.envs import tasks
 from imitate.errors import ImitateError
 
-__all__ = ["KEYS", "SUITE_NAMES", "Key", "Suite", "load_suite", "named_suite"]
+if TYPE_CHECKING:  # the task's package loads MuJoCo: not for `imitate eval --help`
+    from imitate.envs.task import Task
 
-_SHIPPED = Path(__file__).parent / "suites"  # the named suites shipped with the package
-# The suites ``--suite NAME`` takes: the built-in default and the files shipped.
-SUITE_NAMES = ("default", *sorted(p.stem for p in _SHIPPED.glob("*.toml")))
+__all__ = ["KEYS", "Key", "Suite", "keys", "load_suite", "named_suite", "suite_names"]
 
 
 @dataclass(frozen=True)
@@ -132,7 +131,6 @@ class Key:
         return self.low <= v <= self.high
 
 
-_BOTTLE, _GLASS = GRASP_RANGE["bottle"], GRASP_RANGE["glass"]
 KEYS: dict[str, Key] = {
     "variations": Key(100, "variations drawn when --n is not given", 1, 100_000, integer=True),
     "collision_weight": Key(COLLISION_WEIGHT, "weight of the collision cost", high=MAX_WEIGHT),
@@ -156,7 +154,7 @@ KEYS: dict[str, Key] = {
     ),
     "replays": Key(
         3, "physics replays per variation, each from its own seed of the initial-state noise "
-        "(joint angles +-0.01 rad, particle jitter)", 1, 20, integer=True,
+        "(joint angles +-0.01 rad, and the task's own)", 1, 20, integer=True,
     ),
     "obstacle_share": Key(0.9, "share of variations with one obstacle on the table", 0, 1),
     "in_path_share": Key(
@@ -179,69 +177,93 @@ KEYS: dict[str, Key] = {
         "object it stands under [m]", 0.0, 0.2,
     ),
     "shelf_share": Key(
-        0.0, "share of variations with a shelf (a fixture off the table) over the bottle's "
-        "raised end in the pour, placed from the path at collision weight 0", 0, 1,
+        0.0, "share of variations with a shelf (a fixture off the table) over the tool in the "
+        "task's critical phase, placed from the path at collision weight 0", 0, 1,
     ),
     "shelf_gap": Key(
-        (0.02, 0.10), "how far a shelf's underside reaches below the bottle's highest point in "
-        "the pour at collision weight 0 [m]", 0.0, 0.3,
+        (0.02, 0.10), "how far a shelf's underside reaches below the tool's highest point in "
+        "the critical phase at collision weight 0 [m]", 0.0, 0.3,
     ),
     "plate_share": Key(
-        0.0, "share of variations with a plate (a fixture off the table) under the glass in the "
-        "pour, placed from the path at collision weight 0", 0, 1,
+        0.0, "share of variations with a plate (a fixture off the table) under the target in "
+        "the critical phase, placed from the path at collision weight 0", 0, 1,
     ),
     "plate_gap": Key(
-        (-0.01, 0.0), "how far a plate's top rises above the glass's lowest point in the pour "
-        "at collision weight 0 [m] (below it, if negative)", -0.1, 0.1,
+        (-0.01, 0.0), "how far a plate's top rises above the target's lowest point in the "
+        "critical phase at collision weight 0 [m] (below it, if negative)", -0.1, 0.1,
     ),
-    "bottle_grasp": Key(_BOTTLE, "where the hand holds the bottle, above its bottom [m]", *_BOTTLE),
-    "glass_grasp": Key(_GLASS, "where the hand holds the glass, above its bottom [m]", *_GLASS),
-    "particles": Key((30, 60), "liquid spheres", 1, MAX_PARTICLES, integer=True),
     "friction_scale": Key(
         (0.8, 1.25), "factor on every geom's sliding friction in physics", 0.1, 10
     ),
     "damping_scale": Key((0.8, 1.25), "factor on the robot's joint damping in physics", 0.1, 10),
     "mass_scale": Key(
-        (0.8, 1.25), "factor on the masses and inertias of the bottle, the glass and the "
-        "liquid in physics", 0.1, 10,
+        (0.8, 1.25), "factor on the masses and inertias of the bodies that move freely (the "
+        "held objects and what they carry) in physics", 0.1, 10,
     ),
 }
+_PHYSICS = ("friction_scale", "damping_scale", "mass_scale")  # the task's keys come before
+
+
+def keys(task: str) -> dict[str, Key]:
+    """The keys of a suite of ``task`` (a name of ``imitate.envs.tasks.NAMES``): :data:`KEYS`
+    with a range key per setting of the task's own before the physics perturbations, its range
+    the option's ``suite`` (else all it accepts)."""
+    own = {
+        name: Key(
+            option.suite or (option.low, option.high), option.help, option.low, option.high,
+            integer=option.integer,
+        )
+        for name, option in tasks.options(task).items()
+    }
+    rest = {name: key for name, key in KEYS.items() if name not in _PHYSICS}
+    return {**rest, **own, **{name: KEYS[name] for name in _PHYSICS}}
 
 
 @dataclass(frozen=True)
 class Suite:
-    """A suite: one value per :data:`KEYS` entry (ranges as ``(low, high)``)."""
+    """A suite of a task: one value per entry of its :func:`keys` (ranges as ``(low, high)``).
+
+    Attributes:
+        values: The values by key.
+        task: The task's name (``imitate.envs.tasks.NAMES``).
+    """
 
     values: dict[str, Any]
+    task: str = tasks.DEFAULT
 
     @classmethod
-    def default(cls) -> Suite:
-        return cls({name: key.default for name, key in KEYS.items()})
+    def default(cls, task: str = tasks.DEFAULT) -> Suite:
+        """The built-in suite of ``task``."""
+        return cls({name: key.default for name, key in keys(task).items()}, task)
 
     @classmethod
-    def from_dict(cls, entries: dict[str, Any], source: str = "suite") -> Suite:
-        """The default suite with ``entries`` replacing its values.
+    def from_dict(
+        cls, entries: dict[str, Any], source: str = "suite", task: str = tasks.DEFAULT
+    ) -> Suite:
+        """The default suite of ``task`` with ``entries`` replacing its values.
 
         Raises:
             ImitateError: an empty ``entries``, an unknown key or a value out of range.
         """
+        accepted = keys(task)
         if not isinstance(entries, dict) or not entries:
             raise ImitateError(
-                f"{source} is empty: give at least one of the keys {sorted(KEYS)}"
+                f"{source} is empty: give at least one of the keys {sorted(accepted)}"
             )
-        unknown = sorted(set(entries) - set(KEYS))
+        unknown = sorted(set(entries) - set(accepted))
         if unknown:
             raise ImitateError(
-                f"{source}: unknown entry {unknown[0]!r}; accepted: {sorted(KEYS)}"
+                f"{source}: unknown entry {unknown[0]!r}; accepted for task {task!r}: "
+                f"{sorted(accepted)}"
             )
-        values = dict(cls.default().values)
+        values = dict(cls.default(task).values)
         for name, value in entries.items():
-            values[name] = KEYS[name].check(name, value, source)
-        return cls(values)
+            values[name] = accepted[name].check(name, value, source)
+        return cls(values, task)
 
     def replace(self, **changes: Any) -> Suite:
         """This suite with some values changed (checked like a file's)."""
-        return Suite.from_dict({**self.to_json(), **changes})
+        return Suite.from_dict({**self.to_json(), **changes}, task=self.task)
 
     def __getitem__(self, name: str) -> Any:
         return self.values[name]
@@ -260,28 +282,35 @@ class Suite:
         return hashlib.sha256(text.encode() + hashlib.sha256(model).digest()).hexdigest()[:16]
 
 
-def named_suite(text: str | None) -> tuple[str, Suite]:
-    """The suite ``--suite`` names and its name: ``None`` or ``default`` for the built-in one,
-    a name of :data:`SUITE_NAMES`, or a ``.toml`` or ``.json`` file (named by its stem).
+def suite_names(task: Task) -> tuple[str, ...]:
+    """The suites ``--suite NAME`` takes for ``task``: the built-in default and the files in the
+    task's ``suites`` folder."""
+    return ("default", *sorted(p.stem for p in task.suites.glob("*.toml")))
+
+
+def named_suite(text: str | None, task: Task) -> tuple[str, Suite]:
+    """The suite of ``task`` that ``--suite`` names, and its name: ``None`` or ``default`` for
+    the built-in one, a name of :func:`suite_names`, or a ``.toml`` or ``.json`` file (named by
+    its stem).
 
     Raises:
         ImitateError: as :func:`load_suite`, or a name that is not shipped.
     """
     if text is None or text == "default":
-        return "default", Suite.default()
-    if text in SUITE_NAMES:
-        return text, load_suite(_SHIPPED / f"{text}.toml")
+        return "default", Suite.default(task.name)
+    names = suite_names(task)
+    if text in names:
+        return text, load_suite(task.suites / f"{text}.toml", task.name)
     path = Path(text)
     if path.suffix not in (".toml", ".json"):
         raise ImitateError(
-            f"--suite {text} not accepted: one of {', '.join(SUITE_NAMES)}, or a .toml or "
-            ".json file"
+            f"--suite {text} not accepted: one of {', '.join(names)}, or a .toml or .json file"
         )
-    return path.stem, load_suite(path)
+    return path.stem, load_suite(path, task.name)
 
 
-def load_suite(path: Path) -> Suite:
-    """The suite in ``path`` (``.toml`` or ``.json``).
+def load_suite(path: Path, task: str = tasks.DEFAULT) -> Suite:
+    """The suite of ``task`` in ``path`` (``.toml`` or ``.json``).
 
     Raises:
         ImitateError: an unreadable file, another format, or bad entries (see :class:`Suite`).
@@ -307,4 +336,4 @@ def load_suite(path: Path) -> Suite:
             entries = tomllib.loads(text)
         except (tomllib.TOMLDecodeError, RecursionError) as err:
             raise ImitateError(f"suite {path} is not valid TOML: {err}") from None
-    return Suite.from_dict(entries, f"suite {path}")
+    return Suite.from_dict(entries, f"suite {path}", task)

@@ -3,7 +3,9 @@
 The models are the run's and, with ``teachers``, those of more teacher seeds
 (:mod:`~imitate.evaluation.teachers`); each teacher reproduces every variation, drawn once per
 teacher (its obstacles in the path are placed on that teacher's path, its shelves and plates
-where that teacher pours).
+where that teacher's reproduction is in the task's critical phase). The run's task
+(:func:`~imitate.evaluation.teachers.run_task`) is the suite's, and decides the scene, the
+physics, the measures and the outcomes.
 
 Writes under ``RUN_DIR/eval/<suite>-w<collision weight>-<similarity>/`` (:func:`default_out`;
 or the folder ``out``), so that evaluations of another suite, weight or weighting keep theirs:
@@ -29,13 +31,15 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate.envs.pour.outcome import OUTCOMES
+from imitate.envs import tasks
+from imitate.envs.task import Task, get_task
 from imitate.errors import ImitateError
 from imitate.evaluation.parallel import Job, run_local, run_ray
+from imitate.evaluation.record import score_keys
 from imitate.evaluation.report import failure_video, plot_outcomes, summarize, summarize_teachers
 from imitate.evaluation.suite import KEYS, Suite
-from imitate.evaluation.teachers import Teacher, check_run, teachers
-from imitate.evaluation.variation import PourPlace, Variation, draw, free_places
+from imitate.evaluation.teachers import Teacher, check_run, run_task, teachers
+from imitate.evaluation.variation import CriticalPlace, Variation, draw, free_places
 from imitate.figures import plots
 from imitate.rundir import page
 from imitate.rundir.artifacts import load_json, refuse_link, save_bytes, save_json
@@ -44,7 +48,7 @@ from imitate.stages import provenance
 from imitate.stages.progress import bar as progress_bar
 
 __all__ = [
-    "Draw", "check_counts", "check_folder", "default_out", "draw_jobs",
+    "Draw", "check_counts", "check_folder", "check_task", "default_out", "draw_jobs",
     "evaluate", "last_records", "read_records", "run_jobs",
 ]
 
@@ -74,13 +78,14 @@ def evaluate(
     Returns the summary.
 
     Raises:
-        ImitateError: a missing or corrupt model, ``n``, ``workers`` or ``n_teachers`` out
-            of range, Ray unusable, ``out`` refused
+        ImitateError: a missing or corrupt model, a suite of another task than the run's,
+            ``n``, ``workers`` or ``n_teachers`` out of range, Ray unusable, ``out`` refused
             (:func:`check_folder`), or another command holds the run directory (its lock, taken
             for the whole evaluation; not where nothing is written in a directory this user
             cannot write: ``out`` elsewhere, one teacher).
     """
     run_dir = check_run(run_dir)
+    task = check_task(run_dir, suite)
     out = default_out(run_dir, name, suite) if out is None else Path(out)
     inside = os.path.abspath(out).startswith(os.path.abspath(run_dir) + os.sep)
     reading = not inside and n_teachers == 1  # nothing written in the run directory
@@ -90,20 +95,22 @@ def evaluate(
         out.mkdir(parents=True, exist_ok=True)
         models = teachers(run_dir, run_dir / "eval", n_teachers)
         drawn = draw_jobs(models, suite, seed, n)
-        records, run = run_jobs(out / RESULTS, drawn, models, workers, ray, progress)
+        records, run = run_jobs(out / RESULTS, drawn, models, workers, ray, progress, task)
         digests = [d.digest for d in drawn]
         ordered = [records[(d.digest, v.id)] for d in drawn for v in d.variations]
         summary = {
-            "suite_digest": combined_digest(digests), "seed": seed, "suite": suite.to_json(),
-            "path_points": len(drawn[0].path), **summarize(ordered),
+            "suite_digest": combined_digest(digests), "seed": seed, "task": task.name,
+            "suite": suite.to_json(), "path_points": len(drawn[0].path),
+            **summarize(ordered, task),
             "teachers": summarize_teachers(
                 ordered, {d.teacher: d.digest for d in drawn},
-                {t.seed: t.default_run for t in models},
+                {t.seed: t.default_run for t in models}, task,
             ),
             "run": run,
         }
         save_json(out / "summary.json", summary)
-        save_bytes(out / "outcomes.png", plots.figure_png(plot_outcomes(ordered, drawn[0].path)))
+        figure = plot_outcomes(ordered, drawn[0].path, task)
+        save_bytes(out / "outcomes.png", plots.figure_png(figure))
         learned = {t.seed: t.learned.model for t in models}
         gaze = {t.seed: t.learned.gaze for t in models}
         failures = [r for r in ordered if r["outcome"] != "success"][:videos]
@@ -113,9 +120,24 @@ def evaluate(
             refuse_link(video, out)
             if not video.exists():
                 t = record["teacher"]
-                failure_video(video, learned[t], gaze[t], record)
-        page.save_eval_page(out, summary)
+                failure_video(video, learned[t], gaze[t], record, task)
+        page.save_eval_page(out, summary, task.score.name)
         return summary
+
+
+def check_task(run_dir: Path, suite: Suite) -> Task:
+    """The task of the run in ``run_dir`` (:func:`run_task`), which must be ``suite``'s.
+
+    Raises:
+        ImitateError: a suite of another task.
+    """
+    name = run_task(run_dir)
+    if suite.task != name:
+        raise ImitateError(
+            f"the suite is of task {suite.task!r}, the run in {run_dir} of task {name!r}: give "
+            "a suite of the run's task"
+        )
+    return get_task(name)
 
 
 def default_out(run_dir: Path, name: str, suite: Suite) -> Path:
@@ -177,7 +199,8 @@ class Draw:
         teacher: The teacher's seed.
         digest: Identifies its records (:meth:`Suite.digest` of the suite, the seed of the
             draw, the teacher's model and the code).
-        path: ``(P, 3)`` points of its weight-0 path (:func:`path_points`).
+        path: ``(P, 3)`` points of its weight-0 path
+            (:func:`~imitate.evaluation.variation.path_points`).
         variations: The variations, by id.
     """
 
@@ -189,21 +212,22 @@ class Draw:
 
 def draw_jobs(
     models: Sequence[Teacher], suite: Suite, seed: int, n: int,
-    places: dict[int, tuple[np.ndarray, PourPlace]] | None = None,
+    places: dict[int, tuple[np.ndarray, CriticalPlace]] | None = None,
 ) -> list[Draw]:
     """Variations ``0..n-1`` of ``suite`` drawn with ``seed`` for each teacher in ``models``
-    (its path and pour from one reproduction at collision weight 0: :func:`free_places`, kept
-    in ``places`` by teacher seed if given, for the next suite of the same ``max_iter``)."""
-    code = provenance.code_digest()
+    (its path and critical place from one reproduction at collision weight 0:
+    :func:`free_places`, kept in ``places`` by teacher seed if given, for the next suite of the
+    same ``max_iter``)."""
+    code, task = provenance.code_digest(), get_task(suite.task)
     places = {} if places is None else places
     drawn = []
     for t in models:
         if t.seed not in places:
-            places[t.seed] = free_places(t.learned.model, t.learned.gaze, suite["max_iter"])
-        path, pour = places[t.seed]
+            places[t.seed] = free_places(t.learned.model, t.learned.gaze, suite["max_iter"], task)
+        path, place = places[t.seed]
         drawn.append(Draw(
             t.seed, suite.digest(seed, t.model_bytes, code), path,
-            tuple(draw(suite, seed, i, path, pour) for i in range(n)),
+            tuple(draw(suite, seed, i, path, place) for i in range(n)),
         ))
     return drawn
 
@@ -215,10 +239,11 @@ def run_jobs(
     workers: int,
     ray: str | None,
     progress: bool | None,
+    task: Task,
 ) -> tuple[dict[tuple[str, int], dict], dict]:
-    """Runs the variations of ``drawn`` that have no record in ``results`` yet, appending each
-    record as it finishes. Returns every record of ``drawn`` by ``(digest, id)`` and the
-    numbers of this call (``ran``, wall time, back-end, load average).
+    """Runs the variations of ``drawn`` (of ``task``) that have no record in ``results`` yet,
+    appending each record as it finishes. Returns every record of ``drawn`` by ``(digest, id)``
+    and the numbers of this call (``ran``, wall time, back-end, load average).
 
     Raises:
         ImitateError: ``results`` or its folder is a symbolic link.
@@ -226,7 +251,7 @@ def run_jobs(
     refuse_link(results)
     wanted = {d.digest for d in drawn}
     records = {
-        (r["digest"], r["id"]): r for r in read_records(results, wanted)
+        (r["digest"], r["id"]): r for r in read_records(results, wanted, task)
     }
     pending = [
         (d, v) for d in drawn for v in d.variations if (d.digest, v.id) not in records
@@ -237,7 +262,8 @@ def run_jobs(
     start, load = time.perf_counter(), os.getloadavg()
     no_records: tuple[dict, ...] = ()
     finished = (
-        run_ray(learned, jobs, ray) if ray else run_local(learned, jobs, min(workers, len(jobs)))
+        run_ray(learned, jobs, ray, task.name) if ray
+        else run_local(learned, jobs, min(workers, len(jobs)), task.name)
     ) if jobs else (record for record in no_records)  # closable, as the workers' iterators
     _end_line(results)
     # closing: an interruption stops the workers before it propagates
@@ -267,14 +293,17 @@ def combined_digest(digests: Sequence[str]) -> str:
     return hashlib.sha256(",".join(digests).encode()).hexdigest()[:16]
 
 
-def read_records(path: Path, digests: str | Collection[str]) -> list[dict]:
-    """The records of ``path`` (``results.jsonl``) under ``digests`` (one or several), the last
-    one per digest and id; a line cut short by an interruption, not UTF-8, or not a record
-    (:func:`_is_record`: an ``id`` that is no whole number >= 0, an ``outcome`` not of
-    :data:`~imitate.envs.pour.outcome.OUTCOMES`, as file names are made of them; a number the
+def read_records(path: Path, digests: str | Collection[str], task: Task) -> list[dict]:
+    """The records of ``path`` (``results.jsonl``) of ``task`` under ``digests`` (one or
+    several), the last one per digest and id; a line cut short by an interruption, not UTF-8,
+    or not a record (:func:`_is_record`, :func:`_of_task`: an ``id`` that is no whole number
+    >= 0, an ``outcome`` not of the task's, as file names are made of them; a number the
     summary reads missing), is skipped, so its variation runs again."""
     wanted = {digests} if isinstance(digests, str) else set(digests)
-    records = {(r["digest"], r["id"]): r for r in _records(path) if r["digest"] in wanted}
+    records = {
+        (r["digest"], r["id"]): r for r in _records(path)
+        if r["digest"] in wanted and _of_task(r, task)
+    }
     return list(records.values())
 
 
@@ -297,14 +326,14 @@ def _is_record(record: object) -> bool:
     if not (
         isinstance(record, dict) and isinstance(record.get("digest"), str)
         and type(record.get("id")) is int and record["id"] >= 0
-        and record.get("outcome") in OUTCOMES and type(record.get("teacher")) is int
+        and isinstance(record.get("outcome"), str) and type(record.get("teacher")) is int
         and all(_is_number(record.get(k)) for k in (
-            "seconds", "pour_mean", "pour_min", "physics_min_distance_m", "clearance_gap_m"))
+            "seconds", "physics_min_distance_m", "clearance_gap_m"))
         and isinstance(record.get("plan"), dict)
         and _is_number(record["plan"].get("min_distance_m"))
         and isinstance(record.get("replays"), list) and record["replays"]
         and all(isinstance(r, dict) and _is_number(r.get("min_distance_m"))
-                and _is_number(r.get("pour_fraction")) for r in record["replays"])
+                for r in record["replays"])
         and isinstance(record.get("settings"), dict)
         and isinstance(record["settings"].get("in_path"), bool)
     ):
@@ -312,6 +341,22 @@ def _is_record(record: object) -> bool:
     try:
         Variation.from_json(record["settings"])
     except (TypeError, ValueError, KeyError, AttributeError, ImitateError):
+        return False
+    return True
+
+
+def _of_task(record: dict, task: Task) -> bool:
+    """Whether a record (:func:`_is_record`) is of ``task``: one of its outcomes, its score's
+    numbers, its own settings."""
+    if not (
+        record["outcome"] in task.outcomes
+        and all(_is_number(record.get(k)) for k in score_keys(task))
+        and all(_is_number(r.get(task.score.measure)) for r in record["replays"])
+    ):
+        return False
+    try:
+        task.settings(Variation.from_json(record["settings"]).options)
+    except ImitateError:
         return False
     return True
 
@@ -337,13 +382,15 @@ def last_records(out: Path) -> list[dict]:
     summary = load_json(out / "summary.json")
     try:
         digests = [t["digest"] for t in summary.get("teachers", ())] or [summary["suite_digest"]]
+        task = get_task(summary.get("task", tasks.DEFAULT))  # written before it: the default
     except (KeyError, TypeError, AttributeError) as err:
         raise ImitateError(
             f"{out / 'summary.json'} is not an evaluation's summary ({type(err).__name__}: "
             f"{err}); run the evaluation again"
         ) from err
     order = {d: i for i, d in enumerate(digests)}
-    return sorted(read_records(out / RESULTS, digests), key=lambda r: (order[r["digest"]], r["id"]))
+    records = read_records(out / RESULTS, digests, task)
+    return sorted(records, key=lambda r: (order[r["digest"]], r["id"]))
 
 
 def check_counts(suite: Suite, n: int | None, workers: int | None) -> tuple[int, int]:

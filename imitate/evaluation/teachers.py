@@ -18,6 +18,7 @@ import logging
 import os
 from pathlib import Path
 
+from imitate.envs import tasks
 from imitate.errors import ImitateError
 from imitate.run import load_run
 from imitate.rundir import layout
@@ -27,7 +28,7 @@ from imitate.stages import provenance, table
 from imitate.stages.config import RunConfig, load_config
 from imitate.stages.files import Learned, ModelFile
 
-__all__ = ["MAX_TEACHERS", "Teacher", "check_run", "teacher_seeds", "teachers"]
+__all__ = ["MAX_TEACHERS", "Teacher", "check_run", "run_task", "teacher_seeds", "teachers"]
 
 log = logging.getLogger(__name__)
 
@@ -73,6 +74,20 @@ def check_run(run_dir: Path | str) -> Path:
         ImitateError: it is not (:func:`imitate.run.load_run`'s message).
     """
     return load_run(run_dir).path
+
+
+def run_task(run_dir: Path | str) -> str:
+    """The name of the task of the run in ``run_dir``: its ``config.json``'s, or the default
+    task for a folder of a ``model.npz`` alone.
+
+    Raises:
+        ImitateError: ``run_dir`` is no directory (:func:`check_run`), or its ``config.json``
+            is unusable.
+    """
+    run_dir = check_run(run_dir)
+    if not (run_dir / layout.CONFIG).exists():
+        return tasks.DEFAULT
+    return load_config(run_dir).task
 
 
 def teachers(run_dir: Path, out: Path, n: int) -> list[Teacher]:

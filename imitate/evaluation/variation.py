@@ -8,38 +8,38 @@ point and its top rises ``path_overlap`` above it, so that reproduction would ru
 other obstacles are placed at random over the suite's part of the table (some of them in the
 path too).
 
-The fixtures stand off the table where the same reproduction pours (:func:`free_places`): a
-shelf over the bottle, its underside ``shelf_gap`` below the bottle's highest point in the pour,
-and a plate under the glass, its top ``plate_gap`` above the glass's lowest point. The shelf
-alone leaves the plan one way out that keeps the task, lowering both hands together (the
-null-space push may find it); a plate closes it, and with the shelf squeezes the task by both
-gaps.
+The fixtures stand off the table where the same reproduction is in the task's critical phase
+(:func:`free_places`): a shelf over the tool, its underside ``shelf_gap`` below the tool's
+highest point there, and a plate under the target, its top ``plate_gap`` above the target's
+lowest point. The shelf alone leaves the plan one way out that keeps the task, lowering both
+hands together (the null-space push may find it); a plate closes it, and with the shelf squeezes
+the task by both gaps.
 """
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
 
-from imitate import defaults
 from imitate.envs.assembly import Fixture, Obstacle, SceneConfig, check_clearance
+from imitate.envs.task import Task, get_task
 from imitate.errors import ImitateError
 from imitate.evaluation.suite import Suite
 from imitate.learning import LearnedModel
-from imitate.models import humanoid, objects
+from imitate.models import humanoid
 from imitate.models.scene import TABLE_HEIGHT, TABLE_X, TABLE_Y
 from imitate.motion import Plan, PlanConfig, plan_from_model
 from imitate.motion.kinematics import Kinematics
-from imitate.motion.metrics import pour_phase
 from imitate.motion.replay import planning_task
 from imitate.motion.taskspace import TaskMap
 
-__all__ = ["PourPlace", "Variation", "draw", "free_places", "path_points"]
+__all__ = ["PLAN_KEYS", "CriticalPlace", "Variation", "draw", "free_places", "path_points"]
 
-# The held objects, whose bottoms (body origins) an obstacle in the path stands under.
-PATH_BODIES = (objects.BOTTLE, objects.GLASS)
+# The planner's settings a variation sets (its :class:`PlanConfig`'s), flat in its record.
+PLAN_KEYS = ("collision_weight", "path_length_weight", "similarity", "max_iter", "nullspace_push")
 # How far from the point an in-path obstacle's centre may lie, as a fraction of its half width.
 _OFFSET = 0.8
 _OBSTACLE_DRAWS = 20  # tries to draw an obstacle clear of the robot at the start
@@ -56,44 +56,34 @@ class Variation:
         obstacle: The obstacle on the table, or ``None``.
         in_path: Whether the obstacle was placed in the weight-0 path (see the module); one
             placed at random may be in it too.
-        bottle_grasp, glass_grasp: Grasp heights above the objects' bottoms [m].
-        particles: Liquid spheres.
+        options: The task's own settings (its ``imitate.envs.tasks.options``: the grasps and
+            the task's scene values) by name.
         friction_scale, damping_scale, mass_scale: Physics perturbations (see the suite keys).
         replay_seeds: Seeds of the physics replays (initial-state noise), one per replay.
-        collision_weight: Weight of the planner's collision cost.
-        path_length_weight: Weight of its joint path-length cost.
-        similarity: Its similarity weighting (:data:`~imitate.motion.SIMILARITIES`).
-        max_iter: Optimizer iteration limit.
-        nullspace_push: Whether the planner may push through the null space
-            (:attr:`PlanConfig.nullspace_push`).
+        plan: The planner's settings: those of :data:`PLAN_KEYS` set, the others the defaults.
         limit_margin: How far inside each joint's range the planner keeps [rad]
             (:func:`~imitate.motion.replay.narrowed_limits`): plan on :meth:`planning_task`.
-        shelf: The shelf over the bottle in the pour (a :class:`Fixture`), or ``None``.
-        shelf_gap: How far its underside reaches below the bottle's highest point in the pour
-            at collision weight 0 [m] (``None`` without a shelf).
-        plate: The plate under the glass in the pour (a :class:`Fixture`), or ``None``.
-        plate_gap: How far its top rises above the glass's lowest point in the pour at
-            collision weight 0 [m] (``None`` without a plate).
+        shelf: The shelf over the tool in the critical phase (a :class:`Fixture`), or ``None``.
+        shelf_gap: How far its underside reaches below the tool's highest point there at
+            collision weight 0 [m] (``None`` without a shelf).
+        plate: The plate under the target in the critical phase (a :class:`Fixture`), or
+            ``None``.
+        plate_gap: How far its top rises above the target's lowest point there at collision
+            weight 0 [m] (``None`` without a plate).
 
-    The fields after ``max_iter`` have defaults: records written before them read back as the
-    default planner without fixtures.
+    A record written before ``nullspace_push``, ``limit_margin`` and the fixtures reads back as
+    the default planner without fixtures.
     """
 
     id: int
     obstacle: Obstacle | None
     in_path: bool
-    bottle_grasp: float
-    glass_grasp: float
-    particles: int
+    options: dict[str, Any]
     friction_scale: float
     damping_scale: float
     mass_scale: float
     replay_seeds: tuple[int, ...]
-    collision_weight: float
-    path_length_weight: float
-    similarity: str
-    max_iter: int
-    nullspace_push: bool = defaults.NULLSPACE_PUSH
+    plan: PlanConfig
     limit_margin: float = 0.0
     shelf: Fixture | None = None
     shelf_gap: float | None = None
@@ -105,105 +95,125 @@ class Variation:
         """Its fixtures: the shelf and the plate it has."""
         return tuple(f for f in (self.shelf, self.plate) if f is not None)
 
-    def scene(self) -> SceneConfig:
-        """The robot's scene of this variation (its obstacle, then its fixtures)."""
-        return SceneConfig(
-            particles=self.particles,
-            obstacles=((self.obstacle,) if self.obstacle else ()) + self.fixtures,
-            bottle_grasp=self.bottle_grasp,
-            glass_grasp=self.glass_grasp,
-        )
+    @property
+    def obstacles(self) -> tuple[Obstacle, ...]:
+        """Its obstacle, then its fixtures."""
+        return ((self.obstacle,) if self.obstacle else ()) + self.fixtures
 
-    def planning_task(self, gaze: np.ndarray) -> TaskMap:
+    def scene(self, task: Task) -> SceneConfig:
+        """The robot's scene of this variation of ``task`` (its settings and obstacles)."""
+        return task.scene(self.options, self.obstacles)
+
+    def planning_task(self, task: Task, gaze: np.ndarray | None) -> TaskMap:
         """The planner's task map in this variation's scene (:func:`planning_task`), its joint
         ranges narrowed by ``limit_margin``."""
-        return planning_task(self.scene(), gaze, limit_margin=self.limit_margin)
-
-    def plan_config(self) -> PlanConfig:
-        return PlanConfig(
-            collision_weight=self.collision_weight, path_length_weight=self.path_length_weight,
-            similarity=self.similarity, max_iter=self.max_iter,
-            nullspace_push=self.nullspace_push,
-        )
+        return planning_task(self.scene(task), gaze, limit_margin=self.limit_margin)
 
     def to_json(self) -> dict:
-        return asdict(self)
+        """Its settings as a record holds them: the task's and the planner's flat among the
+        others."""
+        return {
+            "id": self.id, "obstacle": _json(self.obstacle), "in_path": self.in_path,
+            **self.options,
+            "friction_scale": self.friction_scale, "damping_scale": self.damping_scale,
+            "mass_scale": self.mass_scale, "replay_seeds": list(self.replay_seeds),
+            **{name: getattr(self.plan, name) for name in PLAN_KEYS},
+            "limit_margin": self.limit_margin,
+            "shelf": _json(self.shelf), "shelf_gap": self.shelf_gap,
+            "plate": _json(self.plate), "plate_gap": self.plate_gap,
+        }
 
     @classmethod
     def from_json(cls, values: dict) -> Variation:
-        def shape(kind: type[Obstacle], name: str) -> Obstacle | None:
+        """A variation's settings read back (:meth:`to_json`): the keys no field or planner's
+        setting names are the task's own settings."""
+        def shape(kind: type[Obstacle], name: str) -> Any:
             o = values.get(name)
             return None if o is None else kind(o["shape"], tuple(o["pos"]), tuple(o["size"]))
 
-        return cls(**{
-            **values, "obstacle": shape(Obstacle, "obstacle"),
-            **{name: shape(Fixture, name) for name in ("shelf", "plate") if name in values},
-            "replay_seeds": tuple(values["replay_seeds"]),
-        })
+        known = {"id", "obstacle", "in_path", "friction_scale", "damping_scale", "mass_scale",
+                 "replay_seeds", "limit_margin", "shelf", "shelf_gap", "plate", "plate_gap",
+                 *PLAN_KEYS}
+        plan = {k: values[k] for k in PLAN_KEYS if k in values or k != "nullspace_push"}
+        return cls(
+            id=values["id"], obstacle=shape(Obstacle, "obstacle"), in_path=values["in_path"],
+            options={k: v for k, v in values.items() if k not in known},
+            friction_scale=values["friction_scale"], damping_scale=values["damping_scale"],
+            mass_scale=values["mass_scale"], replay_seeds=tuple(values["replay_seeds"]),
+            plan=PlanConfig(**plan), limit_margin=values.get("limit_margin", 0.0),
+            shelf=shape(Fixture, "shelf"), shelf_gap=values.get("shelf_gap"),
+            plate=shape(Fixture, "plate"), plate_gap=values.get("plate_gap"),
+        )
+
+
+def _json(obstacle: Obstacle | None) -> dict | None:
+    """An obstacle or fixture as a record holds it."""
+    return None if obstacle is None else asdict(obstacle)
 
 
 @dataclass(frozen=True)
-class PourPlace:
-    """Where the held objects are in the pour of a reproduction (:func:`free_places`), as the
-    planner sees them (their hulls).
+class CriticalPlace:
+    """Where the held objects are in the task's critical phase (``Task.critical``) of a
+    reproduction (:func:`free_places`), as the planner sees them (their hulls).
 
     Attributes:
-        bottle_top: ``(3,)`` [m]: the highest point of the bottle over the pouring steps (its z)
+        tool_top: ``(3,)`` [m]: the highest point of the tool over the critical steps (its z)
             and the mean x, y of its highest point at each of those steps.
-        glass_bottom: ``(3,)`` [m]: the lowest point of the glass over the pouring steps and the
-            mean x, y of its lowest point at each.
+        target_bottom: ``(3,)`` [m]: the lowest point of the target over the critical steps
+            and the mean x, y of its lowest point at each.
     """
 
-    bottle_top: np.ndarray
-    glass_bottom: np.ndarray
+    tool_top: np.ndarray
+    target_bottom: np.ndarray
 
 
 def free_places(
-    learned: LearnedModel, gaze: np.ndarray, max_iter: int
-) -> tuple[np.ndarray, PourPlace]:
-    """:func:`path_points` and where the bottle and the glass are in the pouring phase
-    (:func:`~imitate.motion.metrics.pour_phase`) of one reproduction of ``learned`` at
-    collision weight 0 in the default scene (eq. 21's weighting, the default planner otherwise,
-    whatever a suite's: every weighting's variations stand in the same places; the weightings'
-    own unconstrained pours lie a few mm apart, the fixtures' gaps are centimetres)."""
-    task = planning_task(SceneConfig(), gaze)
+    learned: LearnedModel, gaze: np.ndarray, max_iter: int, task: Task
+) -> tuple[np.ndarray, CriticalPlace]:
+    """:func:`path_points` and where the tool and the target are in the critical phase of one
+    reproduction of ``learned`` at collision weight 0 in ``task``'s default scene (eq. 21's
+    weighting, the default planner otherwise, whatever a suite's: every weighting's variations
+    stand in the same places; the weightings' own unconstrained reproductions lie a few mm
+    apart there, the fixtures' gaps are centimetres)."""
+    planning = planning_task(task.scene(), gaze)
     plan = plan_from_model(
-        task, learned, q0=humanoid.rest_pose(),
-        config=PlanConfig(collision_weight=0.0, max_iter=max_iter),
+        planning, learned, q0=humanoid.rest_pose(),
+        config=PlanConfig(collision_weight=0.0, max_iter=max_iter), critical=task.critical,
     )
-    return _path_points(task.kin, plan), _pour_place(task.kin, plan)
+    return _path_points(planning.kin, plan, task), _critical_place(planning.kin, plan, task)
 
 
-def path_points(learned: LearnedModel, gaze: np.ndarray, max_iter: int) -> np.ndarray:
+def path_points(learned: LearnedModel, gaze: np.ndarray, max_iter: int, task: Task) -> np.ndarray:
     """Points ``(P, 3)`` [m] over the table top that the bottoms of the held objects pass
-    through when ``learned`` is reproduced at collision weight 0 in the default scene (each
-    plan step's bottle and glass, in that order)."""
-    return free_places(learned, gaze, max_iter)[0]
+    through when ``learned`` is reproduced at collision weight 0 in ``task``'s default scene
+    (each plan step's tool and target, in that order)."""
+    return free_places(learned, gaze, max_iter, task)[0]
 
 
-def _path_points(kin: Kinematics, plan: Plan) -> np.ndarray:
+def _path_points(kin: Kinematics, plan: Plan, task: Task) -> np.ndarray:
     """:func:`path_points` of ``plan`` on ``kin``."""
     passed: list[np.ndarray] = []
     for q in plan.q:
         kin.update(q)
-        passed += [kin.data.body(b).xpos.copy() for b in PATH_BODIES]
+        passed += [kin.data.body(b).xpos.copy() for b in task.objects]
     points = np.array(passed)
     (x0, x1), (y0, y1) = TABLE_X, TABLE_Y
     x, y, z = points.T
     return points[(x >= x0) & (x <= x1) & (y >= y0) & (y <= y1) & (z > TABLE_HEIGHT)]
 
 
-def _pour_place(kin: Kinematics, plan: Plan) -> PourPlace:
-    """Where ``plan`` pours (:class:`PourPlace`), on ``kin``."""
+def _critical_place(kin: Kinematics, plan: Plan, task: Task) -> CriticalPlace:
+    """Where ``plan`` is in ``task``'s critical phase (:class:`CriticalPlace`), on ``kin``."""
+    tool, target = task.objects
     tops, bottoms = [], []
-    for q in plan.q[pour_phase(plan.mean)]:
+    for q in plan.q[task.critical(plan.mean)]:
         kin.update(q)
-        tops.append(_extreme_point(kin, objects.BOTTLE, 1.0))
-        bottoms.append(_extreme_point(kin, objects.GLASS, -1.0))
+        tops.append(_extreme_point(kin, tool, 1.0))
+        bottoms.append(_extreme_point(kin, target, -1.0))
     top, bottom = np.array(tops), np.array(bottoms)
-    return PourPlace(
-        bottle_top=np.array([*top[:, :2].mean(axis=0), top[:, 2].max()]),
-        glass_bottom=np.array([*bottom[:, :2].mean(axis=0), bottom[:, 2].min()]),
+    return CriticalPlace(
+        tool_top=np.array([*top[:, :2].mean(axis=0), top[:, 2].max()]),
+        target_bottom=np.array([*bottom[:, :2].mean(axis=0), bottom[:, 2].min()]),
     )
 
 
@@ -233,47 +243,63 @@ def _extreme_point(kin: Kinematics, body: str, up: float) -> np.ndarray:
 
 
 def draw(
-    suite: Suite, seed: int, index: int, path: np.ndarray, pour: PourPlace | None = None
+    suite: Suite, seed: int, index: int, path: np.ndarray, place: CriticalPlace | None = None
 ) -> Variation:
-    """Variation ``index`` of ``suite`` for ``seed``; ``path`` from :func:`path_points` (an
-    obstacle drawn for the path is placed off it when ``path`` is empty), ``pour`` from
-    :func:`free_places` (needed for a suite with shelves or plates). An obstacle closer than
-    the planner's margin to the robot or the objects it holds at the start (the reset's noise on
-    the joints can close a few millimetres) is drawn again, up to ``_OBSTACLE_DRAWS`` times,
-    then left out; so is a fixture at once (its place is the pour's, not drawn).
+    """Variation ``index`` of ``suite`` (of its task) for ``seed``; ``path`` from
+    :func:`path_points` (an obstacle drawn for the path is placed off it when ``path`` is
+    empty), ``place`` from :func:`free_places` (needed for a suite with shelves or plates). An
+    obstacle closer than the planner's margin to the robot or the objects it holds at the start
+    (the reset's noise on the joints can close a few millimetres) is drawn again, up to
+    ``_OBSTACLE_DRAWS`` times, then left out; so is a fixture at once (its place is the critical
+    phase's, not drawn).
 
-    The draws of the keys that came later (``path_length_weight``, the fixtures) follow those
-    of the others, so that a suite without them draws the same variations as before them.
+    The task's settings that the planner sees (those of a stage before ``replay``: the grasps)
+    are drawn first, the obstacle is checked against them, and the others (the physics') are
+    drawn after it. The draws of the keys that came later (``path_length_weight``, the
+    fixtures) follow those of the others, so that a suite without them draws the same
+    variations as before them.
 
     Raises:
-        ImitateError: a suite with shelves or plates and no ``pour``.
+        ImitateError: a suite with shelves or plates and no ``place``.
     """
-    if pour is None and (suite["shelf_share"] > 0 or suite["plate_share"] > 0):
+    if place is None and (suite["shelf_share"] > 0 or suite["plate_share"] > 0):
         raise ImitateError(
             f"shelf_share={suite['shelf_share']} plate_share={suite['plate_share']} need the "
-            "pour's place: pass draw(..., pour=free_places(learned, gaze, max_iter)[1])"
+            "critical phase's place: pass draw(..., place=free_places(learned, gaze, max_iter, "
+            "task)[1])"
         )
+    task = get_task(suite.task)
+    declared = task.options
     rng = np.random.default_rng([seed, index])
 
     def uniform(name: str) -> float:
         low, high = suite[name]
         return float(rng.uniform(low, high))
 
-    bottle_grasp, glass_grasp = uniform("bottle_grasp"), uniform("glass_grasp")
+    def option(name: str) -> float:
+        low, high = suite[name]
+        return int(rng.integers(low, high + 1)) if declared[name].integer else uniform(name)
+
+    planned = [name for name, o in declared.items() if o.stage != "replay"]
+    options = {name: option(name) for name in planned}
+    margin = PlanConfig().margin
+
+    def clear(obstacle: Obstacle) -> bool:
+        """Whether ``obstacle`` keeps the planner's margin at the start."""
+        try:
+            check_clearance(task.scene(options, (obstacle,)), clearance=margin)
+        except ImitateError:
+            return False
+        return True
+
     obstacle, in_path = None, False
     if rng.random() < suite["obstacle_share"]:
         for _ in range(_OBSTACLE_DRAWS):
             obstacle, in_path = _obstacle(suite, rng, uniform, path)
-            scene = SceneConfig(
-                obstacles=(obstacle,), bottle_grasp=bottle_grasp, glass_grasp=glass_grasp
-            )
-            try:
-                check_clearance(scene, clearance=PlanConfig().margin)
+            if clear(obstacle):
                 break
-            except ImitateError:
-                obstacle, in_path = None, False
-    low, high = suite["particles"]
-    particles = int(rng.integers(low, high + 1))
+            obstacle, in_path = None, False
+    options.update({name: option(name) for name in declared if name not in planned})
     friction_scale, damping_scale = uniform("friction_scale"), uniform("damping_scale")
     mass_scale = uniform("mass_scale")
     replay_seeds = tuple(int(s) for s in rng.integers(0, 2**31, suite["replays"]))
@@ -285,32 +311,24 @@ def draw(
         chance, gap = rng.random(), uniform(f"{name}_gap")
         fixtures[name] = (None, None)
         if chance < suite[f"{name}_share"]:
-            assert pour is not None  # checked above
-            fixture = _fixture(name, pour, gap)
-            scene = SceneConfig(
-                obstacles=(fixture,), bottle_grasp=bottle_grasp, glass_grasp=glass_grasp
-            )
-            try:
-                check_clearance(scene, clearance=PlanConfig().margin)
+            assert place is not None  # checked above
+            fixture = _fixture(name, place, gap)
+            if clear(fixture):
                 fixtures[name] = fixture, gap
-            except ImitateError:
-                pass
     return Variation(
         id=index,
         obstacle=obstacle,
         in_path=in_path,
-        bottle_grasp=bottle_grasp,
-        glass_grasp=glass_grasp,
-        particles=particles,
+        options={name: options[name] for name in declared},
         friction_scale=friction_scale,
         damping_scale=damping_scale,
         mass_scale=mass_scale,
         replay_seeds=replay_seeds,
-        collision_weight=suite["collision_weight"],
-        path_length_weight=path_length_weight,
-        similarity=suite["similarity"],
-        max_iter=suite["max_iter"],
-        nullspace_push=suite["nullspace_push"],
+        plan=PlanConfig(
+            collision_weight=suite["collision_weight"], path_length_weight=path_length_weight,
+            similarity=suite["similarity"], max_iter=suite["max_iter"],
+            nullspace_push=suite["nullspace_push"],
+        ),
         limit_margin=suite["limit_margin"],
         shelf=fixtures["shelf"][0],
         shelf_gap=fixtures["shelf"][1],
@@ -319,13 +337,13 @@ def draw(
     )
 
 
-def _fixture(name: str, pour: PourPlace, gap: float) -> Fixture:
-    """The shelf (its underside ``gap`` below the bottle's top in the pour) or the plate (its top
-    ``gap`` above the glass's bottom), centred over or under that point."""
+def _fixture(name: str, place: CriticalPlace, gap: float) -> Fixture:
+    """The shelf (its underside ``gap`` below the tool's top in the critical phase) or the plate
+    (its top ``gap`` above the target's bottom), centred over or under that point."""
     if name == "shelf":
-        x, y, top = pour.bottle_top
+        x, y, top = place.tool_top
         return Fixture("box", (x, y, top - gap + SHELF_SIZE[2]), SHELF_SIZE)
-    x, y, bottom = pour.glass_bottom
+    x, y, bottom = place.target_bottom
     return Fixture("box", (x, y, bottom + gap - PLATE_SIZE[2]), PLATE_SIZE)
 
 

@@ -46,7 +46,7 @@ def export(run_dir: str | Path, format: str, out: str | Path | None = None,
             for ``"minari"`` Minari's datasets root (``MINARI_DATASETS_PATH``, else
             ``~/.minari/datasets``), where the two datasets must not exist yet.
         images: Also store camera images at every step, at the run's camera size: the robot's
-            workspace camera in the replay (its hands, the bottle and the glass), the teacher's
+            workspace camera in the replay (its hands and the objects they hold), the teacher's
             demonstrations as the robot's eyes saw them.
         from_eval: An evaluation's folder (``RUN_DIR/eval/...``, of this run): the robot's
             episodes are then one per evaluated variation (:mod:`imitate.export.from_eval`),
@@ -81,11 +81,12 @@ def export(run_dir: str | Path, format: str, out: str | Path | None = None,
     into_root = out is None and format == "minari"
     moved: tuple[str, ...]
     if into_root:
-        from imitate.export.to_minari import ROBOT_ID, TEACHER_ID
+        from imitate.envs.task import get_task
+        from imitate.export.to_minari import dataset_ids
 
         root = Path(os.environ.get("MINARI_DATASETS_PATH") or "~/.minari/datasets")
         out = root.expanduser().absolute()
-        moved = (ROBOT_ID, TEACHER_ID)  # the datasets' folders, moved into the root
+        moved = dataset_ids(get_task(run.config.task).env_id)  # the datasets' folders
     else:
         out = (Path(out) if out is not None else run.path / "export" / format).absolute()
         moved = ("",)  # the whole folder

@@ -1,10 +1,10 @@
-"""A run's episodes: the robot's reproduction replayed in ``PouringEnv``, and the teacher's
+"""A run's episodes: the robot's reproduction replayed in its task's env, and the teacher's
 demonstrations.
 
 The robot's episode is a real sequence of env transitions: :func:`imitate.motion.replay.replay`
-drives a
-``PouringEnv`` along the run's plan exactly as the replay stage does (same settings, seed and
-grasps) while :class:`Recorder` keeps what every ``reset`` and ``step`` returned.
+drives the run's task's env along the run's plan exactly as the replay stage does (same
+settings, seed and grasps) while :class:`Recorder` keeps what every ``reset`` and ``step``
+returned.
 
 The teacher's episodes are its segmented demonstrations at camera rate. The teacher has no
 actions to record, so an action is the **next frame's true object poses** (the state it moves
@@ -23,17 +23,16 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
-from imitate import ENV_ID
 from imitate.demos.segment import task_demo
 from imitate.envs.assembly import Obstacle
+from imitate.envs.bimanual import BimanualEnv
 from imitate.envs.observation import EYES, ObservationConfig, frames, session
-from imitate.envs.pour.env import PouringEnv
+from imitate.envs.task import Task, get_task
 from imitate.envs.teacher_motion import script_demonstrations
-from imitate.models import humanoid, objects
+from imitate.models import humanoid
 from imitate.motion import Plan
 from imitate.motion.replay import replay
 from imitate.run import Run
-from imitate.taskspace import _POUR_DIMS as TASK_DIMS
 
 __all__ = [
     "Episode", "Recorder", "image_kwargs", "obstacle_vector", "recorded", "robot_episode",
@@ -41,17 +40,14 @@ __all__ = [
 ]
 
 POSE = ("x", "y", "z", "qw", "qx", "qy", "qz")  # an object frame: position [m], quaternion wxyz
-OBJECTS = (objects.BOTTLE, objects.GLASS)
 # An obstacle or fixture as an observation: there (1) or not (0, all zeros), a box (1) or an
 # upright cylinder (0), its centre [m] and half extents [m] (a cylinder's: radius, radius, half
 # height); an evaluated variation's places for them, its obstacle and its fixtures.
 OBSTACLE = ("present", "box", "x", "y", "z", "half_x", "half_y", "half_z")
 PLACES = ("obstacle", "shelf", "plate")
-ENVIRONMENT = (*OBJECTS, *PLACES)  # the observations that are the environment's state
 # What ``Episode.states`` hold: MuJoCo's whole integration state (mj_getState's spec), enough to
 # continue the physics bit for bit from any step (mj_setState, then the step's action).
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
-TASK = "pour from the bottle into the glass"
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,6 +69,9 @@ class Episode:
         metadata: What the episode is beyond its env (``None``: nothing more); JSON-ready.
         states: ``(n + 1, k)`` MuJoCo states (:data:`STATE_SPEC`) at each observation
             (``None``: not from physics).
+        instruction: What the robot is asked to do (its task's ``instruction``).
+        environment: The vector observations that are the environment's state, not the
+            robot's: the objects' frames (an evaluated variation's obstacle and fixtures too).
     """
 
     observations: dict[str, np.ndarray]
@@ -88,6 +87,8 @@ class Episode:
     options: dict | None = None
     metadata: dict | None = None
     states: np.ndarray | None = None
+    instruction: str = ""
+    environment: tuple[str, ...] = ()
 
     def __len__(self) -> int:
         return len(self.actions)
@@ -99,13 +100,13 @@ class Episode:
 
 
 class Recorder(gym.Wrapper):
-    """Keeps what every ``reset`` and ``step`` of the wrapped ``PouringEnv`` returned.
+    """Keeps what every ``reset`` and ``step`` of the wrapped task env returned.
 
     :func:`imitate.motion.replay.replay` drives it as it would the env: the env's own attributes
     (``dt``, ``data``, ``config``, ``joint_positions``) are read through.
     """
 
-    def __init__(self, env: PouringEnv):
+    def __init__(self, env: BimanualEnv):
         super().__init__(env)
         self.seed, self.options = None, None
         self.observations: list[np.ndarray | dict[str, Any]] = []
@@ -132,7 +133,7 @@ class Recorder(gym.Wrapper):
 
     def _state(self) -> np.ndarray:
         """The env's MuJoCo state now, ``(k,)`` (:data:`STATE_SPEC`)."""
-        env = cast(PouringEnv, self.env.unwrapped)
+        env = cast(BimanualEnv, self.env.unwrapped)
         state = np.empty(mujoco.mj_stateSize(env.model, STATE_SPEC))
         mujoco.mj_getState(env.model, env.data, state, STATE_SPEC)
         return state
@@ -144,31 +145,28 @@ class Recorder(gym.Wrapper):
 
 
 def robot_episode(run: Run, images: bool = False) -> Episode:
-    """The run's plan replayed in ``PouringEnv`` as the replay stage does, recorded.
+    """The run's plan replayed in its task's env as the replay stage does, recorded.
 
     The env gets the run's settings as its kwargs (with ``images``, ``obs_type="state_pixels"`` at
-    the run's camera size); the episode's spec is ``imitate/Pouring-v0``'s with these kwargs and
-    the episode's length as its time limit, so its last step is truncated, as that ``TimeLimit``
+    the run's camera size); the episode's spec is the task's env id's with these kwargs and the
+    episode's length as its time limit, so its last step is truncated, as that ``TimeLimit``
     truncates it.
 
     Args:
         run: The run; needs its config, ``model.npz`` (the gaze) and ``plan.npz``.
-        images: Also record the env's camera images (``PouringEnv``'s default ``cameras``,
-            the workspace camera) at every step.
+        images: Also record the env's camera images (the env's default ``cameras``, the
+            workspace camera) at every step.
     """
     config = run.config
-    kwargs: dict[str, Any] = {
-        "particles": config.particles,
-        "obstacles": [dataclasses.asdict(o) for o in config.scene().obstacles],
-        **image_kwargs(run, images),
-    }
-    gaze = run.gaze
-    options = {"bottle_grasp": config.bottle_grasp, "glass_grasp": config.glass_grasp}
-    return recorded(run.plan, PouringEnv(**kwargs), kwargs, config.seed, options, gaze)
+    task, scene = get_task(config.task), config.scene()
+    kwargs: dict[str, Any] = {**task.env_kwargs(scene), **image_kwargs(run, images)}
+    return recorded(
+        task, run.plan, task.env(**kwargs), kwargs, config.seed, task.scene_reset(scene), run.gaze
+    )
 
 
 def image_kwargs(run: Run, images: bool) -> dict[str, Any]:
-    """``PouringEnv``'s kwargs for its camera images at the run's size, if ``images``; the
+    """A task env's kwargs for its camera images at the run's size, if ``images``; the
     cameras and the teacher's absence named, so that a dataset's env spec keeps them."""
     if not images:
         return {}
@@ -179,20 +177,21 @@ def image_kwargs(run: Run, images: bool) -> dict[str, Any]:
 
 
 def recorded(
+    task: Task,
     plan: Plan,
-    env: PouringEnv,
+    env: BimanualEnv,
     kwargs: dict[str, Any],
     seed: int,
     options: dict,
     gaze: np.ndarray,
 ) -> Episode:
-    """``plan`` replayed in ``env`` (made with ``kwargs``, closed here) from ``seed`` and the
-    reset ``options``, recorded as an :class:`Episode`; its last step truncated (see
-    :func:`robot_episode`)."""
+    """``plan`` replayed in ``env`` (``task``'s, made with ``kwargs``, closed here) from
+    ``seed`` and the reset ``options``, recorded as an :class:`Episode`; its last step
+    truncated (see :func:`robot_episode`)."""
     recorder = Recorder(env)
     try:
         # The Recorder stands in for the env it wraps (its attributes are read through).
-        replay(plan, cast(PouringEnv, recorder), seed=seed, options=options, gaze=gaze)
+        replay(plan, cast(BimanualEnv, recorder), seed=seed, options=options, gaze=gaze)
     finally:
         recorder.close()
     rewards, terminated, truncated = (np.array(v) for v in zip(*recorder.steps, strict=True))
@@ -213,16 +212,17 @@ def recorded(
         })
     names = {
         "qpos": humanoid.JOINTS, "qvel": humanoid.JOINTS,
-        **{obj: POSE for obj in OBJECTS}, "action": humanoid.JOINTS,
+        **{obj: POSE for obj in task.objects}, "action": humanoid.JOINTS,
     }
     spec = dataclasses.replace(
-        gym.spec(ENV_ID), kwargs=kwargs, max_episode_steps=len(recorder.actions)
+        gym.spec(task.env_id), kwargs=kwargs, max_episode_steps=len(recorder.actions)
     )
     return Episode(
         observations=observations, actions=np.array(recorder.actions), rewards=rewards,
         terminations=terminated, truncations=truncated, infos=_stacked(recorder.infos),
         names=names, dt=recorder.dt, env=spec, seed=recorder.seed, options=recorder.options,
-        states=np.array(recorder.states),
+        states=np.array(recorder.states), instruction=task.instruction,
+        environment=task.objects,
     )
 
 
@@ -230,14 +230,16 @@ def teacher_episodes(run: Run, images: bool = False) -> Iterator[Episode]:
     """The teacher's demonstrations as the robot cut them, one episode each, in time order.
 
     Observations: ``task`` ``(n + 1, 7)``, the task space (eq. 1) of the tracked objects as
-    learning takes it; ``bottle`` and ``glass`` ``(n + 1, 7)``, the true object frames
-    (position [m], quaternion wxyz); with ``images``, both eyes' images as the robot saw them.
-    Actions: ``(n, 14)`` the next frame's true ``bottle`` and ``glass``, named as those
-    observations are (``bottle.x``, ..., ``glass.qz``). Rewards are 0 (none is
-    defined for the teacher); the last step terminates (the demonstration is complete). Infos:
-    ``time``, the session time [s] of each frame.
+    learning takes it (labelled by the task's ``dims``); the tool and the target by name
+    ``(n + 1, 7)``, the true object frames (position [m], quaternion wxyz); with ``images``,
+    both eyes' images as the robot saw them. Actions: ``(n, 14)`` the next frame's true tool
+    and target, named as those observations are (``<tool>.x``, ..., ``<target>.qz``). Rewards
+    are 0 (none is defined for the teacher); the last step terminates (the demonstration is
+    complete). Infos: ``time``, the session time [s] of each frame.
     """
     config = run.config
+    task = get_task(config.task)
+    objects = task.objects
     motion = script_demonstrations(config.teacher())
     demos = run.demos
     watching = None
@@ -246,16 +248,16 @@ def teacher_episodes(run: Run, images: bool = False) -> Iterator[Episode]:
             teacher=config.teacher(), fps=config.fps, width=config.width, height=config.height,
         ))
     names = {
-        "task": TASK_DIMS, **{obj: POSE for obj in OBJECTS},
-        "action": tuple(f"{obj}.{c}" for obj in OBJECTS for c in POSE),
+        "task": task.dims, **{obj: POSE for obj in objects},
+        "action": tuple(f"{obj}.{c}" for obj in objects for c in POSE),
     }
     for demo in demos.segments:
         poses = motion.poses(demo.times)
-        true = {obj: np.hstack(poses[obj]) for obj in OBJECTS}
-        task = task_demo(
+        true = {obj: np.hstack(poses[obj]) for obj in objects}
+        space = task_demo(
             demo, demos.objects, demos.gaze, smoothing=config.smoothing, rate=config.fps
         )
-        observations = {"task": task, **true}
+        observations = {"task": space, **true}
         if watching is not None:
             pairs = list(frames(dataclasses.replace(watching, times=demo.times)))
             observations.update({eye: np.array(eye_images) for eye, eye_images in zip(
@@ -264,10 +266,10 @@ def teacher_episodes(run: Run, images: bool = False) -> Iterator[Episode]:
         n = len(demo.times) - 1
         yield Episode(
             observations=observations,
-            actions=np.hstack([true[obj] for obj in OBJECTS])[1:],
+            actions=np.hstack([true[obj] for obj in objects])[1:],
             rewards=np.zeros(n), terminations=np.arange(n) == n - 1,
             truncations=np.zeros(n, dtype=bool), infos={"time": demo.times}, names=names,
-            dt=1.0 / config.fps,
+            dt=1.0 / config.fps, instruction=task.instruction, environment=objects,
         )
 
 

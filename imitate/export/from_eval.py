@@ -7,10 +7,11 @@ perturbed physics from its first replay seed, recorded (:func:`imitate.export.ep
 Its observations also hold the variation's obstacle and fixtures, ``obstacle``, ``shelf`` and
 ``plate`` ``(n + 1, 8)`` (:data:`~imitate.export.episodes.OBSTACLE`, zeros where it has none), the
 same at every step: a policy sees what it must avoid.
-The episode's ``metadata`` says what it is: ``teacher``, ``variation`` (the id), ``settings``
-(the record's, :class:`~imitate.evaluation.variation.Variation`), ``outcome`` and ``pour_min``
-(the evaluation's, over all its replays and its plan's clearance), ``pour_fraction`` and
-``poured`` (this replay's: the env's ``is_success``).
+The episode's ``metadata`` says what it is: ``teacher``, ``variation`` (the id), ``task`` (its
+name), ``settings`` (the record's, :class:`~imitate.evaluation.variation.Variation`),
+``outcome`` (the evaluation's, over all its replays and its plan's clearance) and the task's own
+(its ``exported``: e.g. the evaluation's smallest score over the replays, this replay's measure
+and whether it succeeded, the env's ``is_success``).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from imitate.envs.task import get_task
 from imitate.errors import ImitateError
 from imitate.evaluation.suite import Suite
 from imitate.evaluation.suite_run import last_records
@@ -64,7 +66,9 @@ def evaluated(run: Run, eval_dir: Path) -> Evaluated:
     records = last_records(eval_dir)
     summary = load_json(eval_dir / "summary.json")
     try:
-        suite = Suite.from_dict(summary["suite"], source=str(eval_dir / "summary.json"))
+        suite = Suite.from_dict(
+            summary["suite"], source=str(eval_dir / "summary.json"), task=run.config.task
+        )
         draw_seed, digests = summary["seed"], {t["seed"]: t["digest"] for t in summary["teachers"]}
     except (KeyError, TypeError) as err:
         raise ImitateError(
@@ -99,11 +103,12 @@ def evaluated_episodes(
     Raises:
         ImitateError: a variation's plan differs from the evaluated one.
     """
+    task = get_task(run.config.task)
     for record in progress_bar(evaluation.records, progress, desc="export", unit="episode"):
         variation = Variation.from_json(record["settings"])
         teacher = record["teacher"]
         gaze = evaluation.models[teacher].gaze
-        plan = plan_variation(evaluation.models[teacher].model, gaze, variation)
+        plan = plan_variation(evaluation.models[teacher].model, gaze, variation, task)
         evaluated_plan = record["plan"]
         if (plan.min_distance, plan.n_iter) != (
             evaluated_plan["min_distance_m"], evaluated_plan["iterations"]
@@ -113,15 +118,11 @@ def evaluated_episodes(
                 f"evaluated (clearance {plan.min_distance} m, {plan.n_iter} iterations against "
                 f"{evaluated_plan['min_distance_m']} m, {evaluated_plan['iterations']})"
             )
-        scene, pixels = variation.scene(), image_kwargs(run, images)
-        kwargs: dict[str, Any] = {
-            "particles": scene.particles,
-            "obstacles": [dataclasses.asdict(o) for o in scene.obstacles],
-            **pixels,
-        }
-        options = {"bottle_grasp": variation.bottle_grasp, "glass_grasp": variation.glass_grasp}
+        scene, pixels = variation.scene(task), image_kwargs(run, images)
+        kwargs: dict[str, Any] = {**task.env_kwargs(scene), **pixels}
         episode = recorded(
-            plan, physics(variation, **pixels), kwargs, variation.replay_seeds[0], options, gaze
+            task, plan, physics(variation, task, **pixels), kwargs, variation.replay_seeds[0],
+            task.scene_reset(scene), gaze,
         )
         places = {
             place: np.tile(vector(getattr(variation, place)), (len(episode) + 1, 1))
@@ -131,28 +132,28 @@ def evaluated_episodes(
             episode,
             observations={**episode.observations, **places},
             names={**episode.names, **dict.fromkeys(PLACES, OBSTACLE)},
+            environment=(*episode.environment, *PLACES),
             metadata={
-                "teacher": teacher, "variation": variation.id, "settings": record["settings"],
-                "outcome": record["outcome"], "pour_min": record["pour_min"],
-                "pour_fraction": float(episode.infos["pour_fraction"][-1]),
-                "poured": bool(episode.infos["is_success"][-1]),
+                "teacher": teacher, "variation": variation.id, "task": task.name,
+                "settings": record["settings"], "outcome": record["outcome"],
+                **task.exported(record, {k: v[-1] for k, v in episode.infos.items()}),
             },
         )
 
 
 def replayed(metadata: dict, actions: np.ndarray) -> dict:
     """An exported episode's ``actions`` ``(n, 18)`` [rad] stepped in its variation's physics
-    from its reset (the ``metadata`` of :func:`evaluated_episodes`): ``{"pour_fraction",
-    "spilled", "is_success"}`` after the last step, to check against the metadata."""
+    from its reset (the ``metadata`` of :func:`evaluated_episodes`): its task's measures
+    (``Task.measures``) and ``is_success`` after the last step, to check against the
+    metadata."""
+    task = get_task(metadata["task"])
     variation = Variation.from_json(metadata["settings"])
-    env = physics(variation)
+    env = physics(variation, task)
     try:
-        env.reset(seed=variation.replay_seeds[0], options={
-            "bottle_grasp": variation.bottle_grasp, "glass_grasp": variation.glass_grasp,
-        })
+        env.reset(seed=variation.replay_seeds[0], options=task.scene_reset(variation.scene(task)))
         info: dict[str, Any] = {}
         for action in np.asarray(actions, dtype=np.float64):
             _, _, _, _, info = env.step(action)
     finally:
         env.close()
-    return {key: info[key] for key in ("pour_fraction", "spilled", "is_success")}
+    return {**task.record(info), "is_success": info["is_success"]}

@@ -4,22 +4,23 @@
 Each dataset holds its episodes back to back in one file per kind:
 
 - ``data/chunk-000/file-000.parquet``: one row per step: ``observation.state``,
-  ``observation.environment_state`` (the bottle's and glass's frames; an evaluated variation's
-  obstacle and fixtures after them), ``action``,
+  ``observation.environment_state`` (the episode's ``environment``: the tool's and target's
+  frames; an evaluated variation's obstacle and fixtures after them), ``action``,
   ``next.reward``, ``next.done``, ``next.success`` (robot), ``timestamp`` (from the episode's
   start), ``frame_index``, ``episode_index``, ``index`` (over the dataset), ``task_index``;
 - with ``--images``, ``videos/observation.images.<camera>/chunk-000/file-000.mp4`` (H.264), the
   episodes' frames back to back (the robot's: its workspace camera; the teacher's: the eyes that
   watched it);
-- ``meta/info.json`` (features, fps, totals), ``meta/tasks.parquet`` (the task by its index,
-  as pandas writes it), ``meta/episodes/chunk-000/file-000.parquet`` (one row per episode: its
-  rows ``dataset_from_index..dataset_to_index``, its span of each video
+- ``meta/info.json`` (features, fps, totals), ``meta/tasks.parquet`` (the task, the episodes'
+  ``instruction``, by its index, as pandas writes it),
+  ``meta/episodes/chunk-000/file-000.parquet`` (one row per episode: its rows
+  ``dataset_from_index..dataset_to_index``, its span of each video
   ``from_timestamp..to_timestamp`` [s], its statistics ``stats/<feature>/<stat>`` and, where the
   episode has any, ``metadata``: JSON of what it is, e.g. an evaluated variation's settings and
   outcome), ``meta/stats.json`` (the statistics over all episodes).
 
 A row holds the observation before the step, so an episode's last observation is not stored.
-Both datasets name their features alike: ``<observation>.<component>`` (``bottle.x``, ...), and
+Both datasets name their features alike: ``<observation>.<component>`` (``<tool>.x``, ...), and
 the teacher's actions (the next frame's objects) as its ``observation.environment_state``.
 """
 
@@ -38,7 +39,7 @@ import pyarrow.parquet as pq
 
 from imitate.envs.video import ENCODER
 from imitate.errors import ImitateError
-from imitate.export.episodes import ENVIRONMENT, TASK, Episode
+from imitate.export.episodes import Episode
 
 __all__ = ["CODEBASE_VERSION", "DATA_PATH", "EPISODES_PATH", "VIDEO_PATH", "write"]
 
@@ -64,10 +65,11 @@ def _write_dataset(root: Path, episodes: Iterable[Episode], robot_type: str | No
     info: dict[str, Any] = {}
     rows: list[dict[str, Any]] = []
     stats: list[dict[str, dict]] = []
-    frames = 0
+    frames, instruction = 0, ""
     with ExitStack() as files:
         data, videos = None, {}
         for i, episode in enumerate(episodes):
+            instruction = instruction or episode.instruction
             fps = _fps(episode, info.get("fps"))
             columns, images = _frames(episode, i, frames, fps)
             table = _table(columns)
@@ -92,7 +94,7 @@ def _write_dataset(root: Path, episodes: Iterable[Episode], robot_type: str | No
     n = len(rows)
     info.update(total_episodes=n, total_frames=frames, splits={"train": f"0:{n}"})
     pq.write_table(pa.Table.from_pylist(rows), _path(root, EPISODES_PATH))
-    _write_tasks(root / "meta" / "tasks.parquet")
+    _write_tasks(root / "meta" / "tasks.parquet", instruction)
     aggregated = {key: _aggregate([s[key] for s in stats]) for key in stats[0]}
     (root / "meta" / "stats.json").write_text(json.dumps(aggregated, indent=4) + "\n")
     (root / "meta" / "info.json").write_text(json.dumps(info, indent=4) + "\n")
@@ -187,7 +189,7 @@ def _info(columns, videos, episode: Episode, fps: int, robot_type: str | None) -
 def _state_keys(episode: Episode) -> tuple[list[str], list[str]]:
     """The observations of ``observation.state`` and of ``observation.environment_state``."""
     obs = episode.observations
-    environment = [k for k in ENVIRONMENT if k in obs]
+    environment = [k for k in episode.environment if k in obs]
     return [k for k in obs if k not in environment and k not in episode.images], environment
 
 
@@ -206,7 +208,7 @@ def _row(
     """The episode's row of ``meta/episodes``: where its rows and frames are, its statistics."""
     n = len(episode)
     row: dict[str, Any] = {
-        "episode_index": index, "tasks": [TASK], "length": n,
+        "episode_index": index, "tasks": [episode.instruction], "length": n,
         "data/chunk_index": 0, "data/file_index": 0,
         "dataset_from_index": start, "dataset_to_index": start + n,
         "meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0,
@@ -225,9 +227,9 @@ def _row(
     return row
 
 
-def _write_tasks(path: Path) -> None:
-    """``meta/tasks.parquet`` as pandas writes a frame indexed by the task (LeRobot reads it
-    with pandas; without the index metadata a task would read as its number)."""
+def _write_tasks(path: Path, task: str) -> None:
+    """``meta/tasks.parquet`` as pandas writes a frame indexed by the ``task`` (LeRobot reads
+    it with pandas; without the index metadata a task would read as its number)."""
     index = "__index_level_0__"
     pandas = {
         "index_columns": [index], "column_indexes": [], "pandas_version": "2.2.0",
@@ -238,7 +240,7 @@ def _write_tasks(path: Path) -> None:
              "numpy_type": "object", "metadata": None},
         ],
     }
-    table = pa.table({"task_index": pa.array([0], pa.int64()), index: pa.array([TASK])})
+    table = pa.table({"task_index": pa.array([0], pa.int64()), index: pa.array([task])})
     pq.write_table(table.replace_schema_metadata({b"pandas": json.dumps(pandas).encode()}), path)
 
 

@@ -1,8 +1,9 @@
 """Minari datasets (Farama's standard for offline RL): one for the robot, one for the teacher.
 
-Under the root directory (Minari's ``MINARI_DATASETS_PATH``): :data:`ROBOT_ID`, whose env spec is
-``imitate/Pouring-v0`` with the run's kwargs (``dataset.recover_environment()`` makes it), and
-:data:`TEACHER_ID`, which comes from no env (its spaces are stored, its env spec is not). Both
+Under the root directory (Minari's ``MINARI_DATASETS_PATH``), named by the task's env id
+(:func:`dataset_ids`): the robot's, whose env spec is the task's env id with the run's kwargs
+(``dataset.recover_environment()`` makes it), and the teacher's, which comes from no env (its
+spaces are stored, its env spec is not). Both
 carry ``requirements`` (this package's distribution and MuJoCo, pinned: the physics replays bit
 for bit only there; ``recover_environment()`` warns about others) and ``code_permalink`` (the
 distribution's release on the package index, whose sdist holds the code of that version).
@@ -26,18 +27,25 @@ from minari.data_collector import EpisodeBuffer
 from imitate import __version__
 from imitate.export.episodes import Episode
 
-__all__ = ["DISTRIBUTION", "ROBOT_ID", "TEACHER_ID", "code_permalink", "write"]
+__all__ = ["DISTRIBUTION", "code_permalink", "dataset_ids", "write"]
 
-ROBOT_ID = "imitate/pouring/robot-v0"
-TEACHER_ID = "imitate/pouring/teacher-v0"
 _METADATA = {"author": "imitate", "algorithm_name": "imitate (Muehlig et al., ICRA 2009)"}
 DISTRIBUTION = "imitate-humanoid"  # pyproject.toml's project name (the import name is imitate)
 
 
+def dataset_ids(env_id: str) -> tuple[str, str]:
+    """The robot's and the teacher's dataset ids of a task whose env id is ``env_id``:
+    ``imitate/Name-v0`` gives ``imitate/name/robot-v0`` and ``imitate/name/teacher-v0``."""
+    name = env_id.split("/")[-1].rsplit("-", 1)[0].lower()
+    return f"imitate/{name}/robot-v0", f"imitate/{name}/teacher-v0"
+
+
 def write(root: Path, robot: Iterable[Episode], teacher: Iterable[Episode]) -> None:
-    """Write both datasets under ``root``; the robot's episode is one (its env spec the
-    dataset's)."""
+    """Write both datasets under ``root`` (:func:`dataset_ids` of the robot's env); the robot's
+    episode is one (its env spec the dataset's)."""
     (episode,) = robot
+    env_id = episode.env.id if episode.env is not None else ""
+    robot_id, teacher_id = dataset_ids(env_id)
     metadata = {
         **_METADATA, "code_permalink": code_permalink(),
         "requirements": [f"{DISTRIBUTION}=={__version__}", f"mujoco=={mujoco.__version__}"],
@@ -47,22 +55,24 @@ def write(root: Path, robot: Iterable[Episode], teacher: Iterable[Episode]) -> N
         warnings.filterwarnings("ignore", message=r"`(author_email|eval_env)`")
         warnings.filterwarnings("ignore", message="env_spec is None")  # the teacher has no env
         minari.create_dataset_from_buffers(
-            ROBOT_ID, [_buffer(episode)], env=episode.env, **metadata,
-            description="The robot pours from the bottle into the glass: the optimized plan "
-            "replayed in imitate/Pouring-v0. Actions: joint position targets [rad] (float64, as "
-            "given to env.step); the last step is truncated by the spec's time limit.",
+            robot_id, [_buffer(episode)], env=episode.env, **metadata,
+            description=f"The robot is to {episode.instruction}: the optimized plan replayed in "
+            f"{env_id}. Actions: joint position targets [rad] (float64, as given to env.step); "
+            "the last step is truncated by the spec's time limit.",
         )
         episodes = iter(teacher)
         first = next(episodes)
+        objects = " and ".join(first.environment)
         dataset = minari.create_dataset_from_buffers(
-            TEACHER_ID, [_buffer(first)], **metadata,
+            teacher_id, [_buffer(first)], **metadata,
             observation_space=gym.spaces.Dict({
                 key: _space(value) for key, value in first.observations.items()
             }),
             action_space=_space(first.actions),
-            description="The teacher's demonstrations as the robot cut them. Observations: "
-            "task (eq. 1 of the tracked objects), bottle and glass (true frames: position [m], "
-            "quaternion wxyz). Actions: the next frame's true bottle and glass; rewards 0.",
+            description=f"The teacher's demonstrations ({first.instruction}) as the robot cut "
+            f"them. Observations: task (eq. 1 of the tracked objects), {objects} (true frames: "
+            f"position [m], quaternion wxyz). Actions: the next frame's true {objects}; "
+            "rewards 0.",
         )
         for episode in episodes:  # one at a time: with images an episode is large
             dataset.update_dataset_from_buffer([_buffer(episode)])

@@ -23,8 +23,7 @@ from matplotlib.patches import Ellipse
 
 from imitate.learning import LearnedModel
 from imitate.learning.gmm import GMM
-from imitate.taskspace import _POUR_DIMS as TASK_DIMS
-from imitate.taskspace import TASK_UNITS
+from imitate.taskspace import TASK_DIMS, TASK_UNITS
 
 DPI = 110  # dots per inch of the saved figures; Fig. 8 shows its snapshots at their pixel size
 LOOSE = 0.1  # Fig. 9 marks the steps whose similarity weight is below this share of its largest
@@ -64,13 +63,16 @@ def _gmm_panel(ax, data: np.ndarray, gmm: GMM, column: int, title: str) -> None:
     ax.set_xlabel("t [s]")
 
 
-def plot_gmm_with_and_without_dtw(raw: LearnedModel, aligned: LearnedModel, dim: int = 3) -> Figure:
+def plot_gmm_with_and_without_dtw(
+    raw: LearnedModel, aligned: LearnedModel, dim: int = 3, labels: Sequence[str] = TASK_DIMS
+) -> Figure:
     """Fig. 4: GMM components (2-sigma ellipses) over one task dimension and time.
 
     Args:
         raw: Model learned without DTW (``LearningConfig(use_dtw=False)``).
         aligned: Model learned with DTW.
         dim: Task-space dimension to show (index into :data:`imitate.taskspace.TASK_DIMS`).
+        labels: The 7 task-space dimensions' labels (the task's ``dims``).
 
     Returns:
         The figure.
@@ -78,7 +80,7 @@ def plot_gmm_with_and_without_dtw(raw: LearnedModel, aligned: LearnedModel, dim:
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True, layout="constrained")
     _gmm_panel(axes[0], raw.data, raw.gmm, dim + 1, "without DTW")
     _gmm_panel(axes[1], aligned.data, aligned.gmm, dim + 1, "with DTW")
-    axes[0].set_ylabel(f"{TASK_DIMS[dim]} [{TASK_UNITS[dim]}]")
+    axes[0].set_ylabel(f"{labels[dim]} [{TASK_UNITS[dim]}]")
     return fig
 
 
@@ -102,13 +104,17 @@ def plot_bic_curves(curves: dict[str, np.ndarray]) -> Figure:
     return fig
 
 
-def plot_gmr(model: LearnedModel, demos: Sequence[np.ndarray] | None = None) -> Figure:
+def plot_gmr(
+    model: LearnedModel, demos: Sequence[np.ndarray] | None = None,
+    labels: Sequence[str] = TASK_DIMS,
+) -> Figure:
     """GMR mean +- 2 sigma over time for every task-space dimension.
 
     Args:
         model: A learned model.
         demos: Demonstrations to overlay, each of shape ``(n_steps, 7)`` on the model's time
             axis; the aligned ones if ``None`` and the model used DTW.
+        labels: The 7 task-space dimensions' labels (the task's ``dims``).
 
     Returns:
         The figure.
@@ -125,7 +131,7 @@ def plot_gmr(model: LearnedModel, demos: Sequence[np.ndarray] | None = None) -> 
         ax.fill_between(model.times, model.mean[:, d] - 2 * sigma[:, d],
                         model.mean[:, d] + 2 * sigma[:, d], color="tab:blue", alpha=0.3)
         ax.plot(model.times, model.mean[:, d], color="tab:blue", lw=1.5)
-        name = TASK_DIMS[d] if n_dims == len(TASK_DIMS) else f"x{d}"
+        name = labels[d] if n_dims == len(TASK_DIMS) else f"x{d}"
         unit = TASK_UNITS[d] if n_dims == len(TASK_DIMS) else ""
         ax.set_ylabel(f"{name}\n[{unit}]" if unit else name, fontsize=8)
     np.atleast_1d(axes)[-1].set_xlabel("t [s]")
@@ -185,6 +191,7 @@ def plot_collision_sweep(
     clearance: dict[float, np.ndarray],
     similarity: np.ndarray | None = None,
     n_dims: int = 2,
+    labels: Sequence[str] = TASK_DIMS,
 ) -> Figure:
     """Fig. 9: the reproductions over a sweep of collision weights.
 
@@ -205,6 +212,7 @@ def plot_collision_sweep(
         clearance: ``{collision weight: smallest signed distance (T,) [m]}``.
         similarity: ``(T, 7)`` diagonals of the similarity weights ``W_t``, or ``None``.
         n_dims: How many of ``dx, dy, dz`` to show.
+        labels: The 7 task-space dimensions' labels (the task's ``dims``).
     """
     weights = sorted(reproductions)
     first = reproductions[weights[0]][:, :3]
@@ -226,7 +234,7 @@ def plot_collision_sweep(
                             transform=ax.get_xaxis_transform(),
                             label=f"similarity weight below {LOOSE:.0%} of its largest")
         _sweep_curves(ax, times, {w: reproductions[w][:, d] for w in weights}, clearance, colours)
-        ax.set_ylabel(f"{TASK_DIMS[d]} [{TASK_UNITS[d]}]")
+        ax.set_ylabel(f"{labels[d]} [{TASK_UNITS[d]}]")
     ax = axes[-2]
     position_variance = variance[:, :3].sum(axis=1)
     ax.fill_between(times, 0.0, 1.0, where=position_variance > np.median(position_variance),

@@ -176,7 +176,7 @@ def _correct_ends(
     """Ends ``(2, 3)`` [m] corrected for the rims' extremes, from the triangulated extremes.
 
     The correction has two fixed points, the axis tilted towards or away from the eyes by
-    about the same angle (a bottle lying across the view); it starts from ``raw`` and from
+    about the same angle (an object lying across the view); it starts from ``raw`` and from
     ``raw`` with its axis mirrored in the plane normal to the line of sight, and keeps the
     result whose predicted extremes and centres fit both views better.
 

@@ -1,25 +1,57 @@
 """``report.html``: the page a person opens instead of reading JSON, for a run directory
-(:func:`run_page`, from its report and settings) or an evaluation (:func:`eval_page`, from its
-summary). Self-contained: inline CSS, no script, no external resource; every figure, video and
-artifact is referenced by a path relative to the page. A section whose numbers are not in the
-report (a run stopped before ``replay``) is left out.
+(:func:`run_page`, from its report, settings and task) or an evaluation (:func:`eval_page`, from
+its summary). Self-contained: inline CSS, no script, no external resource; every figure, video
+and artifact is referenced by a path relative to the page. A section whose numbers are not in
+the report (a run stopped before ``replay``) is left out. The page names no task: the run's
+task gives its words (:class:`Words`).
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from html import escape
 from pathlib import Path
+from typing import Any, Protocol
 
 from imitate.rundir.artifacts import write_atomic
 from imitate.rundir.layout import PAGE
 
-__all__ = ["CAPTIONS", "eval_page", "run_page", "save_eval_page", "save_run_page"]
+__all__ = ["CAPTIONS", "Words", "eval_page", "run_page", "save_eval_page", "save_run_page"]
 
-CAPTIONS = {  # figures/<name>.png: what it shows
+
+class Words(Protocol):
+    """What the run's page says of its task (an :class:`imitate.envs.task.Task` is one)."""
+
+    @property
+    def objects(self) -> tuple[str, str]:
+        """The tool and the target (Fig. 4 shows the tool's angle)."""
+        ...
+
+    @property
+    def phase(self) -> str:
+        """The name of its critical phase (the optimization's ``<phase>_phase_err_m``)."""
+        ...
+
+    @property
+    def verbs(self) -> tuple[str, str]:
+        """The title's verdict on a run that succeeds and on one that does not."""
+        ...
+
+    @property
+    def noun(self) -> str:
+        """The reproduction as a noun, in the video's caption."""
+        ...
+
+    @property
+    def headline(self) -> Callable[[Mapping[str, Any]], list[tuple[str, str]]]:
+        """``headline(replay) -> [(label, text)]``: the task's rows of the headline."""
+        ...
+
+
+CAPTIONS = {  # figures/<name>.png: what it shows ({tool}: the tool's name)
     "observation": "Tracked against true object trajectories; detected demonstration boundaries.",
-    "fig4_gmm_dtw": "Paper Fig. 4: GMM over time on the bottle's angle, without and with DTW.",
+    "fig4_gmm_dtw": "Paper Fig. 4: GMM over time on the {tool}'s angle, without and with DTW.",
     "fig5_bic": "Paper Fig. 5: BIC against K, fast heuristic (K-means only) and full EM.",
     "gmr": "GMR mean ± 2σ per task dimension over the aligned demonstrations.",
     "fig8_snapshots": "Paper Fig. 8: the physics replays without the collision cost (top) and "
@@ -34,8 +66,8 @@ CAPTIONS = {  # figures/<name>.png: what it shows
                             "plan, and where the weight is low little pulls the plan back.",
     "costs": "Total cost per optimizer iteration, for each weight of the sweep.",
 }
-VIDEO_CAPTION = (
-    "The teacher demonstrates; the robot reproduces the pour without the collision cost (into "
+VIDEO_CAPTION = (  # {noun}: the task's
+    "The teacher demonstrates; the robot reproduces {noun} without the collision cost (into "
     "its chest), then with it, in physics."
 )
 CLAIM = (
@@ -68,25 +100,27 @@ STYLE = "".join((
 
 
 def run_page(
-    report: dict, config: dict, run_dir: str,
+    report: dict, config: dict, run_dir: str, task: Words,
     outdated: Mapping[str, tuple[str, str]] | None = None,
 ) -> str:
-    """The page of a run: ``report`` (``report.json``), ``config`` (``config.json``), and
-    ``run_dir`` for the title; links from ``report["artifacts"]``, relative to the run directory.
-    ``outdated``: the stages whose files no longer follow from the run, by name: their files in
-    words and why; the page says so at its top, with the command that makes them again."""
+    """The page of a run: ``report`` (``report.json``), ``config`` (``config.json``), ``run_dir``
+    for the title, ``task`` its task's words; links from ``report["artifacts"]``, relative to the
+    run directory. ``outdated``: the stages whose files no longer follow from the run, by name:
+    their files in words and why; the page says so at its top, with the command that makes them
+    again."""
     artifacts, replay = report.get("artifacts", {}), report.get("replay", {})
-    verdict = f" — {_yes_no(replay['success'], 'pours', 'does not pour')}" if replay else ""
+    verdict = f" — {_yes_no(replay['success'], *map(escape, task.verbs))}" if replay else ""
     body = [
         f"<h1>imitate run{verdict}</h1>",
         f"<p class=sub><code>{escape(run_dir)}</code> · seed {report.get('seed', '?')}</p>",
         *(_outdated(outdated or {}, run_dir)),
         f"<p>{CLAIM}</p>",
-        "<div class=row>" + _section("Headline", _table(_headline(report)))
+        "<div class=row>" + _section("Headline", _table(_headline(report, task)))
         + _section("Stage timings", _timings(report.get("timings", {}))) + "</div>",
     ]
     if "video" in artifacts:
-        body.append(_section("Video", _media("video", artifacts["video"], VIDEO_CAPTION)))
+        caption = VIDEO_CAPTION.format(noun=task.noun)
+        body.append(_section("Video", _media("video", artifacts["video"], caption)))
     if "optimization" in report:
         body.append(_section("Collision-weight sweep", _sweep(report["optimization"])))
     figures = sorted(
@@ -96,7 +130,8 @@ def run_page(
     )
     if figures:
         body.append(_section("Figures", "".join(
-            _media("img", path, CAPTIONS.get(name, name)) for name, path in figures
+            _media("img", path, CAPTIONS.get(name, name).format(tool=task.objects[0]))
+            for name, path in figures
         )))
     settings = _table((escape(k), _value(v)) for k, v in config.items())
     body += [
@@ -107,9 +142,14 @@ def run_page(
     return _page(f"imitate run {run_dir}", body)
 
 
-def eval_page(summary: dict, failures: list[str], links: list[str], title: str) -> str:
+def eval_page(
+    summary: dict, failures: list[str], links: list[str], title: str, score: str
+) -> str:
     """The page of an evaluation: ``summary`` (``summary.json``), the failure videos and the
-    other files to link, paths relative to the page; ``title`` names what was evaluated."""
+    other files to link, paths relative to the page; ``title`` names what was evaluated;
+    ``score`` the name of the task's score (``Task.score.name``), whose numbers the summary
+    holds as ``<score>_mean`` and ``<score>_min``, and its margin section as
+    ``<score>_threshold`` and ``low_<score>``."""
     n, outcomes, run = summary["variations"], summary["outcomes"], summary["run"]
     low, high = summary["success_wilson95"]
     gap, seconds = summary["clearance_gap_mm"], summary["seconds_per_variation"]
@@ -118,14 +158,14 @@ def eval_page(summary: dict, failures: list[str], links: list[str], title: str) 
     headline = [
         ("success", f"{outcomes['success']} of {n} = {summary['success_rate']:.3f}"),
         ("95 % Wilson interval", f"{low:.3f} … {high:.3f}"),
-        ("pour over the replays",
-         f"mean {summary['pour_mean']:.3f}, min {summary['pour_min']:.3f}"),
+        (f"{score} over the replays",
+         f"mean {summary[f'{score}_mean']:.3f}, min {summary[f'{score}_min']:.3f}"),
         ("plan − physics clearance [mm]",
          (", ".join(f"{k} {v:.2f}" for k, v in gap.items() if k != "plans") or "—")
          + f" over the {gap['plans']} plans that keep clear"),
         (f"plans that keep the {kept['margin_m'] * 1000:g} mm margin",
          f"{kept['plans']}: touching in physics {kept['physics_contact']}, "
-         f"pouring below {kept['pour_threshold']:g} in a replay {kept['low_pour']}"),
+         f"{score} below {kept[f'{score}_threshold']:g} in a replay {kept[f'low_{score}']}"),
         ("plans with the null-space push",
          f"{summary['nullspace_push']['plans']}: successes {summary['nullspace_push']['success']}"),
         ("seconds per variation", ", ".join(f"{k} {v:.1f}" for k, v in seconds.items())),
@@ -158,19 +198,20 @@ def eval_page(summary: dict, failures: list[str], links: list[str], title: str) 
 
 
 def save_run_page(
-    run_dir: Path, report: dict, config: dict,
+    run_dir: Path, report: dict, config: dict, task: Words,
     outdated: Mapping[str, tuple[str, str]] | None = None,
 ) -> Path:
-    """Write ``run_dir/report.html`` from the run's report and settings (and the stages whose
-    files are ``outdated``, see :func:`run_page`), atomically (inside
+    """Write ``run_dir/report.html`` from the run's report, settings and task (and the stages
+    whose files are ``outdated``, see :func:`run_page`), atomically (inside
     :func:`imitate.rundir.artifacts.staged`: with the stage's commit)."""
-    page = run_page(report, config, str(run_dir), outdated)
+    page = run_page(report, config, str(run_dir), task, outdated)
     return write_atomic(Path(run_dir) / PAGE, lambda tmp: tmp.write_text(page))
 
 
-def save_eval_page(out: Path, summary: dict) -> Path:
-    """Write ``out/report.html`` (``out``: an evaluation's folder) from its summary, linking
-    what is there: the failure videos of its digest, its files, the run's page."""
+def save_eval_page(out: Path, summary: dict, score: str) -> Path:
+    """Write ``out/report.html`` (``out``: an evaluation's folder) from its summary and the name
+    of the task's score (see :func:`eval_page`), linking what is there: the failure videos of
+    its digest, its files, the run's page."""
     out = Path(out)
     digests = [t["digest"] for t in summary.get("teachers", ())] or [summary["suite_digest"]]
     failures = sorted(
@@ -179,7 +220,7 @@ def save_eval_page(out: Path, summary: dict) -> Path:
     )
     files = ("summary.json", "results.jsonl", "outcomes.png", f"../{PAGE}")
     links = [name for name in files if (out / name).is_file()]
-    page = eval_page(summary, failures, links, str(out))
+    page = eval_page(summary, failures, links, str(out), score)
     return write_atomic(out / PAGE, lambda tmp: tmp.write_text(page))
 
 
@@ -195,25 +236,25 @@ def _outdated(outdated: Mapping[str, tuple[str, str]], run_dir: str) -> list[str
     ]
 
 
-def _headline(report: dict) -> list[tuple[str, str]]:
-    """(label, value HTML) of the key numbers present in ``report``."""
+def _headline(report: dict, task: Words) -> list[tuple[str, str]]:
+    """(label, value HTML) of the key numbers present in ``report``, the task's from
+    ``task``."""
     demos, perception = report.get("demos", {}), report.get("perception", {})
     learning, opt, replay = (report.get(k, {}) for k in ("learning", "optimization", "replay"))
     rows = []
     if replay:
         rows += [
             ("success", _yes_no(replay["success"], "yes", "no")),
-            ("pour fraction", f"{replay['pour_fraction']:.2f} (mean "
-             f"{replay['pour_fraction_mean']:.2f}, min {replay['pour_fraction_min']:.2f} over "
-             f"the replays), {escape(str(replay['spilled']))} spilled"),
+            *((escape(label), escape(text)) for label, text in task.headline(replay)),
             ("min distance, physics", _mm(replay["min_distance_m"])),
         ]
     if opt:
         pair = " / ".join(opt["closest_pair"]) or "none within 0.2 m"
         rows += [
             ("min distance, plan", f"{_mm(opt['min_distance_m'])} ({escape(pair)})"),
-            ("pour phase error", f"{1e3 * opt['pour_phase_err_m']:.1f} mm, "
-             f"{opt['pour_phase_err_deg']:.2f}°"),
+            (f"{escape(task.phase)} phase error",
+             f"{1e3 * opt[f'{task.phase}_phase_err_m']:.1f} mm, "
+             f"{opt[f'{task.phase}_phase_err_deg']:.2f}°"),
         ]
         rows.append(("optimizer", "converged" if opt["converged"] else (
             f"not converged: stopped at its limit of {opt['iterations']} iterations with the "

@@ -4,11 +4,14 @@ has exactly these keys).
 
 Every stage merges its sections into the report; ``schema`` is the version of this layout,
 raised when a key changes meaning or goes away. Keys are dotted; ``a[].b`` is key ``b`` of every
-item of the list ``a``; ``<stage>`` and ``<name>`` stand for any stage and any artifact.
+item of the list ``a``; ``<stage>`` and ``<name>`` stand for any stage and any artifact. A run's
+task adds keys of its own (:func:`report_keys`): its critical phase's in the optimization
+section, its measures' in the replay section.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -16,13 +19,13 @@ from imitate.errors import ImitateError
 from imitate.rundir.artifacts import load_json
 
 __all__ = [
-    "KINDS", "REPORT_KEYS", "REPORT_SCHEMA", "check_schema", "check_values", "load_report",
-    "markdown",
+    "KINDS", "PHASE_KEYS", "REPORT_KEYS", "REPORT_SCHEMA", "check_schema", "check_values",
+    "load_report", "markdown", "report_keys",
 ]
 
 REPORT_SCHEMA = 1  # report["schema"]
 
-# key: (unit, meaning)
+# key: (unit, meaning; "{outcomes}" stands for the task's)
 REPORT_KEYS: dict[str, tuple[str, str]] = {
     "schema": ("-", "version of this layout: 1"),
     "seed": ("-", "seed of the run"),
@@ -80,14 +83,6 @@ REPORT_KEYS: dict[str, tuple[str, str]] = {
         "-",
         "the two geoms at that distance (empty if none is within 0.2 m)",
     ),
-    "optimization.pour_phase_err_m": (
-        "m",
-        "largest relative-position error from the GMR mean while pouring",
-    ),
-    "optimization.pour_phase_err_deg": (
-        "deg",
-        "largest bottle or glass angle error from the GMR mean while pouring",
-    ),
     "optimization.message": ("-", "what happened, in words"),
     "optimization.sweep[].weight": ("-", "collision weight of one plan of the Fig. 9 sweep"),
     "optimization.sweep[].min_distance_m": ("m", "its smallest signed distance"),
@@ -111,11 +106,6 @@ REPORT_KEYS: dict[str, tuple[str, str]] = {
         "1",
         "share of that in steps of above-median GMR variance",
     ),
-    "replay.pour_fraction": (
-        "1",
-        "fraction of the particles in the glass at the end of the replay",
-    ),
-    "replay.spilled": ("-", "particles in neither container at the end"),
     "replay.min_distance_m": (
         "m",
         "smallest signed distance between geoms that must not touch, in physics",
@@ -124,48 +114,8 @@ REPORT_KEYS: dict[str, tuple[str, str]] = {
         "m",
         "largest relative-position error of the objects against the plan, in physics",
     ),
-    "replay.pour_fraction_mean": (
-        "1",
-        "mean pour fraction over three replays from seeds `seed`, `seed + 1`, `seed + 2` of the "
-        "initial-state noise",
-    ),
-    "replay.pour_fraction_min": ("1", "the smallest of them"),
-    "replay.pour_fractions": ("1", "the three"),
-    "replay.outcome": (
-        "-",
-        "success, plan_collision, physics_contact, spill, low_pour or diverged, of the plan and "
-        "its three pours (imitate.envs.pour.outcome)",
-    ),
+    "replay.outcome": ("-", "the outcome of the plan and its replays: {outcomes}"),
     "replay.success": ("-", "the outcome is success"),
-    "replay.pour_geometry.mouth_above_rim_min_m": (
-        "m",
-        "in the first replay, while liquid leaves the bottle: the lowest height of the bottle's "
-        "mouth above the glass rim, in the glass's frame",
-    ),
-    "replay.pour_geometry.mouth_above_rim_median_m": ("m", "its median"),
-    "replay.pour_geometry.mouth_offset_median_m": (
-        "m",
-        "median distance of the mouth from the glass's axis (the inner rim radius is 40 mm)",
-    ),
-    "replay.pour_geometry.mouth_offset_max_m": ("m", "its largest"),
-    "replay.pour_geometry.tilt_max_deg": ("deg", "the bottle's largest tilt from upright"),
-    "replay.pour_geometry.pour_seconds": (
-        "s",
-        "from the first to the last step at which liquid left the bottle",
-    ),
-    "replay.pour_geometry.stream_offset_median_m": (
-        "m",
-        "median distance from the glass's axis at which the particles first fell through the rim's"
-        " plane",
-    ),
-    "replay.pour_geometry.stream_centre_offset_m": (
-        "m",
-        "distance of their mean crossing point from the axis",
-    ),
-    "replay.pour_geometry.stream_inside_share": (
-        "1",
-        "share of them that fell through within the rim's inner radius",
-    ),
     "video.frames": ("-", "frames of `video.mp4`"),
     "video.seconds": ("s", "its length"),
     "timings.<stage>": ("s", "wall time of each stage run last"),
@@ -174,6 +124,39 @@ REPORT_KEYS: dict[str, tuple[str, str]] = {
         "path of each artifact present, relative to the run directory, by file stem",
     ),
 }
+
+# The keys of a task's critical phase, after "optimization.closest_pair" (``{phase}``: its name).
+PHASE_KEYS = {
+    "optimization.{phase}_phase_err_m": (
+        "m",
+        "largest relative-position error from the GMR mean in the task's critical phase",
+    ),
+    "optimization.{phase}_phase_err_deg": (
+        "deg",
+        "largest tool or target angle error from the GMR mean in it",
+    ),
+}
+
+
+def report_keys(
+    phase: str, outcomes: Sequence[str], task_keys: Mapping[str, tuple[str, str]]
+) -> dict[str, tuple[str, str]]:
+    """The keys of the report of a run whose task has the critical phase ``phase`` (its name),
+    the ``outcomes`` and the keys ``task_keys`` of its own (``replay.*``: unit and meaning):
+    :data:`REPORT_KEYS` with :data:`PHASE_KEYS` and ``task_keys`` in place."""
+    keys: dict[str, tuple[str, str]] = {}
+    for key, (unit, meaning) in REPORT_KEYS.items():
+        if key == "replay.min_distance_m":
+            keys.update(task_keys)
+        keys[key] = (unit, meaning.format(outcomes=_alternatives(outcomes)))
+        if key == "optimization.closest_pair":
+            keys.update({k.format(phase=phase): v for k, v in PHASE_KEYS.items()})
+    return keys
+
+
+def _alternatives(words: Sequence[str]) -> str:
+    """``a, b or c``."""
+    return " or ".join(filter(None, (", ".join(words[:-1]), *words[-1:])))
 
 
 def check_schema(report: Any, path: Path) -> dict:
@@ -212,23 +195,27 @@ KINDS: dict[str, type | tuple[type, ...]] = {
     "optimization.similarity": str, "optimization.sigma_max_scale": (int, float),
     "optimization.iterations": int, "optimization.converged": bool,
     "optimization.closest_pair": list, "optimization.message": str,
-    "optimization.sweep[].weight": (int, float), "replay.pour_fractions": list,
-    "replay.spilled": int, "replay.outcome": str, "replay.success": bool, "video.frames": int,
-    "artifacts.<name>": str,
+    "optimization.sweep[].weight": (int, float), "replay.outcome": str, "replay.success": bool,
+    "video.frames": int, "artifacts.<name>": str,
 }
 
 
 _MISSING = object()  # a declared key not in its section
 
 
-def check_values(report: dict, path: Path) -> None:
+def check_values(
+    report: dict,
+    path: Path,
+    keys: Mapping[str, tuple[str, str]] = REPORT_KEYS,
+    kinds: Mapping[str, type | tuple[type, ...]] = KINDS,
+) -> None:
     """Raise ``ImitateError`` naming ``path``, the key and its value if a section of ``report``
-    (read from ``path``) lacks a key :data:`REPORT_KEYS` declares for it (a stage writes its
-    sections whole, and the page and the summary read them so) or holds one of another kind
-    (a number where the unit is one, :data:`KINDS` where it is ``-``); keys it does not declare
-    are left alone."""
-    for key in REPORT_KEYS:
-        kind = KINDS.get(key, (int, float, type(None)))
+    (read from ``path``) lacks a key ``keys`` declares for it (:func:`report_keys` of the run's
+    task; a stage writes its sections whole, and the page and the summary read them so) or
+    holds one of another kind (a number where the unit is one, ``kinds`` where it is ``-``: the
+    task's with :data:`KINDS`); keys it does not declare are left alone."""
+    for key in keys:
+        kind = kinds.get(key, (int, float, type(None)))
         section, _, rest = key.partition(".")
         if key == "schema" or not rest:
             if key in report and not _of_kind(report[key], kind):
@@ -285,11 +272,13 @@ def _wrong(path: Path, name: str, value: Any, kind: type | tuple[type, ...]) -> 
     )
 
 
-def markdown() -> str:
-    """The keys as a Markdown table (key, unit, meaning)."""
-    rows = [f"| `{key}` | {unit} | {meaning} |" for key, (unit, meaning) in REPORT_KEYS.items()]
+def markdown(keys: Mapping[str, tuple[str, str]] = REPORT_KEYS) -> str:
+    """``keys`` as a Markdown table (key, unit, meaning)."""
+    rows = [f"| `{key}` | {unit} | {meaning} |" for key, (unit, meaning) in keys.items()]
     return "\n".join(["| key | unit | meaning |", "|---|---|---|", *rows])
 
 
 if __name__ == "__main__":
-    print(markdown())
+    print(markdown(report_keys("<phase>", ("the task's outcomes",), {
+        "replay.<key>": ("-", "the task's own keys (its `keys`)"),
+    })))

@@ -279,7 +279,7 @@ class RunConfig:
     def quick(cls, **overrides) -> RunConfig:
         """Small images, 3 demonstrations, short optimization: the whole run in well under
         a minute (for tests)."""
-        values = dict(
+        values: dict[str, Any] = dict(
             n_demos=3, width=320, height=240, fps=20.0, k_max=10, max_iter=30,
             video_width=320, video_height=240, video_fps=10.0,
         )
@@ -320,7 +320,15 @@ class RunConfig:
 
     @classmethod
     def from_json(cls, values: dict[str, Any]) -> RunConfig:
-        """Settings read back from ``config.json``; unknown names are refused."""
+        """Settings read back from ``config.json``; unknown names are refused. A file written
+        before the task was a setting (neither ``task`` nor ``options``) holds the default
+        task's own settings among the others: they are read as its ``options``."""
+        if "task" not in values and "options" not in values:
+            own = tasks.options(tasks.DEFAULT)
+            values = {
+                **{name: v for name, v in values.items() if name not in own},
+                "options": {name: v for name, v in values.items() if name in own},
+            }
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(values) - names)
         if unknown:
@@ -346,18 +354,7 @@ def task_options(task: str, options: dict | None) -> dict[str, float]:
         raise ImitateError(
             f"{', '.join(unknown)} not a setting of task {task!r}; its own: {list(declared)}"
         )
-    values = {}
-    for name, option in declared.items():
-        value = options.get(name, option.default)
-        kind = "a whole number" if option.integer else "a number"
-        if (isinstance(value, bool) or not isinstance(value, int | float)
-                or (option.integer and value != int(value)) or not np.isfinite(value)
-                or not option.low <= value <= option.high):
-            raise ImitateError(
-                f"{name}={value!r} not accepted: {kind} in {option.low:g}..{option.high:g}"
-            )
-        values[name] = int(value) if option.integer else float(value)
-    return values
+    return {name: o.value(name, options.get(name, o.default)) for name, o in declared.items()}
 
 
 def settings(stages: Iterable[str | None] | None = None) -> list[tuple[str, Setting, Any]]:

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import itertools
 import re
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from imitate.envs.assembly import build_model
+from imitate.envs.task import get_task
 from imitate.envs.teacher_motion import script_demonstrations
 from imitate.envs.video import captioned, penetrations, replay_frames, teacher_frames, write_video
 from imitate.errors import ImitateError
@@ -53,17 +55,20 @@ def run(run_dir: Path, config: RunConfig) -> dict:
     _check_states(replayed, config, run_dir / layout.REPLAY)
     sweep = dict(zip(weights, planned.sweep.x, strict=True))
     clearance = dict(zip(weights, planned.sweep.clearance, strict=True))
+    labels = get_task(config.task).dims
     # name: (plots' function, its arguments); Fig. 8's snapshots rendered below
     drawings: dict[str, tuple[Any, ...]] = {
         "observation": (plots.plot_observation, observations, boundaries),
-        "fig4_gmm_dtw": (plots.plot_gmm_with_and_without_dtw, learning.raw, model),
+        "fig4_gmm_dtw": (
+            partial(plots.plot_gmm_with_and_without_dtw, labels=labels), learning.raw, model,
+        ),
         "fig5_bic": (plots.plot_bic_curves, {
             "fast (K-means only)": learning.bic_fast, "full (EM)": learning.bic_full,
         }),
-        "gmr": (plots.plot_gmr, model, list(learning.aligned)),
+        "gmr": (partial(plots.plot_gmr, labels=labels), model, list(learning.aligned)),
         "fig9_collision_sweep": (
-            plots.plot_collision_sweep, plan.times, plan.mean, plan.variance, sweep, clearance,
-            plan.weights,
+            partial(plots.plot_collision_sweep, labels=labels), plan.times, plan.mean,
+            plan.variance, sweep, clearance, plan.weights,
         ),
         "costs": (plots.plot_costs, dict(zip(weights, planned.sweep.cost_total, strict=True))),
     }

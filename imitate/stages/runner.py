@@ -15,14 +15,15 @@ from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
+from imitate.envs.task import Task, get_task
 from imitate.errors import ImitateError
 from imitate.rundir import layout, page
 from imitate.rundir.artifacts import refuse_link, save_json, staged
-from imitate.rundir.schema import REPORT_SCHEMA, check_values, load_report
+from imitate.rundir.schema import KINDS, REPORT_SCHEMA, check_values, load_report, report_keys
 from imitate.stages import provenance, table
-from imitate.stages.config import RunConfig
+from imitate.stages.config import RunConfig, load_config
 
-__all__ = ["run_stage", "run_stages"]
+__all__ = ["run_keys", "run_stage", "run_stages"]
 
 log = logging.getLogger(__name__)
 
@@ -43,7 +44,8 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
     """
     current = table.find(stage)
     run_dir = Path(run_dir)
-    previous = _previous_report(run_dir)
+    task = get_task(config.task)
+    previous = _previous_report(run_dir, _report_task(run_dir, task))
     manifest = provenance.load(run_dir)
     problems = provenance.stale(run_dir, current, config, manifest)
     if problems and not force:
@@ -70,7 +72,7 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
         for name, (files, why) in later.items():
             log.info("out of date: %s (%s); `imitate %s %s` makes it again",
                         files, why, name, run_dir)
-        page.save_run_page(run_dir, report, config.to_json(), later)
+        page.save_run_page(run_dir, report, config.to_json(), task, later)
     log.debug("%s wrote %s in %.1f s", stage, ", ".join(sorted(outputs)), seconds)
     return report
 
@@ -119,8 +121,25 @@ def _report(
     return report
 
 
-def _previous_report(run_dir: Path) -> dict:
-    """``report.json`` of ``run_dir`` (empty if none yet), checked as the page will read it.
+def run_keys(task: Task) -> tuple[dict[str, tuple[str, str]], dict[str, Any]]:
+    """The keys of the report of a run of ``task`` (unit and meaning,
+    :func:`~imitate.rundir.schema.report_keys`) and the kinds of those whose value is no number
+    (:data:`~imitate.rundir.schema.KINDS` and the task's)."""
+    return report_keys(task.phase, task.outcomes, task.keys), {**KINDS, **task.kinds}
+
+
+def _report_task(run_dir: Path, task: Task) -> Task:
+    """The task of the run whose report ``run_dir`` holds (another than ``task`` where this run
+    starts anew over a run of another task): its ``config.json``'s, else ``task``."""
+    try:
+        return get_task(load_config(run_dir).task)
+    except ImitateError:  # no run there yet, or one this imitate cannot read
+        return task
+
+
+def _previous_report(run_dir: Path, task: Task) -> dict:
+    """``report.json`` of ``run_dir`` (empty if none yet), checked as the page will read it
+    (with the keys of a run of ``task``).
 
     Raises:
         ImitateError: it is unreadable, not an object of sections, holds a value of another
@@ -138,7 +157,7 @@ def _previous_report(run_dir: Path) -> dict:
         raise ImitateError(
             f"{path} is not a report (an object of sections); delete it to start a new report"
         )
-    check_values(report, path)
+    check_values(report, path, *run_keys(task))
     return report
 
 

@@ -8,7 +8,7 @@ around the gaze vector, demonstrations found and the largest boundary error agai
 scripted ones.
 
     python scripts/bench/bench_perception.py [--seeds 0 1 2] [--width 640 --height 480] [--json F]
-        [--out DIR]
+        [--out DIR] [--task pour]
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 
 from imitate.demos.segment import StillnessConfig, segment
+from imitate.envs import tasks
 from imitate.envs.observation import ObservationConfig, frames, session
 from imitate.envs.rendering import backend
 from imitate.envs.teacher_motion import TeacherConfig
@@ -37,12 +38,16 @@ from imitate.perception.watch import cameras, ground_truth
 from imitate.rundir.artifacts import save_npz
 
 
-def run_seed(seed: int, width: int, height: int, out: Path | None = None) -> dict:
-    """Render, track and segment one session; returns its measurements.
+def run_seed(
+    seed: int, width: int, height: int, out: Path | None = None, task: str = tasks.DEFAULT
+) -> dict:
+    """Render, track and segment one session of ``task``; returns its measurements.
 
     With ``out``, the observations are kept as ``out/observations_seed{seed}.npz``.
     """
-    config = ObservationConfig(teacher=TeacherConfig(seed=seed), width=width, height=height)
+    config = ObservationConfig(
+        teacher=TeacherConfig(seed=seed, task=task), width=width, height=height
+    )
     sess = session(config)
     perception = perception_config(sess.motion.objects)
     left, right = cameras(sess)
@@ -62,6 +67,7 @@ def run_seed(seed: int, width: int, height: int, out: Path | None = None) -> dic
         "render_pairs_per_s": len(pairs) / timing["render"],
         "track_pairs_per_s": len(pairs) / timing["track"],
         "long_gaps": len(tracks.long_gaps),
+        "objects": list(tracks.objects),
     }
     for k, name in enumerate(tracks.objects):
         err = np.linalg.norm(tracks.position[k] - truth.position[k], axis=-1) * 1e3
@@ -92,13 +98,15 @@ def main(argv=None) -> None:
     parser.add_argument("--height", type=int, default=480)
     parser.add_argument("--json", type=Path, help="also write the rows to this JSON file")
     parser.add_argument("--out", type=Path, help="also keep each seed's observations here")
+    parser.add_argument("--task", choices=tasks.NAMES, default=tasks.DEFAULT,
+                        help="the task the teacher demonstrates")
     args = parser.parse_args(argv)
     print(
         f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores; "
         f"MUJOCO_GL={backend()}; mujoco {mujoco.__version__}; opencv "
         f"{cv2.__version__}; {args.width}x{args.height}, 30 Hz"
     )
-    rows = [run_seed(seed, args.width, args.height, args.out) for seed in args.seeds]
+    rows = [run_seed(seed, args.width, args.height, args.out, args.task) for seed in args.seeds]
     head = (
         f"{'seed':>4} {'object':<7} {'det':>6} {'pos med':>8} {'pos p95':>8} {'pos max':>8} "
         f"{'ang med':>8} {'ang p95':>8} {'demos':>6} {'bound':>7} {'track/s':>8} {'render/s':>9}"
@@ -109,7 +117,7 @@ def main(argv=None) -> None:
         f"{'':>6} {'[s]':>7} {'[pairs]':>8} {'[pairs]':>9}"
     )
     for row in rows:
-        for name in ("bottle", "glass"):
+        for name in row["objects"]:
             o = row[name]
             print(
                 f"{row['seed']:>4} {name:<7} {o['detected']:>6.1%} {o['pos_median_mm']:>8.2f} "

@@ -130,7 +130,7 @@ def child(out: Path, argv: list[str], result: Path) -> int:
 
     observe_stage.watch = observed(observe_stage.watch)
     timers.wrap(optimize, "plan_from_model", "planner (plan_from_model)")
-    timers.wrap(replay, "replay", "physics replays (summed over their threads)")
+    timers.wrap(replay, "measure", "physics replays (summed over their threads)")
     timers.wrap(figures, "write_video", "video (frames + encoding)")
     timers.wrap(figures, "_snapshots", "fig8 snapshot rendering")
     timers.wrap(video, "write_video", "video (frames + encoding)")

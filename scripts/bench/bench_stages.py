@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from imitate.envs.observation import ObservationConfig, frames, session
+from imitate.envs.task import get_task
 from imitate.perception import StereoTracker, perception_config, track
 from imitate.perception import tracks as tracks_module
 from imitate.perception.watch import cameras
@@ -88,15 +89,16 @@ def observe(run_dir: Path, config, threads) -> None:
 
 
 def replay(run_dir: Path, config, threads) -> None:
-    jobs, gaze = replay_stage._replay_jobs(run_dir, config)
+    task = get_task(config.task)
+    jobs, gaze = replay_stage._replay_jobs(run_dir, config, task.replays)
     for k, (p, seed) in enumerate(jobs):
         timed(f"replay: replay {k} alone",
-              lambda p=p, seed=seed: replay_stage._physics(p, config, gaze, seed))
+              lambda p=p, seed=seed: replay_stage._physics(task, p, config, gaze, seed))
     walls = [0.0] * len(jobs)
 
     def one(k):
         start = time.perf_counter()
-        replay_stage._physics(jobs[k][0], config, gaze, jobs[k][1])
+        replay_stage._physics(task, jobs[k][0], config, gaze, jobs[k][1])
         walls[k] = time.perf_counter() - start
 
     workers = min(len(jobs), os.cpu_count() or 1)

@@ -20,14 +20,14 @@ Usage: ``python scripts/experiments/camera_probe.py RUN_DIR [--out DIR] [--episo
 from __future__ import annotations
 
 import argparse
-import dataclasses
+import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from imitate.envs.assembly import GRASP_RANGE
-from imitate.envs.pour.env import PouringEnv
+from imitate.envs.task import get_task
 from imitate.export.episodes import recorded
 from imitate.models import humanoid, objects
 from imitate.perception.colour import object_models
@@ -68,17 +68,17 @@ def tilt(episode) -> np.ndarray:
 def replayed(run, seed: int, options: dict, cameras=(humanoid.WORKSPACE,)):
     """The run's plan replayed from ``seed`` with reset ``options``, recorded with pixels."""
     config = run.config
+    task = get_task(config.task)
     kwargs = {
-        "particles": config.particles,
-        "obstacles": [dataclasses.asdict(o) for o in config.scene().obstacles],
+        **task.env_kwargs(config.scene()),
         "obs_type": "state_pixels", "width": SIZE[0], "height": SIZE[1], "cameras": cameras,
     }
-    return recorded(run.plan, PouringEnv(**kwargs), kwargs, seed, options, run.gaze)
+    return recorded(task, run.plan, task.env(**kwargs), kwargs, seed, options, run.gaze)
 
 
 def visibility(run, out: Path) -> None:
     config = run.config
-    options = {"bottle_grasp": config.bottle_grasp, "glass_grasp": config.glass_grasp}
+    options = get_task(config.task).reset_options(config.options)
     episode = replayed(run, config.seed, options, humanoid.CAMERAS)
     print(f"replay of {run.path}'s plan: {len(episode) + 1} frames at {SIZE[0]}x{SIZE[1]}, "
           f"pour {episode.infos['pour_fraction'][-1]:.2f}")
@@ -155,6 +155,9 @@ def main() -> None:
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     run = load_run(args.run_dir)
+    if run.config.task != "pour":
+        sys.exit(f"camera_probe.py: {args.run_dir} is a run of task {run.config.task!r}; the "
+                 "probe looks for the bottle and the pour")
     visibility(run, args.out)
     probe(run, args.episodes)
 

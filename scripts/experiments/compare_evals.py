@@ -6,9 +6,10 @@ same suite, ``--n`` and ``--seed`` in both, for instance on copies of one ``mode
 code before and after). Nothing is re-run.
 
 Prints the successes of each, one line per variation whose outcome changed (plan and physics
-clearance [mm], smallest pour fraction), and the plan-minus-physics clearance [mm] of the
-variations whose plan is the same in both (same clearance and iterations): there the difference
-is the execution's alone; then the pour over the replays of the plans that keep clear in both.
+clearance [mm], the smallest score: the measure the task's success is judged by, pour's pour
+fraction), and the plan-minus-physics clearance [mm] of the variations whose plan is the same in
+both (same clearance and iterations): there the difference is the execution's alone; then the
+score over the replays of the plans that keep clear in both.
 """
 
 from __future__ import annotations
@@ -19,14 +20,22 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate.envs.pour.outcome import SUCCESS_FRACTION
+from imitate.envs import tasks
+from imitate.envs.task import Task, get_task
 from imitate.errors import ImitateError
+from imitate.evaluation.record import score_keys
 from imitate.evaluation.suite_run import last_records
+from imitate.rundir.artifacts import load_json
 
 
-def _state(r: dict) -> str:
+def _state(r: dict, task: Task) -> str:
     return (f"{r['outcome']:<16}{r['plan']['min_distance_m'] * 1000:7.1f}"
-            f"{r['physics_min_distance_m'] * 1000:7.1f}{r['pour_min']:6.2f}")
+            f"{r['physics_min_distance_m'] * 1000:7.1f}{r[score_keys(task)[1]]:6.2f}")
+
+
+def _task(eval_dir: Path) -> Task:
+    """The task of the evaluation in ``eval_dir`` (its ``summary.json``'s)."""
+    return get_task(load_json(eval_dir / "summary.json").get("task", tasks.DEFAULT))
 
 
 def _gaps(records: list[dict]) -> str:
@@ -42,8 +51,11 @@ def main() -> None:
     args = parser.parse_args()
     try:
         before, after = ({r["id"]: r for r in last_records(d)} for d in (args.before, args.after))
+        task, other = _task(args.before), _task(args.after)
     except ImitateError as err:
         sys.exit(f"compare_evals.py: {err}")
+    if task.name != other.name:
+        sys.exit(f"compare_evals.py: evaluations of two tasks ({task.name}, {other.name})")
     ids = sorted(before.keys() & after.keys())
     if not ids or any(before[i]["settings"] != after[i]["settings"] for i in ids):
         sys.exit("compare_evals.py: the two evaluations do not share their variations "
@@ -51,11 +63,12 @@ def main() -> None:
     for name, records in (("before", before), ("after", after)):
         wins = sum(records[i]["outcome"] == "success" for i in ids)
         print(f"{name:<7} success {wins}/{len(ids)}")
-    print(f"\n{'id':>4}  {'before':<16}{'plan':>7}{'phys':>7}{'pour':>6}   "
-          f"{'after':<16}{'plan':>7}{'phys':>7}{'pour':>6}")
+    score = " " + task.score.name  # a space before it: a name of 6 letters fills the column
+    print(f"\n{'id':>4}  {'before':<16}{'plan':>7}{'phys':>7}{score:>6}   "
+          f"{'after':<16}{'plan':>7}{'phys':>7}{score:>6}")
     changed = [i for i in ids if before[i]["outcome"] != after[i]["outcome"]]
     for i in changed:
-        print(f"{i:>4}  {_state(before[i])}   {_state(after[i])}")
+        print(f"{i:>4}  {_state(before[i], task)}   {_state(after[i], task)}")
     print(f"{len(changed)} outcomes changed")
     same = [
         i for i in ids
@@ -72,11 +85,13 @@ def main() -> None:
         print(f"  smaller in {better} of {len(same)}")
     clear = [i for i in ids if min(before[i]["plan"]["min_distance_m"],
                                    after[i]["plan"]["min_distance_m"]) >= 0]
-    print(f"\npour over the replays of the {len(clear)} variations whose plans keep clear in both:")
+    print(f"\n{task.score.name} over the replays of the {len(clear)} variations whose plans "
+          "keep clear in both:")
+    threshold = task.score.threshold
     for name, records in (("before", before), ("after", after)):
-        pours = np.array([p["pour_fraction"] for i in clear for p in records[i]["replays"]])
-        print(f"  {name + ':':<8}mean {pours.mean():.3f}, below {SUCCESS_FRACTION:g} in "
-              f"{np.sum(pours < SUCCESS_FRACTION)} of {len(pours)} replays")
+        scores = np.array([p[task.score.measure] for i in clear for p in records[i]["replays"]])
+        print(f"  {name + ':':<8}mean {scores.mean():.3f}, below {threshold:g} in "
+              f"{np.sum(scores < threshold)} of {len(scores)} replays")
 
 
 if __name__ == "__main__":

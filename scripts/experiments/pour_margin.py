@@ -23,7 +23,8 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-from imitate.envs.pour.outcome import SUCCESS_FRACTION
+from imitate.envs import tasks
+from imitate.envs.task import get_task
 from imitate.errors import ImitateError
 from imitate.evaluation.suite_run import last_records
 
@@ -42,6 +43,10 @@ def main() -> None:
     except ImitateError as err:
         sys.exit(f"pour_margin: {err}")
     summary = json.loads((args.eval_dir / "summary.json").read_text())
+    task = summary.get("task", tasks.DEFAULT)
+    if task != "pour":
+        sys.exit(f"pour_margin: {args.eval_dir} is an evaluation of task {task!r}, not of pouring")
+    success_fraction = get_task("pour").score.threshold
     replays = [(r, p) for r in records for p in r["replays"] if p.get("geometry")]
     print(f"{len(records)} variations, {len(replays)} replays with their geometry\n")
     print("teacher  default run: pours        inside  stream [mm]  mouth off/above [mm]  "
@@ -50,7 +55,7 @@ def main() -> None:
         run = t["default_run"] or {}
         g = run.get("pour_geometry") or {}
         own = [p for r, p in replays if r["teacher"] == t["seed"]]
-        low = sum(p["pour_fraction"] < SUCCESS_FRACTION for p in own)
+        low = sum(p["pour_fraction"] < success_fraction for p in own)
         pours = " ".join(f"{v:.3f}" for v in run.get("pour_fractions", []))
         print(f"{t['seed']:>7}  {pours:<22} {_f(g.get('stream_inside_share'), 1, 6)}  "
               f"{_f(g.get('stream_offset_median_m'), 1000, 11)}  "
@@ -64,7 +69,7 @@ def main() -> None:
         chosen = (inside >= low) & (inside < high)
         if chosen.any():
             print(f"{low:5.3f}-{min(high, 1.0):5.3f}  {chosen.sum():8d}  {pour[chosen].mean():9.3f}"
-                  f"  {np.sum(pour[chosen] < SUCCESS_FRACTION):14d}")
+                  f"  {np.sum(pour[chosen] < success_fraction):14d}")
     print("\nSpearman correlation of the pour with (over the replays):")
     for name in GEOMETRY:
         values = np.array([p["geometry"][name] for _, p in replays], dtype=float)

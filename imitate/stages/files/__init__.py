@@ -9,7 +9,8 @@
 
 ``X.load(run_dir)`` reads a file, ``x.save(run_dir)`` writes it (atomically, see
 :mod:`imitate.rundir.artifacts`; inside a stage, with its commit). A file's array names are
-written in its own module only. A file that is missing or unusable raises
+written in its own module only (beside those of the library's ``to_arrays``, which it holds:
+``LearnedModel``'s, ``Plan``'s, ``Observations``'). A file that is missing or unusable raises
 :class:`~imitate.errors.ImitateError` naming it and the command that writes it again.
 """
 
