@@ -11,6 +11,7 @@ The task (:class:`~imitate.envs.task.Task`) builds the physics, measures each re
 from __future__ import annotations
 
 import time
+import warnings
 from typing import Any, cast
 
 import mujoco
@@ -70,6 +71,14 @@ def replay_once(
     return cast(ReplayRecord, {"seed": seed, **record, "geometry": watched})
 
 
+def _quiet_predict(learned, times: np.ndarray) -> np.ndarray:
+    """The GMR covariance ``(T, m, m)`` at a plan's ``times`` [s]: its grid may end up to half a
+    planner step past the movement's span, which is not the user's extrapolation to warn of."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="predict at t = ", category=UserWarning)
+        return learned.predict(times)[1]
+
+
 class Trial:
     """Runs variations of ``task`` with one teacher's learned model; keeps its unconstrained
     reproductions.
@@ -127,7 +136,7 @@ class Trial:
                 "seconds": plan_seconds,
             },
             "change": task_change(plan, free, critical, task.phase),
-            "mahalanobis": mahalanobis(plan, self.learned.predict(plan.times)[1]),
+            "mahalanobis": mahalanobis(plan, _quiet_predict(self.learned, plan.times)),
             "replays": replays,
             "physics_min_distance_m": physics_min,
             "clearance_gap_m": plan.min_distance - physics_min,

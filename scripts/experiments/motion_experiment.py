@@ -41,7 +41,7 @@ def run_plan(planning, learned, weight: float, max_iter: int, critical):
 
 
 def measures(record: dict) -> str:
-    """A replay's record as text: its task's measures and clearance."""
+    """A replay's task measures (``Task.record``) as text."""
     return ", ".join(
         f"{key} {value:.2f}" if isinstance(value, float) else f"{key} {value}"
         for key, value in record.items()
@@ -101,9 +101,10 @@ def main() -> None:
         rng = np.random.default_rng(0)
         successes = 0
         for k in range(args.variations):
+            options = [task.options[f"{obj}_grasp"] for obj in task.objects]
             grasp = {
                 f"{obj}_grasp": float(rng.uniform(o.low, o.high))
-                for obj in task.objects for o in (task.options[f"{obj}_grasp"],)
+                for obj, o in zip(task.objects, options, strict=True)
             }
             obstacle = Obstacle("box", (float(rng.uniform(0.45, 0.6)), float(rng.uniform(
                 -0.1, 0.1)), TABLE_HEIGHT + 0.05), (0.03, 0.03, 0.05))
