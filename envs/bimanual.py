@@ -20,7 +20,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
-from imitate.envs import assembly
+from imitate.envs import assembly, tasks
 from imitate.envs.collision import CollisionPairs, signed_distances
 from imitate.envs.mannequin import pose_arm, shoulder_position
 from imitate.envs.rendering import make_renderer
@@ -44,10 +44,12 @@ class BimanualEnv(gym.Env):
     """A task's two objects in the robot's hands, in full physics (see the module docstring).
 
     Attributes:
+        task: The task's name (its default grasps), set by the task's env.
         objects: The tool and the target, set by the task's env.
         tool_inside: Whether the tool goes into the target (``SceneConfig.tool_inside``).
     """
 
+    task: str
     objects: tuple[str, str]
     tool_inside: bool = False
 
@@ -194,11 +196,16 @@ class BimanualEnv(gym.Env):
             self._renderer = None
 
     # ---------------------------------------------------------------- the task's part
-    def _scene_config(self, **kwargs: Any) -> assembly.SceneConfig:
-        """The scene of ``teacher`` and ``obstacles`` (and a task's own ``kwargs``)."""
-        return assembly.SceneConfig(objects=self.objects, particles=0, **kwargs,
-                                    grasps=tuple(shapes.GRASP[obj] for obj in self.objects),
-                                    tool_inside=self.tool_inside)
+    def _scene_config(
+        self, teacher: bool, obstacles: tuple[assembly.Obstacle, ...]
+    ) -> assembly.SceneConfig:
+        """The scene of ``teacher`` and ``obstacles``, the objects at the task's default grasps
+        (a task env with scene arguments of its own adds them)."""
+        grasps = tuple(tasks.options(self.task)[f"{obj}_grasp"].default for obj in self.objects)
+        return assembly.SceneConfig(
+            teacher=teacher, obstacles=obstacles, objects=self.objects, grasps=grasps,
+            tool_inside=self.tool_inside,
+        )
 
     def _task_reset(self) -> None:
         """The task's part of ``reset``, after the objects are in the hands."""

@@ -18,9 +18,8 @@ import numpy as np
 from imitate.envs import tasks
 from imitate.envs.assembly import Obstacle, SceneConfig
 from imitate.envs.bimanual import BimanualEnv
-from imitate.errors import ImitateError
 
-__all__ = ["Score", "Task", "Watcher", "get_task"]
+__all__ = ["Score", "Task", "Watcher", "get_task", "shared_outcome"]
 
 
 class Watcher(Protocol):
@@ -60,7 +59,6 @@ class Task:
         env: Its env class; its ``objects`` are the tool (right hand) and the target (left).
         env_id: Its Gymnasium id.
         dims: Labels of the 7 task-space columns (eq. 1) in figures and exports.
-        summary: What the robot does, one sentence without a full stop.
         phase: The name of its critical phase (report keys ``<phase>_phase_err_m``).
         outcomes: The outcomes of a reproduction, ``"success"`` first.
         measures: The keys of a replay's record that the task adds (from the env's ``info`` at
@@ -96,7 +94,6 @@ class Task:
     env: type[BimanualEnv]
     env_id: str
     dims: tuple[str, ...]
-    summary: str
     phase: str
     outcomes: tuple[str, ...]
     measures: Mapping[str, tuple[str, str]]
@@ -121,19 +118,20 @@ class Task:
         return self.env.objects
 
     @property
+    def error_keys(self) -> tuple[str, str]:
+        """The report's (and a plan record's) keys of a plan's largest position [m] and angle
+        [deg] error in the critical phase: ``<phase>_phase_err_m``, ``<phase>_phase_err_deg``."""
+        return f"{self.phase}_phase_err_m", f"{self.phase}_phase_err_deg"
+
+    @property
     def options(self) -> dict[str, tasks.Option]:
         """Its own run settings (:func:`imitate.envs.tasks.options`)."""
         return tasks.options(self.name)
 
     def settings(self, options: Mapping[str, Any] | None = None) -> dict[str, Any]:
-        """Its own settings: the defaults with ``options`` replacing some of them."""
-        options = dict(options or {})
-        unknown = sorted(set(options) - set(self.options))
-        if unknown:
-            raise ImitateError(
-                f"settings {unknown} are not task {self.name!r}'s; its own: {list(self.options)}"
-            )
-        return {name: options.get(name, o.default) for name, o in self.options.items()}
+        """Its own settings: the defaults with ``options`` replacing some of them, checked
+        (:func:`imitate.envs.tasks.settings`)."""
+        return tasks.settings(self.name, options)
 
     def reset_options(self, options: Mapping[str, Any] | None = None) -> dict[str, float]:
         """The env's reset options (the grasps) for these settings."""
@@ -183,6 +181,20 @@ class Task:
         names = [n for n in self.options if not n.endswith("_grasp")]
         get = values.get if isinstance(values, Mapping) else lambda n: getattr(values, n)
         return {name: get(name) for name in names}
+
+
+def shared_outcome(plan_min_distance: float, replays: Sequence[Mapping[str, Any]]) -> str | None:
+    """The outcomes every task's outcome checks first, in this order: ``diverged`` (a replay's
+    physics blew up), ``plan_collision`` (the plan itself comes closer than 0 to something),
+    ``physics_contact`` (the plan keeps clear, a replay does not); ``None`` if none applies and
+    the task's own measures decide."""
+    if any(r["diverged"] for r in replays):
+        return "diverged"
+    if plan_min_distance < 0:
+        return "plan_collision"
+    if min(r["min_distance_m"] for r in replays) < 0:
+        return "physics_contact"
+    return None
 
 
 def get_task(name: str) -> Task:

@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import importlib
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from numbers import Real
 from typing import Any
 
 from imitate.errors import ImitateError
 
-__all__ = ["DEFAULT", "NAMES", "Option", "check", "module", "options"]
+__all__ = ["DEFAULT", "NAMES", "Option", "check", "module", "options", "settings"]
 
 NAMES = ("pour", "insert")
 DEFAULT = "pour"
@@ -52,14 +54,14 @@ class Option:
             ImitateError: naming ``name``, ``value`` and what is accepted, unless it is a number
                 in range (a whole one if ``integer``).
         """
-        if (isinstance(value, bool) or not isinstance(value, int | float)
-                or not math.isfinite(value) or not self.low <= value <= self.high
-                or (self.integer and value != int(value))):
+        number = float(value) if isinstance(value, Real) and not isinstance(value, bool) else None
+        if (number is None or not math.isfinite(number) or not self.low <= number <= self.high
+                or (self.integer and not number.is_integer())):
             kind = "a whole number" if self.integer else "a number"
             raise ImitateError(
                 f"{name}={value!r} not accepted: {kind} in {self.low:g}..{self.high:g}"
             )
-        return int(value) if self.integer else float(value)
+        return int(number) if self.integer else number
 
 
 def check(name: str) -> None:
@@ -77,3 +79,19 @@ def module(name: str, part: str):
 def options(name: str) -> dict[str, Option]:
     """The task ``name``'s own run settings by name, in order (light: no MuJoCo)."""
     return module(name, "options").OPTIONS
+
+
+def settings(name: str, given: Mapping[str, Any] | None = None) -> dict[str, float]:
+    """Task ``name``'s own settings: ``given`` checked, with the defaults of those not given, in
+    the task's order.
+
+    Raises:
+        ImitateError: a name not of the task's (with its flag), or a value out of its range.
+    """
+    declared = options(name)
+    given = dict(given or {})
+    unknown = sorted(set(given) - set(declared))
+    if unknown:
+        shown = ", ".join(f"{n} (--{n.replace('_', '-')})" for n in unknown)
+        raise ImitateError(f"{shown} not a setting of task {name!r}; its own: {list(declared)}")
+    return {n: o.value(n, given.get(n, o.default)) for n, o in declared.items()}

@@ -10,13 +10,14 @@ learner and the planner):
   ``plan``, ``replay``, ``report``, ..., and ``replan(**settings)``).
 - :func:`learn`: a :class:`~imitate.learning.LearnedModel` from task-space demonstrations.
 - :func:`reproduce`: the robot's plan for a learned model in a scene.
-- :func:`actions`: a plan's actions at the env's step, to play it in ``imitate/Pouring-v0``.
+- :func:`actions`: a plan's actions at the env's step, to play it in a task's env.
 """
 
 from typing import TYPE_CHECKING
 
 import gymnasium as gym
 
+from imitate.envs import tasks
 from imitate.errors import ImitateError
 
 if TYPE_CHECKING:
@@ -27,15 +28,13 @@ if TYPE_CHECKING:
 __all__ = ["ENV_ID", "ImitateError", "Run", "actions", "learn", "load_run", "reproduce"]
 __version__ = "0.1.0"  # the package's version (pyproject.toml reads it)
 
-ENV_ID = "imitate/Pouring-v0"
+ENV_ID = "imitate/Pouring-v0"  # the default task's
 
-if ENV_ID not in gym.registry:
-    gym.register(id=ENV_ID, entry_point="imitate.envs.pour.env:PouringEnv", max_episode_steps=500)
-if "imitate/Inserting-v0" not in gym.registry:
-    gym.register(
-        id="imitate/Inserting-v0", entry_point="imitate.envs.insert.env:InsertingEnv",
-        max_episode_steps=500,
-    )
+for _task in tasks.NAMES:  # one Gymnasium id per task
+    _light = tasks.module(_task, "options")
+    if _light.ENV_ID not in gym.registry:
+        gym.register(id=_light.ENV_ID, entry_point=f"imitate.envs.{_task}.env:{_light.ENV_CLASS}",
+                     max_episode_steps=500)
 
 # The API's names and the modules they come from, imported when first asked for.
 _LAZY = {

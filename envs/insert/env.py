@@ -66,16 +66,13 @@ applied: a refused reset leaves the env as it was.
 
 from __future__ import annotations
 
-import dataclasses
 from numbers import Real
 from typing import Any
 
 import numpy as np
 
-from imitate.envs import assembly
 from imitate.envs.bimanual import BimanualEnv
 from imitate.envs.insert.geometry import stick_end
-from imitate.envs.insert.options import OPTIONS
 from imitate.envs.insert.outcome import SUCCESS_DEPTH, inserted
 from imitate.errors import ImitateError
 from imitate.models import objects
@@ -86,6 +83,7 @@ __all__ = ["InsertingEnv"]
 class InsertingEnv(BimanualEnv):
     """The insertion task in full physics (see the module docstring)."""
 
+    task = "insert"
     objects = (objects.STICK, objects.GLASS)
     _insert_weight: float
     _deepest: tuple[float, float]
@@ -103,11 +101,6 @@ class InsertingEnv(BimanualEnv):
         self._deepest = (0.0, 0.0)  # depth in the glass [m], offset from its axis there [m]
         self._progress = 0.0
         super().__init__(*args, **kwargs)
-
-    def _scene_config(self, **kwargs: Any) -> assembly.SceneConfig:
-        scene = super()._scene_config(**kwargs)
-        grasps = tuple(OPTIONS[f"{obj}_grasp"].default for obj in self.objects)
-        return dataclasses.replace(scene, grasps=grasps)
 
     def _task_reset(self) -> None:
         self._deepest = (0.0, 0.0)

@@ -1,8 +1,10 @@
-"""The insertion task's own run settings (light: the command line's help reads them)."""
+"""The insertion task's light part: its Gymnasium id and its own run settings (read by
+``import imitate`` and by the command line's help, without MuJoCo)."""
 
 from imitate.envs.tasks import Option
 from imitate.models.shapes import GLASS, GRASP, GRASP_RANGE, STICK
 
+ENV_ID, ENV_CLASS = "imitate/Inserting-v0", "InsertingEnv"  # the class in the env module
 OPTIONS = {
     "stick_grasp": Option(
         GRASP[STICK], "where the robot holds the stick, height above its lower end [m]",

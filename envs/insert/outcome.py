@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
+from imitate.envs.task import shared_outcome
+
 __all__ = ["OUTCOMES", "SUCCESS_DEPTH", "inserted", "outcome"]
 
 SUCCESS_DEPTH = 0.03  # [m] below the glass's rim
@@ -31,12 +33,9 @@ def outcome(plan_min_distance: float, replays: Sequence[Mapping], options: Mappi
     """The outcome (one of :data:`OUTCOMES`) of a plan's clearance [m] and its replays, each
     ``{"insert_depth", "insert_offset", "min_distance_m", "diverged"}`` (``options``: the
     task's settings, unused)."""
-    if any(r["diverged"] for r in replays):
-        return "diverged"
-    if plan_min_distance < 0:
-        return "plan_collision"
-    if min(r["min_distance_m"] for r in replays) < 0:
-        return "physics_contact"
+    shared = shared_outcome(plan_min_distance, replays)
+    if shared is not None:
+        return shared
     depth = min(r["insert_depth"] for r in replays)
     if inserted(depth):
         return "success"

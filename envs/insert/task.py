@@ -10,6 +10,7 @@ import numpy as np
 
 from imitate.envs.insert.env import InsertingEnv
 from imitate.envs.insert.geometry import InsertGeometry
+from imitate.envs.insert.options import ENV_ID
 from imitate.envs.insert.outcome import OUTCOMES, SUCCESS_DEPTH, outcome
 from imitate.envs.task import Score, Task
 from imitate.models import objects
@@ -104,9 +105,8 @@ KEYS = {
 TASK = Task(
     name="insert",
     env=InsertingEnv,
-    env_id="imitate/Inserting-v0",
+    env_id=ENV_ID,
     dims=("dx", "dy", "dz", "stick_angle", "stick_gaze", "glass_angle", "glass_gaze"),
-    summary="puts the stick in its right hand into the glass in its left",
     phase="insert",
     outcomes=OUTCOMES,
     measures={

@@ -64,6 +64,7 @@ refused reset leaves the env as it was.
 
 from __future__ import annotations
 
+import dataclasses
 from numbers import Real
 from typing import Any
 
@@ -81,6 +82,7 @@ __all__ = ["PouringEnv"]
 class PouringEnv(BimanualEnv):
     """The pouring task in full physics (see the module docstring)."""
 
+    task = "pour"
     objects = (objects.BOTTLE, objects.GLASS)
     _pour_weight: float
     _pour_fraction: float
@@ -97,8 +99,10 @@ class PouringEnv(BimanualEnv):
             dtype=int,
         )
 
-    def _scene_config(self, particles: int = 60, **kwargs: Any) -> assembly.SceneConfig:
-        return assembly.SceneConfig(particles=particles, **kwargs)
+    def _scene_config(
+        self, teacher: bool, obstacles: tuple[assembly.Obstacle, ...], particles: int = 60
+    ) -> assembly.SceneConfig:
+        return dataclasses.replace(super()._scene_config(teacher, obstacles), particles=particles)
 
     def _task_reset(self) -> None:
         assembly.fill_tool(self.model, self.data, self.np_random)

@@ -1,8 +1,10 @@
-"""The pouring task's own run settings (light: the command line's help reads them)."""
+"""The pouring task's light part: its Gymnasium id and its own run settings (read by
+``import imitate`` and by the command line's help, without MuJoCo)."""
 
 from imitate.envs.tasks import Option
 from imitate.models.shapes import BOTTLE, GLASS, GRASP, GRASP_RANGE, MAX_PARTICLES
 
+ENV_ID, ENV_CLASS = "imitate/Pouring-v0", "PouringEnv"  # the class in the env module
 OPTIONS = {
     "bottle_grasp": Option(
         GRASP[BOTTLE], "where the robot holds the bottle, height above its bottom [m]",

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
+from imitate.envs.task import shared_outcome
+
 __all__ = ["OUTCOMES", "SUCCESS_FRACTION", "outcome", "poured"]
 
 SUCCESS_FRACTION = 0.9  # of the particles in the glass
@@ -31,12 +33,9 @@ def outcome(plan_min_distance: float, replays: Sequence[Mapping], options: Mappi
     ``{"pour_fraction", "spilled", "min_distance_m", "diverged"}`` (``options["particles"]``
     of liquid)."""
     particles = options["particles"]
-    if any(r["diverged"] for r in replays):
-        return "diverged"
-    if plan_min_distance < 0:
-        return "plan_collision"
-    if min(r["min_distance_m"] for r in replays) < 0:
-        return "physics_contact"
+    shared = shared_outcome(plan_min_distance, replays)
+    if shared is not None:
+        return shared
     worst = min(replays, key=lambda r: r["pour_fraction"])
     if poured(worst["pour_fraction"]):
         return "success"

@@ -10,6 +10,7 @@ import numpy as np
 
 from imitate.envs.pour.env import PouringEnv
 from imitate.envs.pour.geometry import PourGeometry
+from imitate.envs.pour.options import ENV_ID
 from imitate.envs.pour.outcome import OUTCOMES, SUCCESS_FRACTION, outcome
 from imitate.envs.task import Score, Task
 
@@ -103,9 +104,8 @@ KEYS = {
 TASK = Task(
     name="pour",
     env=PouringEnv,
-    env_id="imitate/Pouring-v0",
+    env_id=ENV_ID,
     dims=("dx", "dy", "dz", "bottle_angle", "bottle_gaze", "glass_angle", "glass_gaze"),
-    summary="pours from the bottle in its right hand into the glass in its left",
     phase="pour",
     outcomes=OUTCOMES,
     measures={

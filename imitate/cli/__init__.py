@@ -1,6 +1,7 @@
 """The ``imitate`` command: one sub-command per stage of a run, and ``run`` for all of them.
 
-    imitate run --out runs/latest             # watch, learn, optimize, pour, plot
+    imitate run --out runs/latest             # watch, learn, optimize, replay, plot
+    imitate run --task insert --out runs/insert  # the second task
     imitate run --quick --out runs/quick      # small images, 3 demonstrations: under a minute
     imitate optimize runs/latest --collision-weight 30   # re-plan with the learned model
     imitate replay runs/latest && imitate figures runs/latest

@@ -159,7 +159,7 @@ def summary(report: dict, stages: tuple[str, ...], run_dir: Path, task: Task) ->
         "perception": ("pos_err_mm_median", "pos_err_mm_p95", "angle_err_deg_median"),
         "learning": ("bic", "n_components", "n_components_fast_bic", "n_components_full_bic"),
         "optimization": (
-            "min_distance_m", f"{task.phase}_phase_err_m", f"{task.phase}_phase_err_deg",
+            "min_distance_m", *task.error_keys,
         ),
         "replay": (*task.measures, "min_distance_m", "success"),
     }

@@ -52,8 +52,8 @@ def build_parser(full: Iterable[str] | None = None) -> argparse.ArgumentParser:
     full = COMMANDS if full is None else tuple(full)
     parser = argparse.ArgumentParser(
         prog="imitate",
-        description="Task-level imitation learning of pouring (Muehlig et al., ICRA 2009), "
-        "end to end in MuJoCo.",
+        description="Task-level imitation learning of bimanual tasks (Muehlig et al., ICRA "
+        "2009), end to end in MuJoCo: pouring, inserting (--task).",
     )
     parser.add_argument("--version", action="version", version=f"imitate {__version__}")
     _add_verbosity(parser, logging.INFO)
@@ -89,21 +89,27 @@ def config_for(args: argparse.Namespace, base: RunConfig) -> RunConfig:
     """The run's configuration: ``base`` (the run directory's ``config.json`` for a later
     stage, the defaults for ``run`` and ``observe``) with ``--quick`` and the given settings
     applied."""
+    from imitate.envs import tasks
     from imitate.stages.config import RunConfig, settings
 
-    owned = {name for name, s, _ in settings(stages_of(args.command)) if s.flag}
+    stages = stages_of(args.command)
+    owned = {name for name, s, _ in settings(stages) if s.flag}
     given = {k: v for k, v in vars(args).items() if k in owned or k == "seed"}
     options = {k.removeprefix(OPTION): v for k, v in vars(args).items() if k.startswith(OPTION)}
     task = given.get("task", base.task)
     values = base.to_json()
     if task != base.task:  # another task: its own settings from their defaults
         values.update(task=task, options=None)
+    values["options"] = dict(values["options"] or {})
     if args.quick:
         quick = RunConfig.quick(task=task).to_json()
         fresh = starts_run(args.command)
-        values.update({k: v for k, v in quick.items() if fresh or k in owned})
-    values["options"] = {**(values["options"] or {}), **options}
-    return RunConfig.from_json({**values, **given, "options": values["options"]})
+        values.update({k: v for k, v in quick.items() if k != "options" and (fresh or k in owned)})
+        declared = tasks.options(task)
+        values["options"].update({n: v for n, v in quick["options"].items()
+                                  if fresh or declared[n].stage in stages})
+    values["options"].update(options)
+    return RunConfig.from_json({**values, **given})
 
 
 def unrecognized(unknown: list[str], sub: argparse.ArgumentParser) -> str:

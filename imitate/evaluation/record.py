@@ -100,7 +100,7 @@ def score_keys(task: Task) -> tuple[str, str]:
 def error_keys(task: Task) -> tuple[str, str]:
     """The plan record's keys of its largest position [m] and angle [deg] error in the
     critical phase."""
-    return f"{task.phase}_phase_err_m", f"{task.phase}_phase_err_deg"
+    return task.error_keys
 
 
 def change_keys(task: Task) -> tuple[str, str]:

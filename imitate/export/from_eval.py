@@ -65,6 +65,12 @@ def evaluated(run: Run, eval_dir: Path) -> Evaluated:
     eval_dir = Path(eval_dir)
     records = last_records(eval_dir)
     summary = load_json(eval_dir / "summary.json")
+    evaluated_task = summary.get("task") if isinstance(summary, dict) else None
+    if evaluated_task is not None and evaluated_task != run.config.task:
+        raise ImitateError(
+            f"{eval_dir} is an evaluation of task {evaluated_task!r}, the run of task "
+            f"{run.config.task!r}: export it with the run it evaluated"
+        )
     try:
         suite = Suite.from_dict(
             summary["suite"], source=str(eval_dir / "summary.json"), task=run.config.task

@@ -30,7 +30,12 @@ class Words(Protocol):
 
     @property
     def phase(self) -> str:
-        """The name of its critical phase (the optimization's ``<phase>_phase_err_m``)."""
+        """The name of its critical phase."""
+        ...
+
+    @property
+    def error_keys(self) -> tuple[str, str]:
+        """The optimization's keys of the plan's error in the critical phase, [m] and [deg]."""
         ...
 
     @property
@@ -60,15 +65,15 @@ CAPTIONS = {  # figures/<name>.png: what it shows ({tool}: the tool's name)
                             "against the GMR mean ± 2σ, their deviation and clearance. Orange: "
                             "steps where eq. 21 leaves a dimension less than 10 % of its weight "
                             "(near its largest variance, where the weight is 0): the plan is "
-                            "nearly free there, and low collision weights clear the chest by "
+                            "nearly free there, and low collision weights clear a collision by "
                             "moving there first. The plans may leave the ±2σ band there: the "
                             "band shows where the demonstrations varied, not a bound on the "
                             "plan, and where the weight is low little pulls the plan back.",
     "costs": "Total cost per optimizer iteration, for each weight of the sweep.",
 }
 VIDEO_CAPTION = (  # {noun}: the task's
-    "The teacher demonstrates; the robot reproduces {noun} without the collision cost (into "
-    "its chest), then with it, in physics."
+    "The teacher demonstrates; the robot reproduces {noun} without the collision cost, then "
+    "with it, in physics."
 )
 CLAIM = (
     "The paper's claim: weighting the similarity to the demonstrations by their variance (eq. 21) "
@@ -253,8 +258,7 @@ def _headline(report: dict, task: Words) -> list[tuple[str, str]]:
         rows += [
             ("min distance, plan", f"{_mm(opt['min_distance_m'])} ({escape(pair)})"),
             (f"{escape(task.phase)} phase error",
-             f"{1e3 * opt[f'{task.phase}_phase_err_m']:.1f} mm, "
-             f"{opt[f'{task.phase}_phase_err_deg']:.2f}°"),
+             f"{1e3 * opt[task.error_keys[0]]:.1f} mm, {opt[task.error_keys[1]]:.2f}°"),
         ]
         rows.append(("optimizer", "converged" if opt["converged"] else (
             f"not converged: stopped at its limit of {opt['iterations']} iterations with the "
@@ -286,7 +290,7 @@ SWEEP_NOTES = (
     "<b>min distance</b>: the smallest signed distance of the plan's kinematics between parts "
     "that must not touch (negative: the held objects pass into the body). Kinematics have no "
     "contacts, so a plan can pass through a part; in physics the contacts push back, so a plan "
-    "that passes tens of millimetres into the chest shows only a few millimetres of "
+    "that passes tens of millimetres into the body shows only a few millimetres of "
     "penetration in the replay (Fig. 8, and the headline's <i>min distance, physics</i>).",
     "<b>max deviation</b>: the largest distance of the plan's relative position from the "
     "weight-0 plan's. <b>change in high-variance steps</b>: the share of the squared change "

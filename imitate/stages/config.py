@@ -272,7 +272,7 @@ class RunConfig:
         for name, setting, _ in settings():
             if name != "options":
                 setting.check(name, getattr(self, name))
-        object.__setattr__(self, "options", task_options(self.task, self.options))
+        object.__setattr__(self, "options", tasks.settings(self.task, self.options))
         assembly.check_clearance(self.scene())  # validates the grasps and the obstacle
 
     @classmethod
@@ -340,23 +340,6 @@ class RunConfig:
         return cls(**values)
 
 
-def task_options(task: str, options: dict | None) -> dict[str, float]:
-    """The task's own settings: ``options`` (names of ``task``'s) checked, with the defaults of
-    those not given, in the task's order.
-
-    Raises:
-        ImitateError: a name not of the task's, or a value out of its range.
-    """
-    declared = tasks.options(task)
-    options = dict(options or {})
-    unknown = sorted(set(options) - set(declared))
-    if unknown:
-        raise ImitateError(
-            f"{', '.join(unknown)} not a setting of task {task!r}; its own: {list(declared)}"
-        )
-    return {name: o.value(name, options.get(name, o.default)) for name, o in declared.items()}
-
-
 def settings(stages: Iterable[str | None] | None = None) -> list[tuple[str, Setting, Any]]:
     """``(field name, setting, default)`` of :class:`RunConfig`'s settings in field order; those
     of ``stages`` only if given (``None`` in it: the settings of the whole run)."""
@@ -384,10 +367,14 @@ def load_config(run_dir: Path) -> RunConfig:
         )
     defaults = {name: default for name, _, default in settings()}
     for name, value in values.items():
-        if name in defaults and not _json_fits(value, defaults[name]):
-            raise ImitateError(
-                f"{path}: {name}={value!r} not accepted: {_json_kind(defaults[name])}"
-            )
+        if name == "options":
+            fits, kind = _options_fit(value), "null or an object of the task's settings: numbers"
+        elif name in defaults:
+            fits, kind = _json_fits(value, defaults[name]), _json_kind(defaults[name])
+        else:
+            continue  # refused by from_json, by name
+        if not fits:
+            raise ImitateError(f"{path}: {name}={value!r} not accepted: {kind}")
     try:
         return RunConfig.from_json(values)
     except ImitateError as err:
@@ -406,10 +393,6 @@ def _json_fits(value: Any, default: Any) -> bool:
         return isinstance(default, bool) and isinstance(value, bool)
     if isinstance(default, tuple):
         return isinstance(value, list) and all(_json_fits(v, 0.0) for v in value)
-    if isinstance(default, dict) or (default is None and isinstance(value, dict)
-                                     and "shape" not in value):  # the task's options
-        return value is None or (isinstance(value, dict) and all(
-            isinstance(v, int | float) and not isinstance(v, bool) for v in value.values()))
     if default is None:  # the obstacle
         return value is None or (
             isinstance(value, dict) and set(value) == {"shape", "pos", "size"}
@@ -419,6 +402,12 @@ def _json_fits(value: Any, default: Any) -> bool:
     if isinstance(default, float):
         return isinstance(value, int | float)
     return isinstance(value, type(default))
+
+
+def _options_fit(value: Any) -> bool:
+    """Whether the JSON ``value`` has the type of the task's settings (numbers by name)."""
+    return value is None or (isinstance(value, dict) and all(
+        isinstance(v, int | float) and not isinstance(v, bool) for v in value.values()))
 
 
 def _json_kind(default: Any) -> str:

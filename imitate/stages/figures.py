@@ -29,7 +29,7 @@ SNAPSHOT_SIZE = (480, 360)  # Fig. 8's panels [px]
 TOUCHING_M = 1e-3  # closer than this, parts touch in physics (whose contacts keep them apart)
 TEACHER_CAPTION = "teacher demonstrates ({speedup:g}x); inset: robot's eye, tracking"
 ROBOT_CAPTION = "robot reproduces (collision weight {weight:g})"
-FREE_CAPTION = "robot reproduces without the collision cost (weight 0): into its chest"
+FREE_CAPTION = "robot reproduces without the collision cost (weight 0)"
 FREE_AFTER = 1.0  # [s] of the weight-0 replay shown after its plan comes closest
 # The teacher's still pauses between demonstrations play this many times faster (at least
 # teacher_speedup): a quarter of the session, they would be a quarter of the video's frames.

@@ -59,8 +59,7 @@ def run(run_dir: Path, config: RunConfig) -> dict:
             "converged": main.converged,
             "min_distance_m": main.min_distance,
             "closest_pair": list(main.closest or ()),
-            f"{job.phase}_phase_err_m": error_m,
-            f"{job.phase}_phase_err_deg": error_deg,
+            **dict(zip(job.error_keys, (error_m, error_deg), strict=True)),
             "message": main.message,
             "sweep": [
                 {"weight": w, "min_distance_m": plans[w].min_distance,

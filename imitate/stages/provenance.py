@@ -22,6 +22,7 @@ import json
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
+from imitate.envs import tasks
 from imitate.errors import ImitateError
 from imitate.rundir import layout
 from imitate.rundir.artifacts import digest, load_json
@@ -200,10 +201,15 @@ def _fault(stage: table.Stage, files: list[str], rec: dict | None, now: dict, cu
 
 def _settings(stage: table.Stage, config: RunConfig) -> dict:
     """The settings ``stage``'s outputs depend on, as JSON values: the whole run's, its own and
-    the earlier stages'."""
+    the earlier stages', the task's own settings among them by the stage that first uses each."""
     names = table.NAMES[: table.NAMES.index(stage.name) + 1]
     values = json.loads(json.dumps(config.to_json()))
-    return {name: values[name] for name, _, _ in settings([None, *names])}
+    chosen = {name: values[name] for name, _, _ in settings([None, *names])}
+    declared = tasks.options(config.task)
+    chosen["options"] = {
+        name: value for name, value in values["options"].items() if declared[name].stage in names
+    }
+    return chosen
 
 
 def _upstream(stage: table.Stage) -> list[table.Stage]:
