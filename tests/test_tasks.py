@@ -2,14 +2,19 @@
 
 from __future__ import annotations
 
+import json
 import re
+import shutil
 from pathlib import Path
 
 import pytest
 
+from imitate.cli import main
 from imitate.envs import tasks
 from imitate.envs.task import get_task
 from imitate.errors import ImitateError
+from imitate.stages import provenance, table
+from imitate.stages.config import RunConfig, load_config
 
 ROOT = Path(__file__).resolve().parents[1]
 # The packages that receive a task as a value and must not know any one task.
@@ -65,3 +70,21 @@ def test_an_unknown_task_is_refused_with_the_known_ones():
 def test_a_setting_of_another_task_is_refused():
     with pytest.raises(ImitateError, match="particles"):
         get_task("insert").settings({"particles": 30})
+
+
+
+def test_a_task_setting_is_an_input_of_the_stage_that_first_uses_it(quick_run, tmp_path):
+    """``--particles`` (the replay's) given to ``imitate replay`` is applied there, not refused
+    as a change of the observation; a changed grasp (the optimizer's) leaves the learned model
+    fresh and makes the plan stale."""
+    run_dir = tmp_path / "run"
+    shutil.copytree(quick_run, run_dir, ignore=shutil.ignore_patterns("*.mp4", "figures"))
+    assert main(["replay", str(run_dir), "--particles", "20", "-q"]) == 0
+    assert load_config(run_dir).options["particles"] == 20
+    manifest = provenance.load(run_dir)
+    assert "particles" not in json.dumps(manifest["observe"])
+    values = json.loads((run_dir / "config.json").read_text())
+    values["options"]["bottle_grasp"] = 0.1
+    regrasped = RunConfig.from_json(values)
+    assert not provenance.stale(run_dir, table.find("optimize"), regrasped, manifest)
+    assert provenance.stale(run_dir, table.find("replay"), regrasped, manifest)
