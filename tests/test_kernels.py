@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import ast
 import importlib
+import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -64,9 +65,12 @@ def test_the_list_names_every_module_with_cached_kernels():
 
 @pytest.mark.skipif(shutil.which("make") is None, reason="no make")
 def test_the_makefile_reads_the_list():
+    # Without the flags of a make this test may run under (`make test`'s jobserver, its level):
+    # the child would print its own notes among the list.
+    alone = {k: v for k, v in os.environ.items() if k not in ("MAKEFLAGS", "MFLAGS", "MAKELEVEL")}
     done = subprocess.run(
         ["make", "-s", "--no-print-directory", "--eval", "kernels: ; @echo $(KERNELS)", "kernels"],
-        cwd=ROOT, capture_output=True, text=True, check=True,
+        cwd=ROOT, capture_output=True, text=True, check=True, env=alone,
     )
     files = [f"{name.replace('.', '/')}.py" for name in warmup.KERNEL_MODULES]
     assert done.stdout.split() == files
