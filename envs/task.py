@@ -125,7 +125,9 @@ class Task:
 
     @property
     def options(self) -> dict[str, tasks.Option]:
-        """Its own run settings (:func:`imitate.envs.tasks.options`)."""
+        """Its own run settings (:func:`imitate.envs.tasks.options`): ``<object>_grasp`` for
+        each object (the env's reset options), the others scene values (fields of
+        ``SceneConfig`` and arguments of its env, such as pouring's ``particles``)."""
         return tasks.options(self.name)
 
     def settings(self, options: Mapping[str, Any] | None = None) -> dict[str, Any]:
