@@ -2,8 +2,8 @@
 MuJoCo, no trimesh; :mod:`imitate.models.objects` builds them).
 
 Each object is a container whose frame sits at the centre of its bottom, ``z`` along its long
-axis: the bottle and the glass of the pouring task, and the stick (a closed, narrow tube) that the
-insertion task puts into the glass.
+axis: the bottle and the glass of the pouring task, and the stick (a narrow tube, open at the
+top) that the insertion task puts into the glass.
 """
 
 from __future__ import annotations
@@ -34,11 +34,6 @@ class ContainerShape:
     def height(self) -> float:
         """Height of the rim above the bottom [m]."""
         return self.profile[-1][1]
-
-    @property
-    def inner_radius(self) -> float:
-        """Smallest inner radius of the wall [m] (the bottle's neck, the glass's foot)."""
-        return min(r for r, _ in self.profile) - self.wall / 2
 
 
 # Saturated hues far from everything else in the scene: green bottle, blue glass.
