@@ -81,12 +81,8 @@ class BimanualEnv(gym.Env):
         for name, value in (("width", width), ("height", height), ("frame_skip", frame_skip)):
             if not isinstance(value, int | np.integer) or value <= 0:
                 raise ImitateError(f"{name}={value!r} not accepted: a positive integer")
-        for name, number in (
-            ("reset_noise_scale", reset_noise_scale),
-            ("collision_weight", collision_weight),
-        ):
-            if not isinstance(number, Real) or not np.isfinite(number) or number < 0:
-                raise ImitateError(f"{name}={number!r} not accepted: a finite number >= 0")
+        check_weight("reset_noise_scale", reset_noise_scale)
+        check_weight("collision_weight", collision_weight)
         self.render_mode, self.obs_type, self.camera = render_mode, obs_type, camera
         self.cameras = cameras
         self.width, self.height = width, height
@@ -309,6 +305,14 @@ class BimanualEnv(gym.Env):
         for side in teacher_names.SIDES:
             hand = shoulder_position(side) + np.array([0.0, 0.0, -TEACHER_HAND_DROP])
             pose_arm(self.model, self.data, side, hand, np.array([0.0, 0.0, 0.0, 1.0]))
+
+
+def check_weight(name: str, number: Any) -> None:
+    """Raise ``ImitateError`` naming ``name`` unless ``number`` is a finite number >= 0."""
+    if isinstance(number, bool) or not isinstance(number, Real) or not (
+        0 <= float(number) < np.inf
+    ):
+        raise ImitateError(f"{name}={number!r} not accepted: a finite number >= 0")
 
 
 def inside(data: mujoco.MjData, container: str, points: np.ndarray) -> np.ndarray:

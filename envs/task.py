@@ -64,9 +64,6 @@ class Task:
         measures: The keys of a replay's record that the task adds (from the env's ``info`` at
             the end), with unit and meaning.
         keys: The report keys it adds (``replay.*``), with unit and meaning.
-        report: ``report(records, watched) -> dict``: the task's keys of the report's replay
-            section, from the replays' records (``measures`` plus ``min_distance_m`` and
-            ``diverged``) and the first replay's :class:`Watcher` summary.
         outcome: ``outcome(plan_min_distance [m], records, options) -> str``, one of
             ``outcomes``.
         critical: ``critical(mean (T, 7)) -> (T,) bool``: the steps of a learned mean in the
@@ -98,7 +95,6 @@ class Task:
     outcomes: tuple[str, ...]
     measures: Mapping[str, tuple[str, str]]
     keys: Mapping[str, tuple[str, str]]
-    report: Callable[[Sequence[Mapping[str, Any]], Mapping[str, Any]], dict[str, Any]]
     outcome: Callable[[float, Sequence[Mapping[str, Any]], Mapping[str, Any]], str]
     critical: Callable[[np.ndarray], np.ndarray]
     watcher: Callable[[], Watcher]
@@ -134,6 +130,23 @@ class Task:
         """Its own settings: the defaults with ``options`` replacing some of them, checked
         (:func:`imitate.envs.tasks.settings`)."""
         return tasks.settings(self.name, options)
+
+    def report(
+        self, records: Sequence[Mapping[str, Any]], watched: Mapping[str, Any]
+    ) -> dict[str, Any]:
+        """The task's keys of the report's replay section, from the replays' records (the
+        ``measures``, ``min_distance_m``, ``diverged``) and the first replay's :class:`Watcher`
+        summary: the first replay's measures, the score's measure over the replays
+        (``<measure>_mean``, ``<measure>_min``, ``<measure>s``) and ``<phase>_geometry``."""
+        measure = self.score.measure
+        values = [r[measure] for r in records]
+        return {
+            **{key: records[0][key] for key in self.measures},
+            f"{measure}_mean": float(np.mean(values)),
+            f"{measure}_min": float(np.min(values)),
+            f"{measure}s": values,
+            f"{self.phase}_geometry": dict(watched),
+        }
 
     def reset_options(self, options: Mapping[str, Any] | None = None) -> dict[str, float]:
         """The env's reset options (the grasps) for these settings."""

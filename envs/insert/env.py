@@ -66,15 +66,11 @@ applied: a refused reset leaves the env as it was.
 
 from __future__ import annotations
 
-from numbers import Real
 from typing import Any
 
-import numpy as np
-
-from imitate.envs.bimanual import BimanualEnv
+from imitate.envs.bimanual import BimanualEnv, check_weight
 from imitate.envs.insert.geometry import stick_end
 from imitate.envs.insert.outcome import SUCCESS_DEPTH, inserted
-from imitate.errors import ImitateError
 from imitate.models import objects
 
 __all__ = ["InsertingEnv"]
@@ -91,12 +87,7 @@ class InsertingEnv(BimanualEnv):
     tool_inside = True
 
     def __init__(self, *args: Any, insert_weight: float = 1.0, **kwargs: Any):
-        if not isinstance(insert_weight, Real) or not np.isfinite(insert_weight) or (
-            insert_weight < 0
-        ):
-            raise ImitateError(
-                f"insert_weight={insert_weight!r} not accepted: a finite number >= 0"
-            )
+        check_weight("insert_weight", insert_weight)
         self._insert_weight = insert_weight
         self._deepest = (0.0, 0.0)  # depth in the glass [m], offset from its axis there [m]
         self._progress = 0.0

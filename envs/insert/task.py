@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -29,19 +29,6 @@ def insert_phase(mean: np.ndarray) -> np.ndarray:
     offset = np.hypot(mean[:, 0], mean[:, 1])
     phase = (offset < _RIM) & (mean[:, 2] <= objects.GLASS_SHAPE.height + _ABOVE)
     return phase if phase.any() else offset <= offset.min() + 0.01
-
-
-def report(records: Sequence[Mapping[str, Any]], watched: Mapping[str, Any]) -> dict[str, Any]:
-    """The report's inserting keys of the replay section (see :data:`KEYS`)."""
-    depths = [r["insert_depth"] for r in records]
-    return {
-        "insert_depth": records[0]["insert_depth"],
-        "insert_offset": records[0]["insert_offset"],
-        "insert_depth_mean": float(np.mean(depths)),
-        "insert_depth_min": float(np.min(depths)),
-        "insert_depths": depths,
-        "insert_geometry": dict(watched),
-    }
 
 
 def headline(replay: Mapping[str, Any]) -> list[tuple[str, str]]:
@@ -116,7 +103,6 @@ TASK = Task(
         "insert_offset": ("m", "its distance from the glass's axis there"),
     },
     keys=KEYS,
-    report=report,
     outcome=outcome,
     critical=insert_phase,
     watcher=InsertGeometry,

@@ -65,15 +65,13 @@ refused reset leaves the env as it was.
 from __future__ import annotations
 
 import dataclasses
-from numbers import Real
 from typing import Any
 
 import numpy as np
 
 from imitate.envs import assembly
-from imitate.envs.bimanual import BimanualEnv
+from imitate.envs.bimanual import BimanualEnv, check_weight
 from imitate.envs.pour.outcome import poured
-from imitate.errors import ImitateError
 from imitate.models import objects
 
 __all__ = ["PouringEnv"]
@@ -89,8 +87,7 @@ class PouringEnv(BimanualEnv):
     _particle_bodies: np.ndarray
 
     def __init__(self, *args: Any, particles: int = 60, pour_weight: float = 1.0, **kwargs: Any):
-        if not isinstance(pour_weight, Real) or not np.isfinite(pour_weight) or pour_weight < 0:
-            raise ImitateError(f"pour_weight={pour_weight!r} not accepted: a finite number >= 0")
+        check_weight("pour_weight", pour_weight)
         self._pour_weight = pour_weight
         self._pour_fraction = 0.0
         super().__init__(*args, particles=particles, **kwargs)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -22,19 +22,6 @@ def pour_phase(mean: np.ndarray) -> np.ndarray:
     start, given the GMR mean ``(T, 7)``: the low-variance pouring phase."""
     tilt = np.abs(mean[:, 3] - mean[0, 3])
     return tilt >= 0.8 * tilt.max()
-
-
-def report(records: Sequence[Mapping[str, Any]], watched: Mapping[str, Any]) -> dict[str, Any]:
-    """The report's pouring keys of the replay section (see :data:`KEYS`)."""
-    pours = [r["pour_fraction"] for r in records]
-    return {
-        "pour_fraction": records[0]["pour_fraction"],
-        "spilled": records[0]["spilled"],
-        "pour_fraction_mean": float(np.mean(pours)),
-        "pour_fraction_min": float(np.min(pours)),
-        "pour_fractions": pours,
-        "pour_geometry": dict(watched),
-    }
 
 
 def headline(replay: Mapping[str, Any]) -> list[tuple[str, str]]:
@@ -113,7 +100,6 @@ TASK = Task(
         "spilled": ("-", "particles in neither container at the end"),
     },
     keys=KEYS,
-    report=report,
     outcome=outcome,
     critical=pour_phase,
     watcher=PourGeometry,
