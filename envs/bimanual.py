@@ -181,8 +181,13 @@ class BimanualEnv(gym.Env):
         return self._get_obs(), sum(rewards.values()), False, diverged, info
 
     def render(self):
-        """RGB image ``(height, width, 3) uint8`` from ``camera``, or None without render_mode."""
+        """RGB image ``(height, width, 3) uint8`` from ``camera``; without a ``render_mode``
+        None, with Gymnasium's warning (as its MuJoCo envs)."""
         if self.render_mode is None:
+            gym.logger.warn(
+                "render() called without a render_mode: give gym.make(..., "
+                "render_mode='rgb_array') for images"
+            )
             return None
         return self._render(self.camera)
 

@@ -104,8 +104,15 @@ def signed_distances(
         ``dist (n_pairs,)`` [m], negative when penetrating, and ``fromto (n_pairs, 6)``: the two
         witness points [m] in the world frame.
     """
-    dist = np.empty(len(pairs))
+    dist = np.full(len(pairs), distmax)
     fromto = np.zeros((len(pairs), 6))
-    for k, (g1, g2) in enumerate(zip(pairs.geom1, pairs.geom2, strict=True)):
-        dist[k] = mujoco.mj_geomDistance(model, data, int(g1), int(g2), distmax, fromto[k])
+    # A pair whose bounding spheres lie more than distmax apart is at distmax, as MuJoCo says
+    # (a plane's bound is 0: unbounded).
+    bound1, bound2 = model.geom_rbound[pairs.geom1], model.geom_rbound[pairs.geom2]
+    gap = np.linalg.norm(data.geom_xpos[pairs.geom1] - data.geom_xpos[pairs.geom2], axis=1)
+    near = (gap - bound1 - bound2 <= distmax) | (bound1 == 0) | (bound2 == 0)
+    for k in np.flatnonzero(near):
+        dist[k] = mujoco.mj_geomDistance(
+            model, data, int(pairs.geom1[k]), int(pairs.geom2[k]), distmax, fromto[k]
+        )
     return dist, fromto

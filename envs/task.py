@@ -43,11 +43,25 @@ class Score:
         threshold: The least value of a success, in the measure's unit.
         name: Its short name in the evaluation's keys and text: a variation's record holds
             ``<name>_mean`` and ``<name>_min`` over its replays.
+        unit: The unit it is shown in to people; ``""`` for a fraction (0..1, shown as is).
+        scale: Its value times this is in ``unit`` (1000 for a length in m shown in mm).
     """
 
     measure: str
     threshold: float
     name: str
+    unit: str = ""
+    scale: float = 1.0
+
+    @property
+    def label(self) -> str:
+        """Its name with the unit shown, ``"insert [mm]"``; a fraction's name alone."""
+        return f"{self.name} [{self.unit}]" if self.unit else self.name
+
+    def show(self, value: float) -> str:
+        """``value`` (in the measure's unit) as shown: a fraction to 2 decimals, else in
+        ``unit`` to 1."""
+        return f"{value * self.scale:.1f}" if self.unit else f"{value:.2f}"
 
 
 @dataclass(frozen=True)

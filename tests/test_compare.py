@@ -120,6 +120,28 @@ def test_compare_plans_the_same_variations_for_every_weighting(model_dir):
         paired(shuffled, POUR)
 
 
+def test_compare_reports_the_primary_endpoint_in_each_block_of_teachers(quick_run):
+    result = compare(quick_run, Suite.from_dict(TINY), ["uniform", "variance"], name="blocks",
+                     n=2, n_teachers=1, workers=2, confirm=1, primary="variance-uniform")
+    assert result["teachers"] == [0, 1000]  # the confirmation teacher learned beside the run's
+    replication = result["replication"]
+    assert (replication["a"], replication["b"]) == ("variance", "uniform")
+    assert replication["development"]["teachers"] == [0]
+    assert replication["confirmation"]["teachers"] == [1000]
+    assert replication["all"]["effect"]["teachers"] == 2
+    assert replication["verdict"] in ("no development verdict", "replicated", "not replicated",
+                                      "reversed")
+    text = (quick_run / "compare" / "blocks" / "compare.md").read_text()
+    assert "Primary endpoint, declared before the runs: **variance - uniform" in text
+    assert "| confirmation (1) | 1000 |" in text
+    with pytest.raises(ImitateError, match="--confirm with --sweep not accepted"):
+        compare(quick_run, Suite.from_dict(TINY), ["uniform", "variance"], confirm=1,
+                sweep=("path_length_weight", (1.0, 2.0)))
+    with pytest.raises(ImitateError, match="--primary 'variance-precision' not accepted"):
+        compare(quick_run, Suite.from_dict(TINY), ["uniform", "variance"],
+                primary="variance-precision")
+
+
 def test_shipped_suites_load_and_a_bad_name_is_refused_in_one_line(capsys, model_dir):
     name, suite = named_suite("effort", POUR)
     assert name == "effort" and suite["path_length_weight"][0] > 1 and suite["obstacle_share"] == 0

@@ -296,6 +296,13 @@ def test_replay_stops_where_the_physics_diverges():
     assert len(calls) == 4  # the reset and three steps: none after the fourth, which diverged
 
 
+def test_render_without_a_render_mode_says_so():
+    env = PouringEnv(particles=0)
+    env.reset(seed=0)
+    with pytest.warns(UserWarning, match="render_mode='rgb_array'"):
+        assert env.render() is None
+
+
 def test_too_large_render_size():
     env = PouringEnv(render_mode="rgb_array", width=4000, height=72, particles=0)
     env.reset(seed=0)

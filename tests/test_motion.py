@@ -318,6 +318,9 @@ def test_bad_input_raises(task, learned):
         PlanConfig(max_joint_acceleration=0.0)
     with pytest.raises(ImitateError, match="attractor_spacing=0.0 not accepted"):
         PlanConfig(attractor_spacing=0.0)
+    for weight in (-1.0, float("nan")):  # the field named, NaN refused as a negative
+        with pytest.raises(ImitateError, match=f"^collision_weight={weight!r} not accepted"):
+            PlanConfig().replace(collision_weight=weight)
     with pytest.raises(ImitateError, match="plan needs"):
         short = dataclasses.replace(learned, mean=learned.mean[:, :3])
         plan_from_model(task, short, q0=np.zeros(18))

@@ -107,7 +107,7 @@ TASK = Task(
     critical=insert_phase,
     watcher=InsertGeometry,
     suites=Path(__file__).parent / "suites",
-    score=Score("insert_depth", SUCCESS_DEPTH, "insert"),
+    score=Score("insert_depth", SUCCESS_DEPTH, "insert", unit="mm", scale=1000.0),
     verbs=("inserts", "does not insert"),
     noun="the insertion",
     instruction="put the stick into the glass",

@@ -239,7 +239,7 @@ def eval_command(args: argparse.Namespace) -> int:
             result = compare.compare(
                 args.run_dir, suite, args.weightings.split(","), name=name, n=args.n,
                 seed=args.seed, n_teachers=args.teachers, sweep=sweep, workers=args.workers,
-                ray=args.ray,
+                ray=args.ray, confirm=args.confirm, primary=args.primary,
             )
             ran = result["run"]
             text = (f"{compare_report.markdown(result, task)}\n\nran {ran['ran']} variations in "

@@ -33,8 +33,8 @@ EXPORT_HELP = (
 )
 EVAL_HELP = "reproduce a run's learned model in seeded variations (obstacles, grasps, physics)"
 COMPARE_HELP = (
-    "similarity weightings on the same variations, paired: success (McNemar) and how far the "
-    "task moved (Wilcoxon)"
+    "similarity weightings on the same variations, paired over teachers: a primary endpoint in "
+    "development and confirmation teachers with intervals, power and a clustered model"
 )
 COMMANDS = {
     **{s.name: s.help for s in STAGES}, "run": RUN_HELP, "export": EXPORT_HELP,
@@ -306,6 +306,13 @@ def _add_compare(sub: argparse.ArgumentParser) -> None:
                      dest="weightings",
                      help=f"weightings to compare, comma-separated, of {', '.join(SIMILARITIES)} "
                      f"(default {','.join(compared)})")
+    sub.add_argument("--confirm", type=_count, default=0, metavar="N",
+                     help="confirmation teachers beside --teachers: seeds 1000 and up, which "
+                     "nothing was tuned on; the primary endpoint is reported in each block and "
+                     "whether the development verdict replicated (default 0: none)")
+    sub.add_argument("--primary", metavar="A-B",
+                     help="the primary endpoint, declared before the runs: the success rate of "
+                     "weighting A minus B per teacher (default: the first two of --similarity)")
     sub.add_argument("--sweep", metavar="KEY=V1,V2,...", dest="levels",
                      help="compare at every value of a numeric suite key (a dose-response "
                      "curve per weighting and its ED50), e.g. path_length_weight=10,20,40,70 "

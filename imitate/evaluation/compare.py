@@ -43,6 +43,7 @@ from imitate.errors import ImitateError
 from imitate.evaluation.compare_report import markdown, measures, plot_comparison, plot_dose
 from imitate.evaluation.inference import ed50, mean_ci, teacher_effect
 from imitate.evaluation.record import change_keys, error_keys, score_keys
+from imitate.evaluation.replication import CONFIRMATION_SEED, parse_primary, replication
 from imitate.evaluation.report import MARGIN, wilson
 from imitate.evaluation.suite import Suite, keys
 from imitate.evaluation.suite_run import (
@@ -53,7 +54,7 @@ from imitate.evaluation.suite_run import (
     draw_jobs,
     run_jobs,
 )
-from imitate.evaluation.teachers import check_run, teachers
+from imitate.evaluation.teachers import MAX_TEACHERS, check_run, teachers
 from imitate.figures import plots
 from imitate.motion import SIMILARITIES
 from imitate.rundir.artifacts import refuse_link, save_bytes, save_json, write_atomic
@@ -118,15 +119,21 @@ def compare(
     workers: int | None = None,
     ray: str | None = None,
     progress: bool | None = None,
+    confirm: int = 0,
+    primary: str | None = None,
 ) -> dict:
     """Plan and replay ``n`` variations of ``suite`` (drawn with ``seed``) with each of
     ``similarities``, for ``n_teachers`` teachers of ``run_dir`` (the run's own first; their
     models are shared with ``imitate eval``'s, under ``eval/teachers/``), at every level of
     ``sweep`` (a key and its values, :func:`parse_sweep`) if given; ``name`` names the output
-    folder. Returns ``compare.json``'s contents.
+    folder. ``confirm`` more teachers (seeds from
+    :data:`~imitate.evaluation.replication.CONFIRMATION_SEED`) form the confirmation block;
+    ``primary`` (``"A-B"``, default the first two weightings) is the endpoint reported per block
+    (:func:`~imitate.evaluation.replication.replication`). Returns ``compare.json``'s contents.
 
     Raises:
-        ImitateError: an unknown or repeated weighting, fewer than two, or what
+        ImitateError: an unknown or repeated weighting, fewer than two, a ``primary`` not of
+            two of them, ``confirm`` outside 0..100 or with a sweep, or what
             :func:`~imitate.evaluation.suite_run.evaluate` refuses (a suite of another task
             than the run's among it).
     """
@@ -137,6 +144,19 @@ def compare(
             f"similarities={','.join(similarities)!r} not accepted: two or more of "
             f"{', '.join(SIMILARITIES)}, each once"
         )
+    endpoint = parse_primary(primary or "-".join(similarities[:2]), similarities)
+    if isinstance(confirm, bool) or not isinstance(confirm, int) or not (
+        0 <= confirm <= MAX_TEACHERS
+    ):
+        raise ImitateError(
+            f"--confirm {confirm!r} not accepted: a whole number of teachers in 0..{MAX_TEACHERS}"
+        )
+    if confirm and sweep is not None:
+        raise ImitateError(
+            "--confirm with --sweep not accepted: the blocks are compared at one level; give "
+            "the level as --collision-weight or in a suite file"
+        )
+    confirmation = tuple(range(CONFIRMATION_SEED, CONFIRMATION_SEED + confirm))
     levels = [suite] if sweep is None else [suite.replace(**{sweep[0]: v}) for v in sweep[1]]
     start = time.perf_counter()
     run_dir = check_run(run_dir)
@@ -147,7 +167,10 @@ def compare(
         for inside in (out, out / RESULTS):
             refuse_link(inside)
         out.mkdir(parents=True, exist_ok=True)
-        models = teachers(run_dir, run_dir / "eval", n_teachers)
+        log.info("compare: primary endpoint %s - %s (success per teacher)%s", *endpoint,
+                 f", confirmation teachers {confirmation[0]}-{confirmation[-1]}"
+                 if confirmation else "")
+        models = teachers(run_dir, run_dir / "eval", n_teachers, confirmation)
         code, model_bytes = provenance.code_digest(), {t.seed: t.model_bytes for t in models}
         drawn: dict[tuple[int, str], list[Draw]] = {}
         places: dict = {}  # each teacher's weight-0 path and critical place, at every level
@@ -180,6 +203,12 @@ def compare(
         }
         if sweep is None:
             result.update(compared[0])
+            ordered = {s: [records[(d.digest, v.id)] for d in drawn[0, s] for v in d.variations]
+                       for s in endpoint}
+            result["replication"] = replication(
+                {s: np.array([r["outcome"] == "success" for r in rs]) for s, rs in ordered.items()},
+                np.array([r["teacher"] for r in ordered[endpoint[0]]]), endpoint, confirmation,
+            )
             figure = plot_comparison(result, task)
         else:
             result.update(sweep={"key": sweep[0], "values": list(sweep[1])}, levels=compared,

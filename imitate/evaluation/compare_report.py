@@ -33,15 +33,61 @@ def markdown(result: dict, task: Task) -> str:
             f"variation seed {result['seed']}), paired.")
     if "sweep" in result:
         return "\n".join([head, "", *_sweep_tables(result, task)])
-    return "\n".join([head, "", *_tables(result, task)])
+    primary = [*_primary(result["replication"]), ""] if "replication" in result else []
+    return "\n".join([head, "", *primary, *_tables(result, task)])
+
+
+def _primary(replication: dict) -> list[str]:
+    """The primary endpoint per block of teachers, its power line and clustered model, and
+    whether the development verdict replicated."""
+    lines = [
+        f"Primary endpoint, declared before the runs: **{replication['endpoint']}**. Verdict: "
+        f"**{replication['verdict']}** (the confirmation block repeats the development "
+        "block's sign with an interval excluding 0).",
+        "",
+        "| teachers | seeds | a - b [pp], mean [95 % t], a / b higher | permutation p (floor) "
+        "| smallest detectable [pp] (80 % power) | teachers needed for this mean "
+        "| GEE odds ratio a/b [95 %], p (teacher clusters) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name in ("development", "confirmation", "all"):
+        block = replication[name]
+        if block is None:
+            continue
+        seeds, power, gee = block["teachers"], block["power"], block["gee"]
+        floor = f"{_p(power['permutation_floor'])}" + (
+            ", above 0.05: cannot decide" if power["floor_above_level"] else ""
+        )
+        detectable = power["detectable"]
+        detectable = "n/a" if detectable is None else (
+            ">100" if detectable > 1 else f"{100 * detectable:.1f}")
+        odds = gee["note"] or (
+            f"{gee['odds_ratio']:.2f} [{gee['ci95'][0]:.2f}, {gee['ci95'][1]:.2f}], "
+            f"{_p(gee['p'])}"
+        )
+        lines.append(
+            f"| {name} ({len(seeds)}) | {_seeds(seeds)} | {_effect(block['effect'], 100)} "
+            f"| {_p(block['effect']['p'])} ({floor}) "
+            f"| {detectable} "
+            f"| {power['teachers_needed'] or 'n/a'} | {odds} |"
+        )
+    return lines
+
+
+def _seeds(seeds: list[int]) -> str:
+    """``0-9`` for consecutive seeds, else the list."""
+    if seeds == list(range(seeds[0], seeds[-1] + 1)) and len(seeds) > 2:
+        return f"{seeds[0]}-{seeds[-1]}"
+    return ", ".join(map(str, seeds))
 
 
 def _tables(result: dict, task: Task) -> list[str]:
     """The markdown tables of one comparison (:func:`paired`'s result)."""
-    name, phase, min_key = task.score.name, task.phase, score_keys(task)[1]
+    phase, min_key = task.phase, score_keys(task)[1]
     lines = [
         "| weighting | success over teachers, mean [95 % t] | per teacher | all variations "
-        f"(Wilson 95 %, these models) | mean {name} (worst replay) | Mahalanobis deviation, "
+        f"(Wilson 95 %, these models) | mean {task.score.label} (worst replay) | Mahalanobis "
+        "deviation, "
         f"median [sd] | {phase}-phase change median / p95 [mm] | [deg] |",
         "|---|---|---|---|---|---|---|---|",
     ]
@@ -52,7 +98,7 @@ def _tables(result: dict, task: Task) -> list[str]:
         lines.append(
             f"| {s} | {_percent(w['success_over_teachers'])} | {per} "
             f"| {w['success']}/{w['variations']} ({low:.3f}..{high:.3f}) "
-            f"| {w[f'{min_key}_mean']:.3f} | {w['mahalanobis_rms_median']:.2f} "
+            f"| {task.score.show(w[f'{min_key}_mean'])} | {w['mahalanobis_rms_median']:.2f} "
             f"| {moved['median']:.1f} / {moved['p95']:.1f} | {deg['median']:.1f} / "
             f"{deg['p95']:.1f} |"
         )
@@ -70,13 +116,14 @@ def _tables(result: dict, task: Task) -> list[str]:
         "Teacher level (each teacher one paired difference a - b; mean [95 % t interval over "
         "teachers], teachers a higher / b higher, exact permutation p):",
         "",
-        f"| pair (a vs b) | success [pp] | p | mean {name} | p | Mahalanobis deviation [sd] "
+        f"| pair (a vs b) | success [pp] | p | mean {task.score.label} | p | Mahalanobis "
+        "deviation [sd] "
         "| p |",
         "|---|---|---|---|---|---|---|",
     ]
     for p in result["pairs"]:
         cells = []
-        for m, scale in zip(measures(task), (100, 1, 1), strict=True):
+        for m, scale in zip(measures(task), (100, task.score.scale, 1), strict=True):
             e = p["teacher_level"][m]
             cells += [_effect(e, scale), _p(e["p"])]
         lines.append(f"| {p['a']} vs {p['b']} | " + " | ".join(cells) + " |")
@@ -103,9 +150,11 @@ def _sweep_tables(result: dict, task: Task) -> list[str]:
     level's teacher-level success differences."""
     key, values = result["sweep"]["key"], result["sweep"]["values"]
     curves, score = result["dose"]["weightings"], task.score.name
+    show = task.score.show
     names = list(curves)
     lines = [
-        f"Success over teachers, mean [95 % t interval] and mean {score}, against `{key}` "
+        f"Success over teachers, mean [95 % t interval] and mean {task.score.label}, against "
+        f"`{key}` "
         "(success "
         f"{'rising' if result['dose']['rising'] else 'falling'} with it):",
         "",
@@ -114,7 +163,7 @@ def _sweep_tables(result: dict, task: Task) -> list[str]:
     ]
     for j, v in enumerate(values):
         cells = [
-            f"{_percent(curves[s]['success'][j])} · {curves[s][score][j]['mean']:.2f}"
+            f"{_percent(curves[s]['success'][j])} · {show(curves[s][score][j]['mean'])}"
             for s in names
         ]
         lines.append(f"| {v:g} | " + " | ".join(cells) + " |")
@@ -179,18 +228,27 @@ def plot_comparison(result: dict, task: Task) -> Figure:
     left.bar(positions, rates, color="0.85", edgecolor="0.3")
     errors = np.clip([rates - bounds[:, 0], bounds[:, 1] - rates], 0.0, None)
     left.errorbar(positions, rates, yerr=errors, fmt="none", color="k", capsize=6)
+    for position, band, bound in zip(positions, bands, bounds, strict=True):
+        for end, marker in ((0, "v"), (1, "^")):  # an interval cut at 0 or 1: marked
+            if band["ci95"] and band["ci95"][end] != bound[end]:
+                left.plot(position, bound[end], marker, color="k", ms=7, clip_on=False)
     teacher_list = [str(t) for t in result["teachers"]]
     for j, teacher in enumerate(teacher_list):
         offset = 0.3 * (j + 0.5) / len(teacher_list) - 0.15
         left.plot(positions + offset, [w["by_teacher"][teacher]["success_rate"]
-                                       for w in weightings], "o", color=f"C{j % 10}", ms=4)
+                                       for w in weightings], "o", color=f"C{j % 10}", ms=4,
+                  clip_on=False, zorder=3, label=f"teacher {teacher}")  # dots at 0 shown whole
     left.set(xticks=positions, ylim=(0, 1.05), ylabel="success rate",
-             title="success: mean over teachers, 95 % t\n(dots: teachers)")
+             title="success: mean over teachers, 95 % t\n(dots: teachers; triangles: cut at "
+             "0 or 1)")
+    left.legend(fontsize=6, ncol=max(1, len(teacher_list) // 10), loc="upper left",
+                bbox_to_anchor=(1.0, 1.0), frameon=False)
     left.set_xticklabels(names, rotation=30, ha="right")
     pairs = result["pairs"]
     for axis, measure, scale, label in (
         (middle, "success_rate", 100, "success difference a - b [pp]"),
-        (right, score_keys(task)[1], 1, f"mean {task.score.name} difference a - b"),
+        (right, score_keys(task)[1], task.score.scale,
+         f"mean {task.score.label} difference a - b"),
     ):
         for i, p in enumerate(pairs):
             e = p["teacher_level"][measure]
@@ -225,9 +283,11 @@ def plot_dose(result: dict, task: Task) -> Figure:
     log_x = bool(np.all(x > 0))
     for i, (s, c) in enumerate(result["dose"]["weightings"].items()):
         colour = f"C{i}"
-        for axis, which in ((left, "success"), (middle, score)):
-            mean = np.array([b["mean"] for b in c[which]])
-            band = np.clip([b["ci95"] or [b["mean"]] * 2 for b in c[which]], 0.0, 1.0)
+        for axis, which, scale in ((left, "success", 1.0), (middle, score, task.score.scale)):
+            mean = scale * np.array([b["mean"] for b in c[which]])
+            band = scale * np.array([b["ci95"] or [b["mean"]] * 2 for b in c[which]])
+            if which == "success" or not task.score.unit:  # a fraction: 0..1
+                band = np.clip(band, 0.0, 1.0)
             axis.plot(x, mean, "o-", color=colour, label=s)
             axis.fill_between(x, band[:, 0], band[:, 1], color=colour, alpha=0.15)
         if isinstance(c["ed50"], float):
@@ -236,8 +296,11 @@ def plot_dose(result: dict, task: Task) -> Figure:
         for v, m, d in zip(x, c[error], c["clearance_median_mm"], strict=True):
             right.annotate(f"{v:g}", (m, d), fontsize=7, color=colour,
                            xytext=(3, 3), textcoords="offset points")
-    for axis, label in ((left, "success rate"), (middle, f"mean {score} (worst replay)")):
-        axis.set(xlabel=key, ylabel=label, ylim=(-0.02, 1.05), xscale="log" if log_x else "linear")
+    for axis, label in ((left, "success rate"),
+                        (middle, f"mean {task.score.label} (worst replay)")):
+        axis.set(xlabel=key, ylabel=label, xscale="log" if log_x else "linear")
+        if axis is left or not task.score.unit:
+            axis.set_ylim(-0.02, 1.05)
         axis.set_xticks(x, [f"{v:g}" for v in x])  # the swept values, not powers of ten
         axis.set_xticks([], minor=True)
     left.axhline(0.5, color="0.5", lw=0.8)

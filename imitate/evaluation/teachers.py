@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
+from collections.abc import Sequence
 from pathlib import Path
 
 from imitate.envs import tasks
@@ -90,9 +91,10 @@ def run_task(run_dir: Path | str) -> str:
     return load_config(run_dir).task
 
 
-def teachers(run_dir: Path, out: Path, n: int) -> list[Teacher]:
-    """The learned models of ``n`` teachers for the run in ``run_dir`` (see the module):
-    learned under ``out/teachers/`` where missing or stale, else read.
+def teachers(run_dir: Path, out: Path, n: int, more: Sequence[int] = ()) -> list[Teacher]:
+    """The learned models of ``n`` teachers for the run in ``run_dir`` (see the module), then
+    of the teachers of the seeds ``more`` (none of the first ``n``): learned under
+    ``out/teachers/`` where missing or stale, else read.
 
     Raises:
         ImitateError: the run has no usable ``config.json`` or ``model.npz``, a folder of a
@@ -101,10 +103,17 @@ def teachers(run_dir: Path, out: Path, n: int) -> list[Teacher]:
     """
     run_dir = Path(run_dir)
     # the run's own model needs no settings (a folder of a model.npz alone is evaluated too)
-    config = load_config(run_dir) if n > 1 or (run_dir / "config.json").exists() else None
+    others = n > 1 or bool(more)
+    config = load_config(run_dir) if others or (run_dir / "config.json").exists() else None
     own = config.seed if config else 0
+    seeds = teacher_seeds(own, n)
+    if set(seeds) & set(more):
+        raise ImitateError(
+            f"teacher seeds {sorted(set(seeds) & set(more))} both among the {n} teachers and "
+            "the further ones; give fewer --teachers"
+        )
     found = [_read(own, run_dir / layout.MODEL)]
-    for seed in teacher_seeds(own, n)[1:]:
+    for seed in (*seeds[1:], *more):
         folder = Path(out) / "teachers" / f"seed-{seed}"
         inside = os.path.abspath(folder).startswith(os.path.abspath(run_dir) + os.sep)
         refuse_link(folder, run_dir if inside else out)  # eval/, teachers/, seed-S/

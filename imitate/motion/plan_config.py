@@ -13,6 +13,9 @@ from imitate.motion.costs import SIMILARITIES
 __all__ = ["OPTIMIZERS", "PlanConfig"]
 
 OPTIMIZERS = ("rprop", "lbfgs")
+# The cost terms' weights, each >= 0.
+WEIGHTS = ("similarity_weight", "collision_weight", "joint_limit_weight", "path_length_weight",
+           "joint_acceleration_weight")
 
 
 @dataclass(frozen=True)
@@ -84,18 +87,12 @@ class PlanConfig:
             raise ImitateError(
                 f"similarity {self.similarity!r} unknown; accepted: {SIMILARITIES}"
             )
-        weights = (
-            self.similarity_weight,
-            self.collision_weight,
-            self.joint_limit_weight,
-            self.path_length_weight,
-            self.joint_acceleration_weight,
-        )
-        if not self.dt > 0 or not self.omega_per_interval > 0 or min(weights) < 0:
-            raise ImitateError(
-                f"PlanConfig needs dt > 0, omega_per_interval > 0 and weights >= 0; got dt="
-                f"{self.dt}, omega_per_interval={self.omega_per_interval}, weights={weights}"
-            )
+        for name in ("dt", "omega_per_interval"):
+            if not getattr(self, name) > 0:
+                raise ImitateError(f"{name}={getattr(self, name)!r} not accepted: a number > 0")
+        for name in WEIGHTS:
+            if not getattr(self, name) >= 0:
+                raise ImitateError(f"{name}={getattr(self, name)!r} not accepted: a weight >= 0")
         if self.attractor_spacing is not None and not self.attractor_spacing > 0:
             raise ImitateError(
                 f"attractor_spacing={self.attractor_spacing!r} not accepted: a time > 0 [s], "

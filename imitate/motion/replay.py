@@ -204,15 +204,17 @@ def replay(
     targets = actions(plan, env, approach=approach, settle=settle)
     n_approach = int(round(approach / dt))
     t_play = _play_times(plan, dt)
-    task = planning_task(env.config, gaze)
+    if gaze is None:
+        gaze = planning_task(env.config).gaze
+    tool, target = (env.data.body(obj) for obj in env.objects)
     min_distance = np.inf
-    reached = []
+    poses = []  # the objects' positions and long axes (4, 3) at the plan's times
     info = {}
     diverged_at = None
     if on_step is not None:
         on_step(env)
-    for k, target in enumerate(targets):
-        _, _, _, _, info = env.step(target)
+    for k, action in enumerate(targets):
+        _, _, _, _, info = env.step(action)
         if info["diverged"]:
             diverged_at = (k + 1) * dt
             break
@@ -220,13 +222,12 @@ def replay(
             on_step(env)
         min_distance = min(min_distance, info["min_distance"])
         if n_approach <= k < n_approach + len(t_play):
-            reached.append(_task_state(env, task, plan, (k - n_approach) * dt))
-    x = np.reshape(reached, (len(reached), plan.x.shape[1]))
+            poses.append(np.array((tool.xpos, tool.xmat[2::3], target.xpos, target.xmat[2::3])))
     ref = _resample(plan.times - plan.times[0], plan.x, t_play)
     return ReplayResult(
         info=dict(info),
         min_distance=float(min_distance),
-        task_error=x - ref[: len(x)],
+        task_error=_task_states(np.reshape(poses, (-1, 4, 3)), ref, gaze) - ref[: len(poses)],
         diverged_at=diverged_at,
     )
 
@@ -274,13 +275,15 @@ def _resample(times: np.ndarray, values: np.ndarray, at: np.ndarray) -> np.ndarr
     return np.column_stack([np.interp(at, times, values[:, i]) for i in range(values.shape[1])])
 
 
-def _task_state(env: BimanualEnv, task: TaskMap, plan: Plan, t: float) -> np.ndarray:
-    """Task state of the objects' physical poses (not the hands'), eq. 1."""
-    tool, target = (env.data.body(obj) for obj in env.objects)
-    x = task_space(tool.xpos[None], tool.xmat.reshape(3, 3)[None, :, 2],
-                   target.xpos[None], target.xmat.reshape(3, 3)[None, :, 2], task.gaze)[0]
-    ref = np.array([np.interp(t, plan.times - plan.times[0], plan.x[:, i]) for i in ANGLES])
-    x[ANGLES] += 2 * np.pi * np.round((ref - x[ANGLES]) / (2 * np.pi))
+def _task_states(poses: np.ndarray, ref: np.ndarray, gaze: np.ndarray) -> np.ndarray:
+    """Eq. 1 of the objects' physical poses (not the hands'): ``poses`` ``(n, 4, 3)`` the tool's
+    position and long axis, then the target's, per step [m]; each angle taken within half a
+    turn of the plan's ``ref`` ``(>= n, m)`` at the same step."""
+    if len(poses) == 0:
+        return np.zeros((0, ref.shape[1]))
+    p_tool, a_tool, p_target, a_target = poses.transpose(1, 0, 2)
+    x = task_space(p_tool, a_tool, p_target, a_target, gaze)
+    x[:, ANGLES] += 2 * np.pi * np.round((ref[: len(x), ANGLES] - x[:, ANGLES]) / (2 * np.pi))
     return x
 
 

@@ -211,8 +211,10 @@ class RunConfig:
     similarity: str = _setting(
         defaults.SIMILARITY, "how the similarity cost weights the task dimensions over time: "
         "variance (eq. 21: stiff where the demonstrations agree), uniform (constant), inverted "
-        "(stiff where they varied: a negative control) or precision (the GMR precision with its "
-        "cross-covariances); each alternative has eq. 21's total weight", stage="optimize",
+        "(stiff where they varied: a negative control), precision (minimal intervention: the GMR "
+        "precision with its cross-covariances), inverse_variance (its diagonal, no sigma_max "
+        "ramp) or oracle (phase-informed eq. 21: its largest weight on the task's critical "
+        "phase); each alternative has eq. 21's total weight", stage="optimize",
         flag="--similarity", choices=defaults.SIMILARITIES,
     )
     sigma_max_scale: float = _setting(
