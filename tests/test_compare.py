@@ -76,6 +76,17 @@ def test_teachers_are_learned_once_and_reused_on_resume(quick_run, monkeypatch):
     assert relearned[1].model_bytes == first[1].model_bytes
 
 
+def test_teachers_learned_in_processes_are_those_learned_one_by_one(quick_run, tmp_path,
+                                                                      monkeypatch):
+    together = teachers(quick_run, tmp_path / "together", 3, workers=2)
+    alone = teachers(quick_run, tmp_path / "alone", 2)
+    assert [t.seed for t in together] == [0, 1, 2]
+    assert together[1].model_bytes == alone[1].model_bytes  # the same teacher, the same model
+    monkeypatch.setattr(runner, "run_stage", lambda *a, **k: pytest.fail("learned again"))
+    again = teachers(quick_run, tmp_path / "together", 3, workers=2)
+    assert [t.model_bytes for t in again] == [t.model_bytes for t in together]
+
+
 def test_eval_reports_each_teacher_and_resumes_without_learning(quick_run, monkeypatch):
     suite = Suite.from_dict(TINY)
     summary = evaluate(quick_run, suite, n=2, n_teachers=2, workers=2, videos=0)

@@ -170,7 +170,7 @@ def compare(
         log.info("compare: primary endpoint %s - %s (success per teacher)%s", *endpoint,
                  f", confirmation teachers {confirmation[0]}-{confirmation[-1]}"
                  if confirmation else "")
-        models = teachers(run_dir, run_dir / "eval", n_teachers, confirmation)
+        models = teachers(run_dir, run_dir / "eval", n_teachers, confirmation, workers)
         code, model_bytes = provenance.code_digest(), {t.seed: t.model_bytes for t in models}
         drawn: dict[tuple[int, str], list[Draw]] = {}
         places: dict = {}  # each teacher's weight-0 path and critical place, at every level

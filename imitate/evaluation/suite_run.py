@@ -93,7 +93,7 @@ def evaluate(
         n, workers = check_counts(suite, n, workers)
         check_folder(out, run_dir)
         out.mkdir(parents=True, exist_ok=True)
-        models = teachers(run_dir, run_dir / "eval", n_teachers)
+        models = teachers(run_dir, run_dir / "eval", n_teachers, workers=workers)
         drawn = draw_jobs(models, suite, seed, n)
         records, run = run_jobs(out / RESULTS, drawn, models, workers, ray, progress, task)
         digests = [d.digest for d in drawn]

@@ -91,10 +91,13 @@ def run_task(run_dir: Path | str) -> str:
     return load_config(run_dir).task
 
 
-def teachers(run_dir: Path, out: Path, n: int, more: Sequence[int] = ()) -> list[Teacher]:
+def teachers(
+    run_dir: Path, out: Path, n: int, more: Sequence[int] = (), workers: int = 1
+) -> list[Teacher]:
     """The learned models of ``n`` teachers for the run in ``run_dir`` (see the module), then
     of the teachers of the seeds ``more`` (none of the first ``n``): learned under
-    ``out/teachers/`` where missing or stale, else read.
+    ``out/teachers/`` where missing or stale, else read; several at once in up to ``workers``
+    spawned processes (each teacher's stages in one, its own progress not shown).
 
     Raises:
         ImitateError: the run has no usable ``config.json`` or ``model.npz``, a folder of a
@@ -103,8 +106,8 @@ def teachers(run_dir: Path, out: Path, n: int, more: Sequence[int] = ()) -> list
     """
     run_dir = Path(run_dir)
     # the run's own model needs no settings (a folder of a model.npz alone is evaluated too)
-    others = n > 1 or bool(more)
-    config = load_config(run_dir) if others or (run_dir / "config.json").exists() else None
+    several = n > 1 or bool(more)
+    config = load_config(run_dir) if several or (run_dir / "config.json").exists() else None
     own = config.seed if config else 0
     seeds = teacher_seeds(own, n)
     if set(seeds) & set(more):
@@ -113,14 +116,40 @@ def teachers(run_dir: Path, out: Path, n: int, more: Sequence[int] = ()) -> list
             "the further ones; give fewer --teachers"
         )
     found = [_read(own, run_dir / layout.MODEL)]
-    for seed in (*seeds[1:], *more):
-        folder = Path(out) / "teachers" / f"seed-{seed}"
+    others = (*seeds[1:], *more)
+    folders = [Path(out) / "teachers" / f"seed-{seed}" for seed in others]
+    for folder in folders:
         inside = os.path.abspath(folder).startswith(os.path.abspath(run_dir) + os.sep)
         refuse_link(folder, run_dir if inside else out)  # eval/, teachers/, seed-S/
-        assert config is not None  # loaded: there are other teachers (n > 1)
-        _prepare(folder, dataclasses.replace(config, seed=seed))
-        found.append(_read(seed, folder / layout.MODEL))
-    return found
+    jobs = [(folder, dataclasses.replace(config, seed=seed))
+            for seed, folder in zip(others, folders, strict=True) if config is not None]
+    if workers > 1 and len(jobs) > 1:
+        _prepare_in_processes(jobs, workers)
+    for job in jobs:
+        _prepare(*job)  # (the ones learned in processes: read, all fresh)
+    return [*found, *(_read(seed, f / layout.MODEL) for seed, f in zip(others, folders,
+                                                                        strict=True))]
+
+
+def _prepare_in_processes(jobs: list[tuple[Path, RunConfig]], workers: int) -> None:
+    """:func:`_prepare` of every job, ``workers`` at once in spawned processes (MuJoCo's
+    rendering and fork do not mix), each quiet, a progress bar over them. A failed teacher is
+    left for the caller's own :func:`_prepare`, which raises its error."""
+    import multiprocessing
+
+    from imitate.stages.progress import bar
+
+    stale = [job for job in jobs if _first_stale(*job) is not None]
+    if len(stale) < 2:
+        return
+    log.info("teachers: learning %d in %d processes", len(stale), min(workers, len(stale)))
+    context = multiprocessing.get_context("spawn")
+    with context.Pool(min(workers, len(stale)), initializer=_quiet) as pool, bar(
+        total=len(stale), desc="teachers", unit="teacher"
+    ) as progress:
+        for seed in pool.imap_unordered(_prepare_quietly, stale):
+            progress.set_postfix(seed=seed)
+            progress.update()
 
 
 # The stages of a teacher's run, each with the next one, whose input check covers its outputs.
@@ -135,16 +164,42 @@ def _prepare(folder: Path, config: RunConfig) -> None:
 
     folder.parent.mkdir(parents=True, exist_ok=True)
     command = f"imitate eval (teacher seed {config.seed})"
-    code = {"code": provenance.code_digest()}
     with locked(folder, command, create=True):
-        same_code = (folder / CODE).is_file() and _json(folder / CODE) == code
-        for i, (name, reader) in enumerate(_STAGES):
-            if not (same_code and _fresh(folder, name, reader, config)):
-                for later, _ in _STAGES[i:]:
-                    log.info("teacher seed %d: %s", config.seed, later)
-                    run_stage(later, folder, config)
-                save_json(folder / CODE, code)
-                return
+        first = _first_stale(folder, config)
+        if first is None:
+            return
+        for later, _ in _STAGES[first:]:
+            log.info("teacher seed %d: %s", config.seed, later)
+            run_stage(later, folder, config)
+        save_json(folder / CODE, {"code": provenance.code_digest()})
+
+
+def _first_stale(folder: Path, config: RunConfig) -> int | None:
+    """The index in :data:`_STAGES` of the teacher's first stage in ``folder`` whose outputs are
+    missing or do not follow from ``config`` and this code; ``None`` if none."""
+    same_code = (folder / CODE).is_file() and _json(folder / CODE) == {
+        "code": provenance.code_digest()
+    }
+    return next((i for i, (name, reader) in enumerate(_STAGES)
+                 if not (same_code and _fresh(folder, name, reader, config))), None)
+
+
+def _quiet() -> None:
+    """A teacher process: no progress, no stage lines, Ctrl-C left to the parent."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    logging.getLogger("imitate").setLevel(logging.WARNING)
+
+
+def _prepare_quietly(job: tuple[Path, RunConfig]) -> int:
+    """:func:`_prepare` in a teacher process; its seed. Its errors are its caller's to find."""
+    try:
+        _prepare(*job)
+    except ImitateError:
+        pass
+    return job[1].seed
 
 
 def _json(path: Path):
