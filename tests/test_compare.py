@@ -153,6 +153,20 @@ def test_compare_reports_the_primary_endpoint_in_each_block_of_teachers(quick_ru
                 primary="variance-precision")
 
 
+def test_compare_appends_through_no_hard_link(model_dir, tmp_path):
+    """Review F: a results.jsonl that is another name of a user's file is refused, the file
+    untouched."""
+    notes = tmp_path / "notes.txt"
+    notes.write_text("mine\n")
+    out = model_dir / "compare" / "linked"
+    out.mkdir(parents=True)
+    (out / RESULTS).hardlink_to(notes)
+    with pytest.raises(ImitateError, match="is a hard link; imitate appends to none"):
+        compare(model_dir, Suite.from_dict(TINY), ["variance", "inverted"], name="linked", n=1,
+                n_teachers=1, workers=1)
+    assert notes.read_text() == "mine\n"
+
+
 def test_shipped_suites_load_and_a_bad_name_is_refused_in_one_line(capsys, model_dir):
     name, suite = named_suite("effort", POUR)
     assert name == "effort" and suite["path_length_weight"][0] > 1 and suite["obstacle_share"] == 0

@@ -100,9 +100,10 @@ def test_suite_reads_toml_and_json_alike(tmp_path):
     )
     a, b = load_suite(tmp_path / "a.toml"), load_suite(tmp_path / "a.json")
     assert a == b and a["particles"] == (40, 40) and a["shapes"] == ("box",)
-    assert a.digest(0, b"m", "c") == b.digest(0, b"m", "c") != a.digest(1, b"m", "c")
-    assert a.digest(0, b"m", "c") != a.digest(0, b"n", "c") != a.digest(0, b"n", "other code")
-    assert a.replace(variations=7).digest(0, b"m", "c") == a.digest(0, b"m", "c")  # n may grow
+    assert a.digest(0, 0, b"m", "c") == b.digest(0, 0, b"m", "c") != a.digest(1, 0, b"m", "c")
+    assert a.digest(0, 0, b"m", "c") != a.digest(0, 0, b"n", "c") != a.digest(0, 0, b"n", "code")
+    assert a.digest(0, 0, b"m", "c") != a.digest(0, 3, b"m", "c")  # the teacher's seed counts
+    assert a.replace(variations=7).digest(0, 0, b"m", "c") == a.digest(0, 0, b"m", "c")  # n grows
 
 
 def test_eval_help_documents_every_suite_key(capsys):
@@ -459,6 +460,20 @@ def test_eval_out_refuses_a_folder_holding_no_evaluation(tmp_path, model_arrays,
     assert main(_tiny_eval(run_dir, tmp_path, "--out", str(folder))) == 1
     assert "but no evaluation" in _one_line(capsys.readouterr().err)
     assert (folder / "results.jsonl").read_text() == '{"loss": 0.1}\n'
+
+
+@pytest.mark.parametrize("first", [b'{"digest": "0123", "id": 0, "outc', b"\x00" * 40, b"",
+                                   b'{"digest": "0123", "id": 0}'])
+def test_eval_resumes_its_own_folder_cut_short_in_its_first_record(tmp_path, model_arrays,
+                                                                   first):
+    """Review B: a torn first line, NUL bytes, a blank line or an older record's form: the
+    folder is the evaluation's own, which goes on there."""
+    run_dir = _run_dir(tmp_path / "run", model_arrays)
+    folder = tmp_path / "F"
+    folder.mkdir()
+    (folder / "results.jsonl").write_bytes(first + b"\n")
+    assert main(_tiny_eval(run_dir, tmp_path, "--out", str(folder))) == 0
+    assert last_records(folder)  # its records appended after what was there
 
 
 def test_a_file_in_the_way_of_the_evaluation_is_named(tmp_path, model_arrays, capsys):

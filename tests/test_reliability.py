@@ -239,6 +239,17 @@ def test_a_collision_weight_run_refuses_is_refused_by_eval_and_compare_too(tmp_p
     assert "collision_weight 1e+300 is outside 0..1e+06" in line
 
 
+def test_eval_and_compare_refuse_a_model_that_does_not_follow_from_the_run(run_dir, capsys):
+    """Review A: after the run's seed changed, its model is another teacher's: eval and compare
+    refuse it, naming the stage to re-run, as every stage does."""
+    values = json.loads((run_dir / "config.json").read_text())
+    (run_dir / "config.json").write_text(json.dumps({**values, "seed": 3}))
+    for command in ("eval", "compare"):
+        assert main([command, str(run_dir), "--n", "1", "--teachers", "1"]) == 1
+        line = one_error_line(capsys.readouterr().err, command)
+        assert f"re-run `imitate observe {run_dir}`" in line and "before evaluating" in line
+
+
 def test_a_config_that_is_no_object_is_refused_without_quoting_it(tmp_path):
     """Review I4: a config.json linked to another file's secret list."""
     (tmp_path / "secret.json").write_text('["TOP-SECRET-TOKEN-abcdef0123456789", 1]')

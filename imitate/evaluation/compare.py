@@ -54,10 +54,16 @@ from imitate.evaluation.suite_run import (
     draw_jobs,
     run_jobs,
 )
-from imitate.evaluation.teachers import MAX_TEACHERS, check_run, teachers
+from imitate.evaluation.teachers import MAX_TEACHERS, check_model, check_run, teachers
 from imitate.figures import plots
 from imitate.motion import SIMILARITIES
-from imitate.rundir.artifacts import refuse_link, save_bytes, save_json, write_atomic
+from imitate.rundir.artifacts import (
+    refuse_hard_link,
+    refuse_link,
+    save_bytes,
+    save_json,
+    write_atomic,
+)
 from imitate.rundir.lock import locked
 from imitate.stages import provenance
 
@@ -163,9 +169,11 @@ def compare(
     task = check_task(run_dir, suite)
     with locked(run_dir, f"imitate compare {run_dir}"):
         n, workers = check_counts(suite, n, workers)
+        check_model(run_dir)
         out = out_folder(run_dir, name, sweep and sweep[0])
         for inside in (out, out / RESULTS):
             refuse_link(inside)
+        refuse_hard_link(out / RESULTS)
         out.mkdir(parents=True, exist_ok=True)
         log.info("compare: primary endpoint %s - %s (success per teacher)%s", *endpoint,
                  f", confirmation teachers {confirmation[0]}-{confirmation[-1]}"
@@ -180,7 +188,8 @@ def compare(
                 drawn[i, s] = [
                     Draw(
                         d.teacher,
-                        level.replace(similarity=s).digest(seed, model_bytes[d.teacher], code),
+                        level.replace(similarity=s).digest(
+                            seed, d.teacher, model_bytes[d.teacher], code),
                         d.path, tuple(dataclasses.replace(v, plan=v.plan.replace(similarity=s))
                                       for v in d.variations),
                     )

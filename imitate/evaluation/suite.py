@@ -272,13 +272,15 @@ class Suite:
         """The values as a file would give them (ranges as lists)."""
         return {k: list(v) if isinstance(v, tuple) else v for k, v in self.values.items()}
 
-    def digest(self, seed: int, model: bytes, code: str) -> str:
+    def digest(self, seed: int, teacher: int, model: bytes, code: str) -> str:
         """Identifies the results of the variations this suite draws: sha256 (16 hex digits) of
-        its values (but ``variations``: a longer evaluation extends a shorter one), ``seed``, the
-        learned model's bytes and ``code`` (:func:`imitate.stages.provenance.code_digest`: records
-        made by other code are not reused)."""
+        its task and values (but ``variations``: a longer evaluation extends a shorter one),
+        ``seed``, the ``teacher``'s seed and its learned model's bytes and ``code``
+        (:func:`imitate.stages.provenance.code_digest`: records made by other code are not
+        reused)."""
         values = {k: v for k, v in self.to_json().items() if k != "variations"}
-        text = json.dumps({"suite": values, "seed": seed, "code": code}, sort_keys=True)
+        text = json.dumps({"task": self.task, "suite": values, "seed": seed, "teacher": teacher,
+                           "code": code}, sort_keys=True)
         return hashlib.sha256(text.encode() + hashlib.sha256(model).digest()).hexdigest()[:16]
 
 

@@ -38,11 +38,17 @@ from imitate.evaluation.parallel import Job, run_local, run_ray
 from imitate.evaluation.record import score_keys
 from imitate.evaluation.report import failure_video, plot_outcomes, summarize, summarize_teachers
 from imitate.evaluation.suite import KEYS, Suite
-from imitate.evaluation.teachers import Teacher, check_run, run_task, teachers
+from imitate.evaluation.teachers import Teacher, check_model, check_run, run_task, teachers
 from imitate.evaluation.variation import CriticalPlace, Variation, draw, free_places
 from imitate.figures import plots
 from imitate.rundir import page
-from imitate.rundir.artifacts import load_json, refuse_link, save_bytes, save_json
+from imitate.rundir.artifacts import (
+    load_json,
+    refuse_hard_link,
+    refuse_link,
+    save_bytes,
+    save_json,
+)
 from imitate.rundir.lock import locked
 from imitate.stages import provenance
 from imitate.stages.progress import bar as progress_bar
@@ -53,6 +59,8 @@ __all__ = [
 ]
 
 RESULTS = "results.jsonl"
+# What an evaluation writes in its folder (the failure videos in failures/).
+OUTPUTS = (RESULTS, "summary.json", "outcomes.png", "report.html", "failures")
 
 
 def evaluate(
@@ -91,6 +99,7 @@ def evaluate(
     reading = not inside and n_teachers == 1  # nothing written in the run directory
     with locked(run_dir, f"imitate eval {run_dir}", reading=reading):
         n, workers = check_counts(suite, n, workers)
+        check_model(run_dir)
         check_folder(out, run_dir)
         out.mkdir(parents=True, exist_ok=True)
         models = teachers(run_dir, run_dir / "eval", n_teachers, workers=workers)
@@ -148,8 +157,9 @@ def default_out(run_dir: Path, name: str, suite: Suite) -> Path:
 
 def check_folder(out: Path, run_dir: Path) -> None:
     """Refuse ``out`` as an evaluation's folder unless it is missing, empty or an
-    evaluation's (a ``results.jsonl`` empty or with records, or an evaluation's
-    ``summary.json``; not a hard link), and a real folder:
+    evaluation's (a ``results.jsonl`` of records, cut short or not, beside nothing but the
+    evaluation's own :data:`OUTPUTS`, or an evaluation's ``summary.json``; not a hard link),
+    and a real folder:
     no symbolic link in it or between it and ``run_dir`` when within it, no file in the way.
 
     Raises:
@@ -165,14 +175,12 @@ def check_folder(out: Path, run_dir: Path) -> None:
                 "give another --out"
             )
     results = out / RESULTS
-    if results.exists() and results.stat().st_nlink != 1:
-        raise ImitateError(
-            f"{results} is a hard link; eval appends to none: remove it or give another --out"
-        )
-    ours = results.exists() and (results.stat().st_size == 0 or next(_records(results), None))
-    if not out.is_dir() or ours or _is_summary(out / "summary.json"):
+    refuse_hard_link(results)
+    if not out.is_dir() or _is_summary(out / "summary.json"):
         return
     names = sorted(entry.name for entry in out.iterdir())
+    if results.is_file() and set(names) <= set(OUTPUTS) and _only_records(results):
+        return  # an evaluation's, even cut short in its first record
     if names:
         more = f" and {len(names) - 3} more" if len(names) > 3 else ""
         raise ImitateError(
@@ -226,7 +234,7 @@ def draw_jobs(
             places[t.seed] = free_places(t.learned.model, t.learned.gaze, suite["max_iter"], task)
         path, place = places[t.seed]
         drawn.append(Draw(
-            t.seed, suite.digest(seed, t.model_bytes, code), path,
+            t.seed, suite.digest(seed, t.seed, t.model_bytes, code), path,
             tuple(draw(suite, seed, i, path, place) for i in range(n)),
         ))
     return drawn
@@ -249,6 +257,7 @@ def run_jobs(
         ImitateError: ``results`` or its folder is a symbolic link.
     """
     refuse_link(results)
+    refuse_hard_link(results)
     wanted = {d.digest for d in drawn}
     records = {
         (r["digest"], r["id"]): r for r in read_records(results, wanted, task)
@@ -318,6 +327,20 @@ def _records(path: Path) -> Iterator[dict]:
             continue
         if _is_record(record):
             yield record
+
+
+def _only_records(path: Path) -> bool:
+    """Whether every whole JSON line of ``path`` is an evaluation's record, of any form (an
+    object with a ``digest`` and an ``id``): its other lines are blank, cut short or not text,
+    as an interrupted evaluation leaves them; a file of other JSON lines is someone else's."""
+    for line in path.read_bytes().splitlines():
+        try:
+            value = json.loads(line.decode())
+        except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):
+            continue
+        if not (isinstance(value, dict) and {"digest", "id"} <= value.keys()):
+            return False
+    return True
 
 
 def _is_record(record: object) -> bool:

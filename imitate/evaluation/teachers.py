@@ -29,7 +29,8 @@ from imitate.stages import provenance, table
 from imitate.stages.config import RunConfig, load_config
 from imitate.stages.files import Learned, ModelFile
 
-__all__ = ["MAX_TEACHERS", "Teacher", "check_run", "run_task", "teacher_seeds", "teachers"]
+__all__ = ["MAX_TEACHERS", "Teacher", "check_model", "check_run", "run_task", "teacher_seeds",
+           "teachers"]
 
 log = logging.getLogger(__name__)
 
@@ -75,6 +76,22 @@ def check_run(run_dir: Path | str) -> Path:
         ImitateError: it is not (:func:`imitate.run.load_run`'s message).
     """
     return load_run(run_dir).path
+
+
+def check_model(run_dir: Path) -> None:
+    """Refuse a run whose ``model.npz`` does not follow from its ``config.json`` and the files
+    before it, as the stage that reads it does (a folder of a ``model.npz`` alone: nothing to
+    check). Call it holding the run's lock.
+
+    Raises:
+        ImitateError: the first stage at fault, named with the command that re-runs it.
+    """
+    if not (run_dir / layout.CONFIG).exists():
+        return
+    config = load_config(run_dir)
+    problems = provenance.stale(run_dir, table.find("optimize"), config, provenance.load(run_dir))
+    if problems:
+        raise ImitateError(f"{problems[0]} before evaluating its model")
 
 
 def run_task(run_dir: Path | str) -> str:

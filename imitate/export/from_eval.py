@@ -88,7 +88,7 @@ def evaluated(run: Run, eval_dir: Path) -> Evaluated:
         )
         path = folder / layout.MODEL
         learned = ModelFile.load_learned(folder)
-        if suite.digest(draw_seed, path.read_bytes(), code) != digest:
+        if suite.digest(draw_seed, seed, path.read_bytes(), code) != digest:
             raise ImitateError(
                 f"{eval_dir} was evaluated with another model of teacher {seed} ({path}) or "
                 f"other code; run the evaluation again (imitate eval {run.path} ...) to export it"

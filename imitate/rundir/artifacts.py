@@ -194,6 +194,15 @@ def refuse_link(path: Path, root: Path | None = None) -> None:
             )
 
 
+def refuse_hard_link(path: Path) -> None:
+    """Raise ``ImitateError`` if the file ``path`` (to be appended to) has another name
+    elsewhere: appending would write into someone's file outside the folder."""
+    if path.exists() and path.stat().st_nlink != 1:
+        raise ImitateError(
+            f"{path} is a hard link; imitate appends to none: remove it or give another folder"
+        )
+
+
 def leftovers(run_dir: Path) -> list[Path]:
     """What killed commands left in the run directory ``run_dir``: the temporary files of
     imitate's own names (:func:`_temporary` of a file of :data:`imitate.rundir.layout.OWN`, in
