@@ -19,7 +19,7 @@ from imitate.envs import tasks
 from imitate.envs.pour.outcome import outcome
 from imitate.envs.task import get_task
 from imitate.errors import ImitateError
-from imitate.evaluation import Suite, evaluate, load_suite
+from imitate.evaluation import Suite, evaluate, load_suite, named_suite
 from imitate.evaluation.report import summarize, text, wilson
 from imitate.evaluation.suite import keys
 from imitate.evaluation.suite_run import RESULTS, default_out, last_records, read_records
@@ -106,6 +106,16 @@ def test_suite_reads_toml_and_json_alike(tmp_path):
     assert a.replace(variations=7).digest(0, 0, b"m", "c") == a.digest(0, 0, b"m", "c")  # n grows
 
 
+@pytest.mark.parametrize(("stem", "name"), [("..", "__"), ("a$\\frac$b", "a__frac_b"),
+                                            ("<i>x", "_i_x"), ("effort-2", "effort-2")])
+def test_a_suite_files_name_is_safe_in_paths_pages_and_figures(tmp_path, stem, name):
+    """Review E: the name names a folder under the run's, a Markdown heading and a figure's
+    title: no folder above, no HTML, no mathtext."""
+    path = tmp_path / f"{stem}.toml"
+    path.write_text("particles = 40\n")
+    assert named_suite(str(path), get_task("pour"))[0] == name
+
+
 def test_eval_help_documents_every_suite_key(capsys):
     assert Suite.default()["variations"] >= 100
     with pytest.raises(SystemExit):
@@ -142,7 +152,8 @@ def _record(**changes) -> dict:
     record = {
         "digest": "d", "teacher": 0, "id": 0, "settings": settings, "outcome": "spill",
         "pour_mean": 0.5, "pour_min": 0.5, "plan": {"min_distance_m": 0.02, "seconds": 0.1},
-        "replays": [replay], "physics_min_distance_m": 0.01, "clearance_gap_m": 0.01,
+        "mahalanobis": {"rms": 1.0}, "replays": [replay], "physics_min_distance_m": 0.01,
+        "clearance_gap_m": 0.01,
         "seconds": 1.0,
     }
     return json.loads(json.dumps({**record, **changes}))
@@ -166,7 +177,8 @@ def test_a_line_not_utf8_or_a_record_lacking_what_the_summary_reads_is_skipped(t
         {k: v for k, v in good.items() if k != "seconds"}, _record(id=1, settings=None),
         _record(id=2, pour_min="abc"), _record(id=3, plan={}), _record(id=4, replays=[]),
         _record(id=5, settings={**good["settings"], "obstacle": {"shape": "box"}}),
-        _record(id=6, teacher=None),
+        _record(id=6, teacher=None), _record(id=7, mahalanobis=None),
+        _record(id=8, mahalanobis={"rms": None}),
     ]
     path = tmp_path / RESULTS
     lines = [json.dumps(r).encode() for r in bad] + [b'{"digest": "d", "note": "caf\xe9"}']

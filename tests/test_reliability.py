@@ -250,6 +250,33 @@ def test_eval_and_compare_refuse_a_model_that_does_not_follow_from_the_run(run_d
         assert f"re-run `imitate observe {run_dir}`" in line and "before evaluating" in line
 
 
+@pytest.mark.parametrize("fifo", ["model.npz", "suite.toml"])
+def test_a_fifo_where_a_file_is_read_is_refused_not_waited_for(tmp_path, fifo):
+    """Review D: reading a FIFO waits for a writer forever, holding the run's lock."""
+    import subprocess
+    import sys
+
+    from imitate.demos.oracle import oracle_model
+    from imitate.learning import LearningConfig
+    from imitate.motion.replay import planning_task
+    from imitate.rundir.artifacts import save_npz
+
+    gaze = planning_task().gaze
+    learned = oracle_model(gaze, learning=LearningConfig(k_max=4), rate=20.0)
+    save_npz(tmp_path / "model.npz", {**learned.to_arrays(), "gaze": gaze})
+    (tmp_path / "suite.toml").write_text("particles = 40\n")
+    (tmp_path / fifo).unlink()
+    os.mkfifo(tmp_path / fifo)
+    done = subprocess.run(
+        [sys.executable, "-m", "imitate", "eval", str(tmp_path), "--suite",
+         str(tmp_path / "suite.toml"), "--n", "1", "--workers", "1"],
+        capture_output=True, text=True, timeout=300, check=False,
+    )
+    assert done.returncode == 1
+    line = one_error_line(done.stderr, "eval")
+    assert f"{tmp_path / fifo} is not a regular file" in line
+
+
 def test_a_config_that_is_no_object_is_refused_without_quoting_it(tmp_path):
     """Review I4: a config.json linked to another file's secret list."""
     (tmp_path / "secret.json").write_text('["TOP-SECRET-TOKEN-abcdef0123456789", 1]')

@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -293,7 +294,7 @@ def suite_names(task: Task) -> tuple[str, ...]:
 def named_suite(text: str | None, task: Task) -> tuple[str, Suite]:
     """The suite of ``task`` that ``--suite`` names, and its name: ``None`` or ``default`` for
     the built-in one, a name of :func:`suite_names`, or a ``.toml`` or ``.json`` file (named by
-    its stem).
+    its stem, :func:`file_name`).
 
     Raises:
         ImitateError: as :func:`load_suite`, or a name that is not shipped.
@@ -308,7 +309,14 @@ def named_suite(text: str | None, task: Task) -> tuple[str, Suite]:
         raise ImitateError(
             f"--suite {text} not accepted: one of {', '.join(names)}, or a .toml or .json file"
         )
-    return path.stem, load_suite(path, task.name)
+    return file_name(path), load_suite(path, task.name)
+
+
+def file_name(path: Path) -> str:
+    """The name a suite file gives its results' folder, figures and tables: its stem with every
+    character but letters, digits, ``_`` and ``-`` made ``_`` (no HTML, no mathtext, no folder
+    above: ``...toml`` is ``__``)."""
+    return re.sub(r"[^A-Za-z0-9_-]", "_", Path(path).stem) or "_"
 
 
 def load_suite(path: Path, task: str = tasks.DEFAULT) -> Suite:
@@ -320,6 +328,9 @@ def load_suite(path: Path, task: str = tasks.DEFAULT) -> Suite:
     path = Path(path)
     if path.suffix not in (".toml", ".json"):
         raise ImitateError(f"suite {path} not accepted: a .toml or .json file")
+    from imitate.rundir.artifacts import check_regular  # numpy: not for --help's keys
+
+    check_regular(path)
     try:
         text = path.read_text()
     except OSError as err:

@@ -43,6 +43,7 @@ from imitate.evaluation.variation import CriticalPlace, Variation, draw, free_pl
 from imitate.figures import plots
 from imitate.rundir import page
 from imitate.rundir.artifacts import (
+    check_regular,
     load_json,
     refuse_hard_link,
     refuse_link,
@@ -320,6 +321,7 @@ def _records(path: Path) -> Iterator[dict]:
     """The lines of ``path`` that are records (:func:`_is_record`), in order; none if missing."""
     if not path.exists():
         return
+    check_regular(path)
     for line in path.read_bytes().splitlines():
         try:
             record = json.loads(line.decode())
@@ -333,6 +335,7 @@ def _only_records(path: Path) -> bool:
     """Whether every whole JSON line of ``path`` is an evaluation's record, of any form (an
     object with a ``digest`` and an ``id``): its other lines are blank, cut short or not text,
     as an interrupted evaluation leaves them; a file of other JSON lines is someone else's."""
+    check_regular(path)
     for line in path.read_bytes().splitlines():
         try:
             value = json.loads(line.decode())
@@ -354,6 +357,8 @@ def _is_record(record: object) -> bool:
             "seconds", "physics_min_distance_m", "clearance_gap_m"))
         and isinstance(record.get("plan"), dict)
         and _is_number(record["plan"].get("min_distance_m"))
+        and isinstance(record.get("mahalanobis"), dict)
+        and _is_number(record["mahalanobis"].get("rms"))
         and isinstance(record.get("replays"), list) and record["replays"]
         and all(isinstance(r, dict) and _is_number(r.get("min_distance_m"))
                 for r in record["replays"])

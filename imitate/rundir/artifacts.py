@@ -15,6 +15,7 @@ import os
 import re
 import secrets
 import shutil
+import stat
 import zipfile
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
@@ -280,6 +281,21 @@ def cut_commits(run_dir: Path, left: list[Path]) -> list[str]:
     return found
 
 
+def check_regular(path: Path) -> None:
+    """Raise ``ImitateError`` if ``path`` is there but no regular file (a FIFO, a device, a
+    socket, a folder): reading a FIFO would wait for a writer, holding the run's lock. A
+    missing path is left to the reader."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return
+    if not stat.S_ISREG(mode):
+        raise ImitateError(
+            f"{path} is not a regular file (a FIFO, device, socket or folder); imitate reads "
+            "none: remove it"
+        )
+
+
 def save_npz(path: Path, arrays: Mapping[str, Any]) -> Path:
     """Write ``arrays`` (name -> array-like) as an uncompressed ``.npz``, atomically."""
     return write_atomic(
@@ -319,6 +335,7 @@ def load_npz(path: Path, required: tuple[str, ...] = (), hint: str = "") -> Arra
             names the file.
     """
     path = Path(path)
+    check_regular(path)
     try:
         with np.load(path, allow_pickle=False) as npz:
             arrays = Arrays(path, {name: npz[name] for name in npz.files}, hint)
@@ -343,6 +360,7 @@ def save_json(path: Path, obj: Any) -> Path:
 def load_json(path: Path, hint: str = "") -> Any:
     """Read a JSON artifact, with the same errors (and ``hint``) as :func:`load_npz`."""
     path = Path(path)
+    check_regular(path)
     try:
         return json.loads(path.read_text())
     except FileNotFoundError:
@@ -378,6 +396,7 @@ def _own_names() -> dict[str, set[str]]:
 
 def digest(path: Path) -> str:
     """sha256 of the file's bytes, hex (what the manifest records)."""
+    check_regular(Path(path))
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
@@ -385,7 +404,7 @@ def _sha256(path: Path) -> str | None:
     """:func:`digest` of a regular file, ``None`` if there is none to read."""
     try:
         return None if path.is_symlink() else digest(path)
-    except OSError:
+    except (OSError, ImitateError):
         return None
 
 
