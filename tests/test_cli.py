@@ -221,14 +221,13 @@ def test_interrupted_stage_leaves_no_half_written_file(quick_run, tmp_path, monk
     assert not [p.name for p in run_dir.iterdir() if "partial" in p.name]
 
 
-def test_a_mistyped_flag_gets_the_sub_command_usage_and_a_suggestion(tmp_path, capsys):
+def test_a_mistyped_flag_gets_one_line_and_a_suggestion(tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_:
         main(["optimize", str(tmp_path), "--colision-weight", "30"])
     err = capsys.readouterr().err
-    assert exit_.value.code == 2 and err.startswith("usage: imitate optimize")
-    assert err.splitlines()[-1] == (
+    assert exit_.value.code == 2 and err == (
         "imitate optimize: error: unrecognized arguments: --colision-weight (did you mean "
-        "--collision-weight?) 30"
+        "--collision-weight?) 30\n"
     )
 
 

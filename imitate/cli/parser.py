@@ -45,12 +45,20 @@ COMMANDS = {
 OPTION = "option_"  # prefix of the attributes of the task settings' flags
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse's parser whose errors are their one line, without the usage of every flag
+    above it (a dozen lines for ``imitate run``; ``--help`` shows them)."""
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
 def build_parser(full: Iterable[str] | None = None) -> argparse.ArgumentParser:
     """The command line: every sub-command, with its arguments for those in ``full`` (default:
     all). The parsed namespace holds the sub-command's name as ``command`` and its parser as
-    ``parser`` (its errors show its usage)."""
+    ``parser`` (its errors: one line)."""
     full = COMMANDS if full is None else tuple(full)
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="imitate",
         description="Task-level imitation learning of bimanual tasks (Muehlig et al., ICRA "
         "2009), end to end in MuJoCo: pouring, inserting (--task).",
