@@ -12,6 +12,11 @@ of these learned models only; how far the constraints moved the task's critical 
 weighting's unconstrained reproduction (``change``) is descriptive. The keys and words named
 after the score and the critical phase are the run's task's (``<score>``, ``<phase>``).
 
+Whether a verdict replicates (:mod:`~imitate.evaluation.replication`): the development
+teachers (the run's seed and the next ones) and, with ``confirm``, a confirmation block of
+teachers from seed 1000 up, on the same variations; a primary endpoint declared before the runs,
+reported per block.
+
 With a sweep (a numeric suite key and its values), every level is compared: per weighting the
 success and the score against the level with their bands over teachers, the level at 50 %
 success (ED50) with a bootstrap interval over teachers, and per teacher the first level whose
