@@ -161,6 +161,21 @@ def test_rendered_frame_is_not_blank(camera):
     assert frame.std() > 10
 
 
+def test_fast_images_show_what_full_ones_show():
+    """The fast look (for learning) leaves out shadows, reflections and multisampling, not
+    what is seen: the same pixels are the bottle's and the glass's."""
+    frames = {}
+    for quality in ("fast", "full"):
+        env = PouringEnv(render_mode="rgb_array", camera="workspace", render_quality=quality,
+                         **SMALL)
+        env.reset(seed=0)
+        frames[quality] = env.render().astype(float)
+        env.close()
+    assert np.mean(np.abs(frames["fast"] - frames["full"])) < 20.0
+    with pytest.raises(ImitateError, match="render_quality='nice' not accepted"):
+        PouringEnv(render_quality="nice", particles=0)
+
+
 def test_reset_options_move_the_grasp(env):
     env.reset(seed=0, options={"bottle_grasp": 0.06})
     low = env.unwrapped.data.body("bottle").xpos[2]

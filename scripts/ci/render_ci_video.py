@@ -29,7 +29,8 @@ CAPTION = "CI video"
 def render(out: Path, width: int, height: int, seconds: float, fps: int) -> int:
     """Write the video to ``out`` (atomically); returns the number of frames."""
     env = PouringEnv(
-        render_mode="rgb_array", width=width, height=height, particles=40, teacher=True
+        render_mode="rgb_array", width=width, height=height, particles=40, teacher=True,
+        render_quality="full",  # a video for people
     )
     env.reset(seed=0)
     rest = env.data.ctrl.copy()
