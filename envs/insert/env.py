@@ -46,7 +46,7 @@ False otherwise.
 | camera | ``"overview"`` | camera for ``render()``: one of ``models.scene.CAMERAS`` |
 | cameras | ``("workspace",)`` | the pixel observations' cameras, of ``models.humanoid.CAMERAS`` |
 | width, height | 640, 480 | image size of ``render()`` and of the head cameras' images [px] |
-| render_quality | ``"fast"`` | ``"fast"`` (for learning: no shadows, reflections or multisampling, coarser spheres) or ``"full"`` (MuJoCo's look, for people) |
+| render_quality | ``"fast"`` | ``"fast"`` (for learning: no shadows or reflections) or ``"full"`` |
 | obstacles | () | ``assembly.Obstacle``s (or keyword dicts) on the table, clear of the robot |
 | teacher | False | include the teacher mannequin across the table (at rest) |
 | frame_skip | 10 | physics steps (2 ms each) per env step; ``metadata["render_fps"]`` = 1 / dt |

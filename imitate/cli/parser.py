@@ -14,7 +14,7 @@ import logging
 import re
 from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from imitate import __version__
 from imitate.errors import ImitateError
@@ -49,7 +49,7 @@ class Parser(argparse.ArgumentParser):
     """argparse's parser whose errors are their one line, without the usage of every flag
     above it (a dozen lines for ``imitate run``; ``--help`` shows them)."""
 
-    def error(self, message: str):  # type: ignore[override]
+    def error(self, message: str) -> NoReturn:
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
