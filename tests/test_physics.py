@@ -6,6 +6,7 @@ import pytest
 
 from imitate.envs import assembly, mannequin
 from imitate.envs.bimanual import inside
+from imitate.envs.collision import signed_distances
 from imitate.envs.pour.env import PouringEnv
 from imitate.envs.pour.geometry import PourGeometry
 from imitate.models import objects
@@ -151,3 +152,23 @@ def test_pour_geometry_counts_the_particles_that_left_the_bottle_where_they_cros
     mouth = objects.BOTTLE_SHAPE.height - objects.GLASS_SHAPE.height + 0.2
     assert summary["mouth_above_rim_min_m"] == pytest.approx(mouth)
     assert summary["tilt_max_deg"] == 0.0 and summary["pour_seconds"] == pytest.approx(0.01)
+
+
+def test_clearance_skips_only_pairs_mujoco_puts_beyond_its_reach():
+    """The clearance leaves out the pairs whose bounding spheres lie further apart than
+    ``distmax``: every distance is MuJoCo's own for every pair, in postures near and far."""
+    env = PouringEnv(particles=0, obstacles=({"shape": "box", "pos": (0.55, 0.0, 0.70),
+                                              "size": (0.03, 0.03, 0.05)},))
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    pairs, m, d = env._pairs, env.model, env.data
+    skipped = 0
+    for _ in range(20):
+        env.step(np.clip(env.data.ctrl + rng.uniform(-0.3, 0.3, m.nu), env.action_space.low,
+                         env.action_space.high).astype(np.float32))
+        dist, _ = signed_distances(m, d, pairs)
+        for k, (g1, g2) in enumerate(zip(pairs.geom1, pairs.geom2, strict=True)):
+            assert dist[k] == mujoco.mj_geomDistance(m, d, int(g1), int(g2), 0.2, None)
+        skipped += int(np.sum(dist == 0.2))
+    assert skipped > 0  # the shortcut was taken
+

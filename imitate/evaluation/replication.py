@@ -32,7 +32,7 @@ from imitate.errors import ImitateError
 from imitate.evaluation.inference import teacher_effect
 
 __all__ = ["CONFIRMATION_SEED", "LEVEL", "POWER", "gee_effect", "parse_primary", "power",
-           "replication"]
+           "replication", "verdict"]
 
 # The first confirmation teacher's seed: development teachers are the run's seed and the next
 # ones (0..99), the confirmation block 1000 and up, a range the project never tuned on.
