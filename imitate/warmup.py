@@ -67,7 +67,8 @@ def compile_notice(stage: str) -> str | None:
         return None
     _numba.said()
     return (
-        f"compiling the {stage} kernels once (about {seconds} s); later runs load them from "
+        f"compiling the {stage} kernels once (about {seconds} s on two idle cores, several times "
+        f"that on a busy machine); later runs load them from "
         f"the cache at {', '.join(sorted(uncached))}"
     )
 

@@ -67,6 +67,9 @@ def export(run_dir: str | Path, format: str, out: str | Path | None = None,
             "has one env and the variations' scenes differ; accepted: format='hdf5' or "
             "format='lerobot'"
         )
+    from imitate.run import load_run
+
+    run = load_run(run_dir)  # a missing run first: nothing to install for it
     missing = [name for name in _NEEDS[format] if importlib.util.find_spec(name) is None]
     if missing:
         raise ImitateError(
@@ -75,9 +78,7 @@ def export(run_dir: str | Path, format: str, out: str | Path | None = None,
         )
     from imitate.export.episodes import Episode, robot_episode, teacher_episodes
     from imitate.export.from_eval import evaluated, evaluated_episodes
-    from imitate.run import load_run
 
-    run = load_run(run_dir)
     into_root = out is None and format == "minari"
     moved: tuple[str, ...]
     if into_root:

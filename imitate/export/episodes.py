@@ -33,6 +33,7 @@ from imitate.models import humanoid
 from imitate.motion import Plan
 from imitate.motion.replay import replay
 from imitate.run import Run
+from imitate.stages.progress import bar
 
 __all__ = [
     "Episode", "Recorder", "image_kwargs", "obstacle_vector", "recorded", "robot_episode",
@@ -191,7 +192,9 @@ def recorded(
     recorder = Recorder(env)
     try:
         # The Recorder stands in for the env it wraps (its attributes are read through).
-        replay(plan, cast(BimanualEnv, recorder), seed=seed, options=options, gaze=gaze)
+        with bar(desc=f"{task.name} episode", unit="step") as progress:  # images take minutes
+            replay(plan, cast(BimanualEnv, recorder), seed=seed, options=options, gaze=gaze,
+                   on_step=lambda _: progress.update())
     finally:
         recorder.close()
     rewards, terminated, truncated = (np.array(v) for v in zip(*recorder.steps, strict=True))
