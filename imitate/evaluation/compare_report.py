@@ -75,10 +75,15 @@ def _primary(replication: dict) -> list[str]:
 
 
 def _seeds(seeds: list[int]) -> str:
-    """``0-9`` for consecutive seeds, else the list."""
-    if seeds == list(range(seeds[0], seeds[-1] + 1)) and len(seeds) > 2:
-        return f"{seeds[0]}-{seeds[-1]}"
-    return ", ".join(map(str, seeds))
+    """Sorted seeds with each run of three or more consecutive ones as a range: ``0-9,
+    1000-1014``."""
+    runs: list[list[int]] = []
+    for seed in seeds:
+        if runs and seed == runs[-1][-1] + 1:
+            runs[-1].append(seed)
+        else:
+            runs.append([seed])
+    return ", ".join(f"{r[0]}-{r[-1]}" if len(r) > 2 else ", ".join(map(str, r)) for r in runs)
 
 
 def _tables(result: dict, task: Task) -> list[str]:
