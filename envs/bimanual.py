@@ -30,9 +30,9 @@ from imitate.models import scene as scene_names
 from imitate.models import teacher as teacher_names
 
 OBS_TYPES = ("state", "pixels", "pixels_agent_pos", "state_pixels")
-# How images are rendered: "fast" for learning from pixels (on a CPU, Mesa's llvmpipe, a 96x96
-# frame about 30x cheaper: no shadows, reflections or multisampling, spheres and capsules of
-# fewer facets), "full" for people (MuJoCo's look, shadows included).
+# How images are rendered: "fast" for learning from pixels (no shadows, reflections or
+# multisampling, spheres and capsules of fewer facets: on a CPU, Mesa's llvmpipe, a pour's
+# 96x96 pixel observations step 8x faster, scripts/bench/bench_env_rates.py), "full" for people.
 RENDER_QUALITIES = ("fast", "full")
 FAST_FACETS = (12, 8)  # slices and stacks of a sphere or capsule in "fast" images (MuJoCo's 28, 16)
 # MuJoCo's warnings that it found the state diverged (it then resets it).

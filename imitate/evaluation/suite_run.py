@@ -158,9 +158,9 @@ def default_out(run_dir: Path, name: str, suite: Suite) -> Path:
 
 def check_folder(out: Path, run_dir: Path) -> None:
     """Refuse ``out`` as an evaluation's folder unless it is missing, empty or an
-    evaluation's (a ``results.jsonl`` of records, cut short or not, beside nothing but the
-    evaluation's own :data:`OUTPUTS`, or an evaluation's ``summary.json``; not a hard link),
-    and a real folder:
+    evaluation's (a ``results.jsonl`` empty or with records, or only of lines cut short beside
+    nothing but the evaluation's own :data:`OUTPUTS`, or an evaluation's ``summary.json``; not
+    a hard link), and a real folder:
     no symbolic link in it or between it and ``run_dir`` when within it, no file in the way.
 
     Raises:
@@ -177,11 +177,12 @@ def check_folder(out: Path, run_dir: Path) -> None:
             )
     results = out / RESULTS
     refuse_hard_link(results)
-    if not out.is_dir() or _is_summary(out / "summary.json"):
+    ours = results.exists() and (results.stat().st_size == 0 or next(_records(results), None))
+    if not out.is_dir() or ours or _is_summary(out / "summary.json"):
         return
     names = sorted(entry.name for entry in out.iterdir())
     if results.is_file() and set(names) <= set(OUTPUTS) and _only_records(results):
-        return  # an evaluation's, even cut short in its first record
+        return  # an evaluation's, cut short in its first record
     if names:
         more = f" and {len(names) - 3} more" if len(names) > 3 else ""
         raise ImitateError(
