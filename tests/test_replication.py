@@ -71,6 +71,9 @@ def test_blocks_and_verdicts():
     assert result["development"]["teachers"] == [0, 1, 2, 3]
     assert result["confirmation"]["teachers"] == [1000, 1001, 1002, 1003]
     assert len(result["all"]["teachers"]) == 8 and result["verdict"] == "replicated"
+    # means over the teachers: 8 of 10 each; 3 of 10 each and two flipped of 40 (17, 34)
+    assert result["development"]["success"] == {"variance": 0.8,
+                                                "uniform": pytest.approx(0.3 + 2 / 40)}
     reversed_ = replication({"variance": np.where(teachers < 1000, better, worse),
                              "uniform": np.where(teachers < 1000, worse, better)}, teachers,
                             ("variance", "uniform"), range(1000, 1100))

@@ -45,10 +45,11 @@ def _primary(replication: dict) -> list[str]:
         f"**{replication['verdict']}** (the confirmation block repeats the development "
         "block's sign with an interval excluding 0).",
         "",
-        "| teachers | seeds | a - b [pp], mean [95 % t], a / b higher | permutation p (floor) "
+        "| teachers | seeds | a, b success | a - b [pp], mean [95 % t], a / b higher "
+        "| permutation p (floor) "
         "| smallest detectable [pp] (80 % power) | teachers needed for this mean "
         "| GEE odds ratio a/b [95 %], p (teacher clusters) |",
-        "|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for name in ("development", "confirmation", "all"):
         block = replication[name]
@@ -66,7 +67,9 @@ def _primary(replication: dict) -> list[str]:
             f"{_p(gee['p'])}"
         )
         lines.append(
-            f"| {name} ({len(seeds)}) | {_seeds(seeds)} | {_effect(block['effect'], 100)} "
+            f"| {name} ({len(seeds)}) | {_seeds(seeds)} | "
+            + " / ".join(f"{100 * v:.0f} %" for v in block["success"].values())
+            + f" | {_effect(block['effect'], 100)} "
             f"| {_p(block['effect']['p'])} ({floor}) "
             f"| {detectable} "
             f"| {power['teachers_needed'] or 'n/a'} | {odds} |"

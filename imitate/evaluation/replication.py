@@ -131,8 +131,8 @@ def replication(
     ``(N,)`` bool (the same variations in the same order for each), ``teachers`` ``(N,)`` their
     teachers' seeds, ``confirmation`` the confirmation teachers' seeds (the others are the
     development block). Returns the endpoint, each block's (``development``,
-    ``confirmation``, ``all``) teacher-level effect with its power line and GEE model, and the
-    ``verdict``."""
+    ``confirmation``, ``all``) success rates of ``a`` and ``b`` (means over its teachers), its
+    teacher-level effect with its power line and GEE model, and the ``verdict``."""
     a, b = primary
     blocks = {
         "development": ~np.isin(teachers, confirmation),
@@ -150,6 +150,8 @@ def replication(
         d = np.round([success[a][mine].mean() - success[b][mine].mean() for mine in of], 12)
         result[name] = {
             "teachers": seeds,
+            "success": {s: float(np.mean([success[s][mine].mean() for mine in of]))
+                        for s in (a, b)},
             "effect": teacher_effect(d),
             "power": power(d),
             "gee": gee_effect(success[a][inside], success[b][inside], teachers[inside]),
