@@ -322,29 +322,26 @@ def _records(path: Path) -> Iterator[dict]:
     """The lines of ``path`` that are records (:func:`_is_record`), in order; none if missing."""
     if not path.exists():
         return
+    yield from filter(_is_record, _json_lines(path))
+
+
+def _json_lines(path: Path) -> Iterator[object]:
+    """The values of the lines of ``path`` that are whole JSON, in order (a line cut short or
+    not UTF-8 is passed over)."""
     check_regular(path)
     for line in path.read_bytes().splitlines():
         try:
-            record = json.loads(line.decode())
+            yield json.loads(line.decode())
         except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):
             continue
-        if _is_record(record):
-            yield record
 
 
 def _only_records(path: Path) -> bool:
     """Whether every whole JSON line of ``path`` is an evaluation's record, of any form (an
     object with a ``digest`` and an ``id``): its other lines are blank, cut short or not text,
     as an interrupted evaluation leaves them; a file of other JSON lines is someone else's."""
-    check_regular(path)
-    for line in path.read_bytes().splitlines():
-        try:
-            value = json.loads(line.decode())
-        except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):
-            continue
-        if not (isinstance(value, dict) and {"digest", "id"} <= value.keys()):
-            return False
-    return True
+    return all(isinstance(value, dict) and {"digest", "id"} <= value.keys()
+               for value in _json_lines(path))
 
 
 def _is_record(record: object) -> bool:

@@ -96,7 +96,6 @@ def child(args) -> dict:
     from imitate.evaluation.suite_run import draw_jobs
     from imitate.evaluation.teachers import _read, teacher_seeds
     from imitate.evaluation.variation import Variation
-    from imitate.motion import replay as replay_module
     from imitate.stages.config import load_config
 
     run = Path(args.run)
@@ -118,9 +117,7 @@ def child(args) -> dict:
     clock.wrap(trial_module, "physics", "scene")
     clock.wrap(trial_module, "plan_from_model", "planning")
     clock.wrap(trial_module, "replay_once", "replay, Python")
-    clock.wrap(replay_module, "replay_batch", "replay, Python")
     clock.wrap(BimanualEnv, "_simulate", "physics")
-    clock.wrap(replay_module, "simulate", "physics")
     clock.wrap(trial_module.Trial, "run", "outcome, records")
     trials = {m.seed: trial_module.Trial(m.learned, task) for m in models}
     for similarity in args.similarity.split(","):  # the free plans: once per teacher
