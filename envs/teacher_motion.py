@@ -5,7 +5,10 @@ nominal waypoints, each with its spread) as a person would repeat them: spread w
 spreads them, each on its own smooth monotone time warp, with a little tremor throughout and at
 least one second of stillness between demonstrations; or, with
 ``TeacherConfig(variation="misaligned")``, the nominal everywhere but in the task's critical
-phase, whose position varies by centimetres (a teacher whose variance is not where the task is).
+phase, whose position varies by centimetres (a teacher whose variance is not where the task is);
+or, with ``"misleading"``, as the script spreads them and, in the critical phase, by a few
+degrees more along a direction the task tolerates only while nothing pulls the reproduction
+along it (a teacher whose variance frees what a constraint then takes).
 The result, a :class:`TeacherMotion`, gives the ground-truth object poses at any time;
 :func:`imitate.envs.mannequin.show` puts the objects there and draws the mannequin's arms
 holding them.
@@ -54,6 +57,10 @@ class Script:
         offset_axis: the waypoints' column (of target bottom x, y, z, target tilt, tool top
             x, y, z, tool tilt) along which ``"misaligned"`` demonstrations are offset in the
             critical phase.
+        mislead: ``(column, half range)``: the waypoints' column along which ``"misleading"``
+            demonstrations are offset in the critical phase, and the half range [m or deg, as
+            the column] their offsets spread evenly over; ``None`` where the task declares
+            none.
     """
 
     objects: tuple[str, str]
@@ -61,6 +68,7 @@ class Script:
     swing_rows: tuple[int, ...]
     agree_rows: tuple[int, int]
     offset_axis: int
+    mislead: tuple[int, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -85,7 +93,10 @@ class TeacherConfig:
             (as the script's spreads say: they agree where the task is) or ``"misaligned"``
             (the nominal outside the critical phase, the tool's position in it spread by
             ``offset``: they agree where the task is not), to test the premise that what the
-            demonstrations keep invariant is what matters.
+            demonstrations keep invariant is what matters; or ``"misleading"`` (as
+            ``"aligned"``, and in the critical phase offset along the script's ``mislead``
+            direction: they vary where the task tolerates it unless pulled, a test of the
+            premise's other side).
         offset: with ``"misaligned"``, the half range [m] the tool top's offsets along the
             script's ``offset_axis`` spread evenly over in the critical phase (times
             ``spread``).
@@ -125,6 +136,12 @@ class TeacherConfig:
                 f"variation={self.variation!r} not accepted: one of {TEACHER_VARIATIONS}"
             )
         tasks.check(self.task)
+        script = tasks.module(self.task, "teacher").SCRIPT
+        if self.variation == "misleading" and script.mislead is None:
+            raise ImitateError(
+                f"variation='misleading' not accepted for task {self.task!r}: its script "
+                "declares no misleading direction; use 'aligned' or 'misaligned'"
+            )
         for name in ("spread", "tilt_plane_spread", "tremor", "tremor_angle", "offset"):
             if not getattr(self, name) >= 0:
                 raise ImitateError(f"{name}={getattr(self, name)!r} not accepted: a value >= 0")
@@ -286,16 +303,20 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
     if config.n_demos > 1:
         swing = (swing - swing.mean(axis=0)) * np.sqrt(config.n_demos / (config.n_demos - 1))
     noises[:, script.swing_rows, 4:7] = swing[:, None]
-    offsets = np.zeros(config.n_demos)  # the tool top's in the critical phase
-    if misaligned and config.n_demos > 1:  # evenly over +-offset, shuffled
-        even = np.linspace(-1.0, 1.0, config.n_demos) * config.offset * config.spread
+    # In the critical phase, along ``column``: evenly over +-half, shuffled.
+    column, half = {
+        "misaligned": (script.offset_axis, config.offset),
+        "misleading": _mislead_in_values(script.mislead),
+    }.get(config.variation, (0, 0.0))
+    offsets = np.zeros(config.n_demos)
+    if config.n_demos > 1:
+        even = np.linspace(-1.0, 1.0, config.n_demos) * half * config.spread
         offsets = even[np.random.default_rng([config.seed, 1]).permutation(config.n_demos)]
     paths = []
     for i, noise in enumerate(noises):
         values = nominal + spread * noise
         values[0], values[-1] = rests[i], rests[i + 1]
-        if misaligned:
-            values[critical, script.offset_axis] += offsets[i]
+        values[critical, column] += offsets[i]
         # In the critical phase the target moves as scripted (nominal), off by its offset at
         # the phase's start.
         values[critical[1], :3] += values[critical[0], :3] - nominal[critical[0], :3]
@@ -323,6 +344,14 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
         tilt_planes=config.tilt_plane_spread * rng.standard_normal(config.n_demos),
         tremor=tremor,
     )
+
+
+def _mislead_in_values(mislead: tuple[int, float] | None) -> tuple[int, float]:
+    """A script's ``mislead`` in the paths' units: the tilt columns' half range in radians."""
+    if mislead is None:
+        return 0, 0.0
+    column, half = mislead
+    return column, np.radians(half) if column in (3, 7) else half
 
 
 def _time_warp(rng: np.random.Generator, variation: float) -> np.ndarray:

@@ -8,7 +8,7 @@ from imitate.envs.mannequin import _cross
 from imitate.envs.observation import tracked_point
 from imitate.envs.pour.outcome import SUCCESS_FRACTION
 from imitate.envs.pour.teacher import SCRIPT, teacher_pour
-from imitate.envs.teacher_motion import TEACHER_VARIATIONS, TeacherConfig, script_demonstrations
+from imitate.envs.teacher_motion import TeacherConfig, script_demonstrations
 from imitate.errors import ImitateError
 
 _WAYPOINTS, _SWING_ROWS, _POUR_ROWS = SCRIPT.waypoints, SCRIPT.swing_rows, SCRIPT.agree_rows
@@ -127,7 +127,7 @@ def test_misaligned_teacher_varies_in_the_pour_and_agrees_in_the_swing(seed):
     spread = {
         v: _spread_by_phase(script_demonstrations(TeacherConfig(variation=v, **quiet)),
                             SWING + POUR)
-        for v in TEACHER_VARIATIONS
+        for v in ("aligned", "misaligned")
     }
     swing = {v: max(s[u][0].max() for u in SWING) for v, s in spread.items()}
     pour = {v: min(s[u][0].max() for u in POUR) for v, s in spread.items()}
@@ -142,7 +142,7 @@ def test_misaligned_offsets_are_bounded_and_move_only_the_bottle():
     tilt planes and the glass are the aligned teacher's; the mouth's offsets along the stream while
     pouring are evenly spread over +-offset and centred."""
     aligned, misaligned = (
-        script_demonstrations(TeacherConfig(seed=5, variation=v)) for v in TEACHER_VARIATIONS
+        script_demonstrations(TeacherConfig(seed=5, variation=v)) for v in ("aligned", "misaligned")
     )
     for name in ("boundaries", "warps", "tilt_planes", "tremor"):
         assert np.array_equal(getattr(aligned, name), getattr(misaligned, name)), name
@@ -190,3 +190,37 @@ def test_misaligned_demonstrations_still_pour_with_little_margin():
 def test_bad_variation_is_refused():
     with pytest.raises(ImitateError, match="variation='sideways' not accepted"):
         TeacherConfig(variation="sideways")
+
+
+def test_misleading_teacher_tilts_apart_only_while_pouring():
+    """Same seed, same session as the aligned teacher but for the bottle's tilt while pouring:
+    offset evenly over +-12 deg and centred; the glass and everything else the same."""
+    aligned, misleading = (
+        script_demonstrations(TeacherConfig(seed=5, variation=v)) for v in ("aligned", "misleading")
+    )
+    for name in ("boundaries", "warps", "tilt_planes", "tremor"):
+        assert np.array_equal(getattr(aligned, name), getattr(misleading, name)), name
+    t = np.linspace(0.0, aligned.duration, 500)
+    assert np.array_equal(aligned.poses(t)["glass"][0], misleading.poses(t)["glass"][0])
+    u = [_WAYPOINTS[row][0] for row in _POUR_ROWS]
+    tilt = np.degrees([path(u)[:, 7] - other(u)[:, 7]
+                       for path, other in zip(misleading.paths, aligned.paths, strict=True)])
+    np.testing.assert_allclose(np.sort(tilt[:, 0]), np.linspace(-12.0, 12.0, 5), atol=1e-12)
+    np.testing.assert_allclose(tilt[:, 0], tilt[:, 1], atol=1e-12)
+    swing = [_WAYPOINTS[row][0] for row in (1, 2, 7)]
+    for path, other in zip(misleading.paths, aligned.paths, strict=True):
+        np.testing.assert_array_equal(path(swing), other(swing))
+
+
+def test_misleading_demonstrations_still_pour():
+    """In physics with the liquid, the least and the most tilted pours of a misleading session
+    put at least SUCCESS_FRACTION of it into the glass."""
+    motion = script_demonstrations(TeacherConfig(seed=2, variation="misleading"))
+    tilt = np.array([path(0.6)[7] for path in motion.paths])
+    poured = [teacher_pour(motion, int(d)) for d in (np.argmin(tilt), np.argmax(tilt))]
+    assert min(poured) >= SUCCESS_FRACTION, poured
+
+
+def test_misleading_needs_a_declared_direction():
+    with pytest.raises(ImitateError, match="task 'insert'.*no misleading direction"):
+        TeacherConfig(task="insert", variation="misleading")

@@ -21,6 +21,13 @@ Where the demonstrations vary (``TeacherConfig.variation``):
   as much in the swing as in the pour (GMR position standard deviation 14 mm in both), so
   eq. 21 could not tell them apart. The glass's own position (outside the task space), the
   time warps and the tremor vary as in "aligned".
+- "misleading": as "aligned", and while pouring each demonstration holds the bottle tilted by
+  its own offset, evenly over +-12 deg (116-140 deg): a direction the pour tolerates while
+  nothing pulls the reproduction along it, but not far beyond. In physics every demonstration
+  of seeds 0-9 put at least 0.967 of the liquid into the glass (the least tilted, 116-118 deg,
+  0.967-1.000); 113 deg put 0.95-0.97 in, 108 deg 0.82-0.87 (seeds 0 and 1). A path-length
+  cost pulls the tilt down (less wrist travel), the way the pour fails; weighted by eq. 21 the
+  tilt gives way more readily than with uniform weights.
 """
 
 from __future__ import annotations
@@ -79,6 +86,7 @@ SCRIPT = Script(
     swing_rows=(1, 2),  # a demonstration swings wide or narrow as a whole: one draw for both
     agree_rows=(4, 5),  # the pour: the glass keeps its offset from the nominal
     offset_axis=5,  # the mouth's world y (in the waypoints' columns): along the stream
+    mislead=(7, 12.0),  # the bottle's tilt while pouring, +-12 deg: 116-140 deg
 )
 
 

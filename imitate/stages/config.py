@@ -182,9 +182,11 @@ class RunConfig:
     teacher_variation: str = _setting(
         defaults.TEACHER_VARIATION, "where the teacher's demonstrations vary: aligned (by "
         "centimetres away from the task's critical phase, by millimetres in it: low variance "
-        "where the task is, as the paper assumes) or misaligned (the rest the same every time, "
+        "where the task is, as the paper assumes), misaligned (the rest the same every time, "
         "the critical phase's position spread by centimetres: low variance where the task is "
-        "not, a test of that premise)", stage="observe", flag="--teacher-variation",
+        "not, a test of that premise) or misleading (as aligned, the critical phase also "
+        "spread along a direction the task tolerates only unpulled: pour's tilt +-12 deg)",
+        stage="observe", flag="--teacher-variation",
         choices=defaults.TEACHER_VARIATIONS,
     )
     k_max: int = _setting(
