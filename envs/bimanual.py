@@ -41,6 +41,12 @@ DIVERGENCE = (
     mujoco.mjtWarning.mjWARN_BADQVEL,
     mujoco.mjtWarning.mjWARN_BADQACC,
 )
+# How fast [rad/s] the joint targets may move by default: a step's action is followed at most
+# this far (``max_target_speed * dt``). Planned movements stay below a third of it (at most 3.4
+# rad/s, seeds 0-9 and 1000-1004), so their replays are unchanged; uniform random targets,
+# followed at once, slammed the arms through the body and diverged the physics in every episode
+# of Inserting-v0 and a third of Pouring-v0's (scripts/experiments/random_actions.py).
+MAX_TARGET_SPEED = 10.0
 # How far [m] below its shoulder the teacher's hand hangs at rest (arms down, hands by the hips).
 TEACHER_HAND_DROP = 0.53
 
@@ -74,6 +80,7 @@ class BimanualEnv(gym.Env):
         reset_noise_scale: float = 0.01,
         collision_weight: float = 1.0,
         render_quality: str = "fast",
+        max_target_speed: float = MAX_TARGET_SPEED,
         **scene: Any,
     ):
         _check_choice("render_mode", render_mode, (None, *self.metadata["render_modes"]))
@@ -90,6 +97,13 @@ class BimanualEnv(gym.Env):
                 raise ImitateError(f"{name}={value!r} not accepted: a positive integer")
         check_weight("reset_noise_scale", reset_noise_scale)
         check_weight("collision_weight", collision_weight)
+        speed_ok = isinstance(max_target_speed, Real) and not isinstance(max_target_speed, bool)
+        if not (speed_ok and max_target_speed > 0):
+            raise ImitateError(
+                f"max_target_speed={max_target_speed!r} not accepted: a speed > 0 [rad/s] "
+                "(math.inf: the targets jump to each action)"
+            )
+        self.max_target_speed = float(max_target_speed)
         self.render_mode, self.obs_type, self.camera = render_mode, obs_type, camera
         self.cameras = cameras
         self.width, self.height = width, height
@@ -165,7 +179,8 @@ class BimanualEnv(gym.Env):
         return self._get_obs(), self._get_info(self._min_distance())
 
     def step(self, action):
-        """Apply joint targets for ``frame_skip`` physics steps."""
+        """Move the joint targets towards ``action`` (by at most ``max_target_speed * dt``)
+        and simulate ``frame_skip`` physics steps."""
         if self._needs_reset:
             raise ImitateError("step() before reset(): call reset() first")
         action = np.asarray(action)
@@ -179,7 +194,9 @@ class BimanualEnv(gym.Env):
                 f"{self.action_space.shape} finite real joint targets [rad] in "
                 f"models.humanoid.JOINTS order"
             )
-        self.data.ctrl[:] = np.clip(action, self.action_space.low, self.action_space.high)
+        target = np.clip(action, self.action_space.low, self.action_space.high)
+        reach = self.max_target_speed * self.dt  # exactly the action where within reach
+        self.data.ctrl[:] = np.clip(target, self.data.ctrl - reach, self.data.ctrl + reach)
         diverged = self._simulate()
         min_distance = self._min_distance()
         info = self._get_info(min_distance)

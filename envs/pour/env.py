@@ -8,7 +8,9 @@ objects held by weld constraints. This is where planned movements are replayed.
 
 ## Action space
 ``Box(ctrl_low, ctrl_high, (18,), float32)``: target angles [rad] in ``models.humanoid.JOINTS``
-order, clipped to the joint ranges.
+order, clipped to the joint ranges. The servos' targets follow an action at ``max_target_speed``
+(10 rad/s: at most 0.2 rad a step), so that random actions cannot throw the arms through the
+body; planned movements (under 4 rad/s) are followed exactly.
 
 ## Observation space
 ``obs_type="state"``: ``Box((50,), float64)``, see ``observation_structure``: robot joint
@@ -50,6 +52,7 @@ False otherwise.
 | teacher | False | include the teacher mannequin across the table (at rest) |
 | frame_skip | 10 | physics steps (2 ms each) per env step; ``metadata["render_fps"]`` = 1 / dt |
 | reset_noise_scale | 0.01 | half-width of the uniform noise on the initial joint angles [rad] |
+| max_target_speed | 10.0 | the joint targets' top speed towards an action [rad/s] (``inf``: none) |
 | pour_weight, collision_weight | 1.0, 1.0 | reward weights |
 
 ``gym.make("imitate/Pouring-v0", **kwargs)`` passes these on; it also takes Gymnasium's own,
