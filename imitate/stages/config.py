@@ -185,7 +185,7 @@ class RunConfig:
         "where the task is, as the paper assumes), misaligned (the rest the same every time, "
         "the critical phase's position spread by centimetres: low variance where the task is "
         "not, a test of that premise) or misleading (as aligned, the critical phase also "
-        "spread along a direction the task tolerates only unpulled: pour's tilt +-12 deg)",
+        "spread along a direction the task tolerates only while nothing pulls along it)",
         stage="observe", flag="--teacher-variation",
         choices=defaults.TEACHER_VARIATIONS,
     )

@@ -1,0 +1,107 @@
+"""The measured tolerance's pieces: the move in the critical phase, its window, the tolerance of
+failure rates, the quadratic form and the alignment."""
+
+import numpy as np
+import pytest
+
+from imitate.evaluation import sensitivity as sens
+from imitate.models import humanoid
+from imitate.motion import Plan
+from imitate.motion.costs import TOLERANCE
+from imitate.motion.replay import planning_task
+from imitate.taskspace import ANGLES
+
+
+def _plan(task_map, steps: int = 9) -> Plan:
+    """A plan that sweeps the right elbow and wrist a little, its task states from the map."""
+    q = np.tile(humanoid.rest_pose(), (steps, 1))
+    for name, amount in (("right_elbow", 0.3), ("right_wrist_pitch", 0.4)):
+        q[:, humanoid.JOINTS.index(name)] += np.linspace(0.0, amount, steps)
+    x, ref = [], np.zeros(2)
+    for row in q:
+        task_map.kin.update(row)
+        state, _ = task_map(ref)
+        ref = state[ANGLES]
+        x.append(state)
+    x = np.array(x)
+    return Plan(
+        times=0.08 * np.arange(steps), attractors=np.zeros((1, 7)), push=np.zeros((1, 18)),
+        target=x, x=x, q=q, q_start=q[0], approach_bend=np.zeros(18), mean=x,
+        variance=np.ones_like(x), weights=np.ones_like(x), costs={}, min_distance=0.1,
+        closest=None, converged=True, clipped=0, message="", n_iter=0, n_evaluations=0,
+    )
+
+
+@pytest.mark.parametrize("direction", [0, 2, 3, 6])
+def test_a_move_moves_the_task_state_by_delta(direction):
+    """Two tolerances along a task dimension: the task state moves by that, to first order
+    (within 5 % of the move, the other dimensions within 5 % of it too), where the window is 1;
+    not at all where it is 0."""
+    task_map = planning_task()
+    plan = _plan(task_map)
+    ease = np.array([0, 0, 0.5, 1, 1, 1, 0.5, 0, 0], float)
+    delta = 2.0 * np.eye(7)[direction] * np.asarray(TOLERANCE)
+    moved = sens.moved(plan, task_map, delta, ease)
+    for t, w in enumerate(ease):
+        task_map.kin.update(moved.q[t])
+        x, _ = task_map(plan.x[t, ANGLES])
+        change = (x - plan.x[t]) / np.asarray(TOLERANCE)
+        np.testing.assert_allclose(change, 2.0 * w * np.eye(7)[direction], atol=0.1)
+    assert np.array_equal(moved.q[ease == 0], plan.q[ease == 0])
+
+
+def test_window_is_one_in_the_critical_phase_and_eases_out():
+    times = 0.1 * np.arange(20)
+    critical = (times > 0.75) & (times < 1.25)
+    ease = sens.window(times, critical, ramp=0.4)
+    assert np.all(ease[critical] == 1.0) and np.all(ease[(times < 0.35) | (times > 1.65)] == 0)
+    assert ease[7] == pytest.approx(0.5 + 0.5 * np.cos(np.pi * 0.1 / 0.4))
+    assert np.all(np.diff(ease[:9]) >= 0) and np.all(np.diff(ease[12:]) <= 0)
+
+
+@pytest.mark.parametrize(
+    "rates, expected",
+    [
+        ([[0, 0, 0], [0, 0, 0]], np.inf),
+        ([[0, 0, 1], [0, 0, 0]], 3.0),  # halfway from 2 (none failed) to 4 (all)
+        ([[0, 0, 1], [0, 1 / 3, 2 / 3]], 3.0),  # the tighter side: both reach half at 3
+        ([[0, 0, 0], [1, 1, 1]], 0.5),  # from 0 at no move
+        ([[0, 2 / 3, 1], [0, 0, 0]], 1.75),
+    ],
+)
+def test_tolerance_is_where_half_the_replays_fail(rates, expected):
+    assert sens.tolerance(np.array(rates, float), (1.0, 2.0, 4.0)) == pytest.approx(expected)
+
+
+def test_quadratic_form_holds_the_importances_it_can():
+    """A form made of rank-one pieces of the probed directions is found again; every fit is
+    positive semi-definite."""
+    rng = np.random.default_rng(3)
+    directions = sens.probe_directions(np.cov(rng.standard_normal((7, 30))))
+    truth = np.einsum("i,ij,ik->jk", rng.uniform(0, 1, 14), directions, directions)
+    importance = np.einsum("ij,jk,ik->i", directions, truth, directions)
+    fitted = sens.quadratic_form(directions, importance)
+    np.testing.assert_allclose(
+        np.einsum("ij,jk,ik->i", directions, fitted, directions), importance, rtol=1e-6
+    )
+    noisy = sens.quadratic_form(directions, rng.uniform(-1, 1, 14))
+    assert np.linalg.eigvalsh(noisy).min() > -1e-12
+
+
+def test_probe_directions_are_the_axes_then_the_eigenvectors_most_agreed_first():
+    covariance = np.diag([4.0, 1.0, 9.0, 0.5, 2.0, 3.0, 6.0])
+    directions = sens.probe_directions(covariance)
+    assert directions.shape == (14, 7)
+    np.testing.assert_allclose(directions[:7], np.eye(7))
+    np.testing.assert_allclose(np.abs(directions[7:]).argmax(axis=1), [3, 1, 4, 5, 0, 6, 2])
+    assert np.all(directions[7:].max(axis=1) == 1.0)
+
+
+def test_alignment_is_the_rank_correlation_of_precision_and_importance():
+    covariance = np.diag([4.0, 1.0, 9.0, 0.5, 2.0, 3.0, 6.0])
+    precision = 1.0 / np.diag(covariance)
+    aligned = np.concatenate([precision, np.sort(precision)[::-1]])
+    assert sens.alignment(covariance, aligned) == pytest.approx({"eigen": 1.0, "diagonal": 1.0})
+    against = sens.alignment(covariance, -aligned)
+    assert against == pytest.approx({"eigen": -1.0, "diagonal": -1.0})
+    assert np.isnan(sens.alignment(covariance, np.zeros(14))["eigen"])
