@@ -20,7 +20,7 @@ from imitate.envs.pour.outcome import outcome
 from imitate.envs.task import get_task
 from imitate.errors import ImitateError
 from imitate.evaluation import Suite, evaluate, load_suite, named_suite
-from imitate.evaluation.report import summarize, text, wilson
+from imitate.evaluation.report import summarize, teacher_table, text, wilson
 from imitate.evaluation.suite import keys
 from imitate.evaluation.suite_run import RESULTS, default_out, last_records, read_records
 from imitate.evaluation.variation import Variation, draw
@@ -151,7 +151,10 @@ def _record(**changes) -> dict:
     replay = {"seed": 1, "pour_fraction": 0.5, "spilled": 3, "min_distance_m": 0.01}
     record = {
         "digest": "d", "teacher": 0, "id": 0, "settings": settings, "outcome": "spill",
-        "pour_mean": 0.5, "pour_min": 0.5, "plan": {"min_distance_m": 0.02, "seconds": 0.1},
+        "pour_mean": 0.5, "pour_min": 0.5,
+        "plan": {"min_distance_m": 0.02, "seconds": 0.1, "nullspace_push": False,
+                 "pour_phase_err_m": 0.002, "pour_phase_err_deg": 0.5},
+        "change": {"pour_m": 0.001, "pour_deg": 0.2, "low_variance_m": 0.003},
         "mahalanobis": {"rms": 1.0}, "replays": [replay], "physics_min_distance_m": 0.01,
         "clearance_gap_m": 0.01,
         "seconds": 1.0,
@@ -171,7 +174,7 @@ def test_records_that_could_name_a_file_outside_are_skipped(tmp_path):
 
 
 def test_a_line_not_utf8_or_a_record_lacking_what_the_summary_reads_is_skipped(tmp_path):
-    """Review N-e8, N-e10: tracebacks before."""
+    """Review N-e8, N-e10, X7: tracebacks before."""
     good = _record()
     bad = [
         {k: v for k, v in good.items() if k != "seconds"}, _record(id=1, settings=None),
@@ -179,6 +182,11 @@ def test_a_line_not_utf8_or_a_record_lacking_what_the_summary_reads_is_skipped(t
         _record(id=5, settings={**good["settings"], "obstacle": {"shape": "box"}}),
         _record(id=6, teacher=None), _record(id=7, mahalanobis=None),
         _record(id=8, mahalanobis={"rms": None}),
+        # what compare pairs (review X7)
+        _record(id=9, change=None), _record(id=10, change={"pour_m": 0.001}),
+        _record(id=11, plan={**good["plan"], "nullspace_push": "x"}),
+        _record(id=12, plan={**good["plan"], "pour_phase_err_m": None}),
+        _record(id=13, mahalanobis={"rms": "abc"}),
     ]
     path = tmp_path / RESULTS
     lines = [json.dumps(r).encode() for r in bad] + [b'{"digest": "d", "note": "caf\xe9"}']
@@ -534,3 +542,29 @@ def test_a_run_directory_this_user_cannot_write_is_evaluated_into_out(
     assert sorted(p.name for p in run_dir.iterdir()) == before  # no .lock, no eval/
     with lock.locked(run_dir, "imitate learn"):  # a command that writes there takes it
         assert (run_dir / lock.LOCK).exists()
+
+
+@pytest.mark.parametrize(
+    "default_run, shown",
+    [
+        ({"pour_fractions": [1.0, 0.95], "success": True}, "1.000 0.950 (success)"),
+        ("abc", "-"), ({"pour_fractions": ["x"], "success": True}, "-"),
+        ({"pour_fractions": [1.0]}, "-"), (None, "-"),
+    ],
+)
+def test_a_teachers_default_run_is_shown_only_when_it_holds_its_numbers(default_run, shown):
+    """Review X10: a teacher's report.json is read as it is; a replay section of another form
+    shows as "-" in the teachers' table instead of a traceback."""
+    row = {"seed": 3, "default_run": default_run, "success": 1, "variations": 2,
+           "success_wilson95": [0.1, 0.9], "pour_min": 0.5, "pour_min_mean": 0.6, "failures": []}
+    assert f"| 3 | {shown} | 1/2 |" in teacher_table([row], POUR)
+
+
+@pytest.mark.parametrize(
+    "summary", [{"teachers": [], "suite_digest": ["x"]}, {"teachers": [{"digest": 3}]}]
+)
+def test_a_summary_whose_digests_are_not_text_is_refused_in_one_line(tmp_path, summary):
+    """Review X6c: a TypeError (unhashable list) before."""
+    (tmp_path / "summary.json").write_text(json.dumps(summary))
+    with pytest.raises(ImitateError, match="is not an evaluation's summary .*not all text"):
+        last_records(tmp_path)

@@ -453,6 +453,11 @@ def test_from_eval_refuses_minari_and_an_evaluation_of_other_code(
     (crafted / "summary.json").write_text(json.dumps({"teachers": []}))
     with pytest.raises(imitate.ImitateError, match="is not an evaluation's summary"):
         export(run_dir, "hdf5", tmp_path / "h", from_eval=crafted)
+    summary = json.loads((eval_dir / "summary.json").read_text())
+    summary["teachers"][0]["seed"] = "../../../outside"  # review X6a: into a path before
+    (crafted / "summary.json").write_text(json.dumps(summary))
+    with pytest.raises(imitate.ImitateError, match="seeds .* are not all whole numbers"):
+        export(run_dir, "hdf5", tmp_path / "h", from_eval=crafted)
     shutil.rmtree(crafted)
     monkeypatch.setattr(provenance, "code_digest", lambda: "other code")
     with pytest.raises(imitate.ImitateError, match="evaluated with another model .* or other code"):

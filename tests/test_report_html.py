@@ -5,12 +5,15 @@ import json
 from html.parser import HTMLParser
 from pathlib import Path
 
+import pytest
+
 from imitate.envs.task import get_task
 from imitate.evaluation.report import summarize
 from imitate.rundir import layout
 from imitate.rundir.page import CAPTIONS, save_eval_page, save_run_page
-from imitate.rundir.schema import REPORT_SCHEMA
+from imitate.rundir.schema import REPORT_SCHEMA, check_values
 from imitate.stages.config import RunConfig
+from imitate.stages.runner import run_keys
 
 POUR = get_task("pour")
 
@@ -74,6 +77,36 @@ def test_partial_run_has_a_page_of_what_exists(tmp_path):
     assert "5 of 5" in text and "4.2 mm median" in text and "seed 4" in text
     assert not any(path.endswith((".png", ".mp4")) for path in found.paths)
     assert "Collision-weight sweep" not in text and "success" not in text
+
+
+def _nulled(node, kinds: set[str]):
+    """``node`` with every float null but those of the keys ``kinds``."""
+    if isinstance(node, dict):
+        return {k: v if k in kinds else _nulled(v, kinds) for k, v in node.items()}
+    if isinstance(node, list):
+        return [_nulled(v, kinds) for v in node]
+    return None if isinstance(node, float) else node
+
+
+def test_numbers_not_measured_show_as_a_dash(quick_run, tmp_path):
+    """A report's numbers may be null (not measured, as its schema allows): the page shows
+    "—" for each; a closest pair of numbers shows as it is."""
+    report = json.loads((quick_run / layout.REPORT).read_text())
+    report = _nulled(report, {"collision_weight", "sigma_max_scale", "weight"})
+    report["optimization"]["closest_pair"] = [1, 2]
+    check_values(report, quick_run / layout.REPORT, *run_keys(POUR))  # as a stage reads it
+    page = save_run_page(tmp_path, report, RunConfig.quick().to_json(), POUR)
+    text = " ".join(References(page.read_text()).text)
+    assert "— mm median, — mm p95" in text and "(1 / 2)" in text and "— mm, —°" in text
+    assert "— (mean —, min — over the replays)" in text
+
+
+@pytest.mark.parametrize("task", ["pour", "insert"])
+def test_a_task_headline_shows_a_dash_where_not_measured(task):
+    task = get_task(task)
+    keys = [key.partition(".")[2] for key in task.keys if key.startswith("replay.")]
+    ((label, text),) = task.headline(dict.fromkeys(keys))
+    assert "None" not in text and text.count("—") >= 3
 
 
 def test_strings_of_a_crafted_report_are_escaped(tmp_path):

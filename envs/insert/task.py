@@ -12,7 +12,7 @@ from imitate.envs.insert.env import InsertingEnv
 from imitate.envs.insert.geometry import InsertGeometry
 from imitate.envs.insert.options import ENV_ID
 from imitate.envs.insert.outcome import OUTCOMES, SUCCESS_DEPTH, outcome
-from imitate.envs.task import Score, Task
+from imitate.envs.task import Score, Task, shown
 from imitate.models import objects
 
 __all__ = ["TASK", "insert_phase"]
@@ -35,9 +35,10 @@ def headline(replay: Mapping[str, Any]) -> list[tuple[str, str]]:
     """The run page's headline row of the insertion, from the report's replay section."""
     return [(
         "insertion depth",
-        f"{1e3 * replay['insert_depth']:.1f} mm (mean {1e3 * replay['insert_depth_mean']:.1f}, "
-        f"min {1e3 * replay['insert_depth_min']:.1f} over the replays), "
-        f"{1e3 * replay['insert_offset']:.1f} mm from the glass's axis",
+        f"{shown(replay['insert_depth'], '.1f', 1e3)} mm (mean "
+        f"{shown(replay['insert_depth_mean'], '.1f', 1e3)}, min "
+        f"{shown(replay['insert_depth_min'], '.1f', 1e3)} over the replays), "
+        f"{shown(replay['insert_offset'], '.1f', 1e3)} mm from the glass's axis",
     )]
 
 

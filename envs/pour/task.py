@@ -12,7 +12,7 @@ from imitate.envs.pour.env import PouringEnv
 from imitate.envs.pour.geometry import PourGeometry
 from imitate.envs.pour.options import ENV_ID
 from imitate.envs.pour.outcome import OUTCOMES, SUCCESS_FRACTION, outcome
-from imitate.envs.task import Score, Task
+from imitate.envs.task import Score, Task, shown
 
 __all__ = ["TASK", "pour_phase"]
 
@@ -28,8 +28,10 @@ def headline(replay: Mapping[str, Any]) -> list[tuple[str, str]]:
     """The run page's headline row of the pour, from the report's replay section."""
     return [(
         "pour fraction",
-        f"{replay['pour_fraction']:.2f} (mean {replay['pour_fraction_mean']:.2f}, min "
-        f"{replay['pour_fraction_min']:.2f} over the replays), {replay['spilled']} spilled",
+        f"{shown(replay['pour_fraction'], '.2f')} (mean "
+        f"{shown(replay['pour_fraction_mean'], '.2f')}, min "
+        f"{shown(replay['pour_fraction_min'], '.2f')} over the replays), "
+        f"{shown(replay['spilled'], 'g')} spilled",
     )]
 
 

@@ -22,7 +22,8 @@ if TYPE_CHECKING:
     from imitate.envs.task import Task
 
 __all__ = [
-    "PlanRecord", "ReplayRecord", "TrialRecord", "change_keys", "error_keys", "score_keys",
+    "PlanRecord", "ReplayRecord", "TrialRecord", "change_keys", "error_keys", "is_number",
+    "score_keys",
 ]
 
 
@@ -107,3 +108,8 @@ def change_keys(task: Task) -> tuple[str, str]:
     """The change record's keys of the largest position [m] and angle [deg] change in the
     critical phase (:func:`~imitate.motion.metrics.task_change`'s)."""
     return f"{task.phase}_m", f"{task.phase}_deg"
+
+
+def is_number(value: object) -> bool:
+    """Whether a value read from a record is a number (``true`` and ``false`` are not)."""
+    return isinstance(value, int | float) and not isinstance(value, bool)

@@ -16,7 +16,7 @@ from matplotlib.patches import Circle, Patch, Rectangle
 
 from imitate.envs.task import Task
 from imitate.envs.video import StateRecorder, captioned, replay_frames, write_video
-from imitate.evaluation.record import score_keys
+from imitate.evaluation.record import is_number, score_keys
 from imitate.evaluation.trial import physics, plan_variation
 from imitate.evaluation.variation import Variation
 from imitate.learning import LearnedModel
@@ -158,16 +158,22 @@ def teacher_table(rows: Sequence[dict], task: Task) -> str:
     for t in rows:
         low, high = t["success_wilson95"]
         failures = ", ".join(f"{f['id']}: {f['outcome']}" for f in t["failures"]) or "none"
-        run = t["default_run"]
-        default = "-" if run is None else (
-            f"{' '.join(f'{p:.3f}' for p in run.get(f'{measure}s', []))}"
-            f" ({'success' if run['success'] else 'failure'})"
-        )
         lines.append(
-            f"| {t['seed']} | {default} | {t['success']}/{t['variations']} | {low:.3f}..{high:.3f} "
+            f"| {t['seed']} | {_default_run(t['default_run'], measure)} "
+            f"| {t['success']}/{t['variations']} | {low:.3f}..{high:.3f} "
             f"| {t[min_key]:.3f} | {t[f'{min_key}_mean']:.3f} | {failures} |"
         )
     return "\n".join(lines)
+
+
+def _default_run(run: object, measure: str) -> str:
+    """A teacher's default run (its report's ``replay`` section, read as it is) as the table
+    shows it: each replay's ``measure`` and the success; "-" where it has no such values."""
+    values = run.get(f"{measure}s") if isinstance(run, dict) else None
+    if not (isinstance(values, list) and all(is_number(v) for v in values)
+            and isinstance(run.get("success"), bool)):
+        return "-"
+    return f"{' '.join(f'{p:.3f}' for p in values)} ({'success' if run['success'] else 'failure'})"
 
 
 def text(summary: dict, out: Path, task: Task) -> str:

@@ -35,7 +35,7 @@ from imitate.envs import tasks
 from imitate.envs.task import Task, get_task
 from imitate.errors import ImitateError
 from imitate.evaluation.parallel import Job, run_local, run_ray
-from imitate.evaluation.record import score_keys
+from imitate.evaluation.record import change_keys, error_keys, is_number, score_keys
 from imitate.evaluation.report import failure_video, plot_outcomes, summarize, summarize_teachers
 from imitate.evaluation.suite import KEYS, Suite
 from imitate.evaluation.teachers import Teacher, check_model, check_run, run_task, teachers
@@ -351,14 +351,14 @@ def _is_record(record: object) -> bool:
         isinstance(record, dict) and isinstance(record.get("digest"), str)
         and type(record.get("id")) is int and record["id"] >= 0
         and isinstance(record.get("outcome"), str) and type(record.get("teacher")) is int
-        and all(_is_number(record.get(k)) for k in (
+        and all(is_number(record.get(k)) for k in (
             "seconds", "physics_min_distance_m", "clearance_gap_m"))
         and isinstance(record.get("plan"), dict)
-        and _is_number(record["plan"].get("min_distance_m"))
+        and is_number(record["plan"].get("min_distance_m"))
         and isinstance(record.get("mahalanobis"), dict)
-        and _is_number(record["mahalanobis"].get("rms"))
+        and is_number(record["mahalanobis"].get("rms"))
         and isinstance(record.get("replays"), list) and record["replays"]
-        and all(isinstance(r, dict) and _is_number(r.get("min_distance_m"))
+        and all(isinstance(r, dict) and is_number(r.get("min_distance_m"))
                 for r in record["replays"])
         and isinstance(record.get("settings"), dict)
         and isinstance(record["settings"].get("in_path"), bool)
@@ -373,11 +373,17 @@ def _is_record(record: object) -> bool:
 
 def _of_task(record: dict, task: Task) -> bool:
     """Whether a record (:func:`_is_record`) is of ``task``: one of its outcomes, its score's
-    numbers, its own settings."""
+    numbers, its critical phase's errors and changes (what ``compare`` pairs), its own
+    settings."""
+    plan, change = record["plan"], record.get("change")
     if not (
         record["outcome"] in task.outcomes
-        and all(_is_number(record.get(k)) for k in score_keys(task))
-        and all(_is_number(r.get(task.score.measure)) for r in record["replays"])
+        and all(is_number(record.get(k)) for k in score_keys(task))
+        and all(is_number(r.get(task.score.measure)) for r in record["replays"])
+        and all(is_number(plan.get(k)) for k in error_keys(task))
+        and isinstance(plan.get("nullspace_push"), bool)
+        and isinstance(change, dict)
+        and all(is_number(change.get(k)) for k in (*change_keys(task), "low_variance_m"))
     ):
         return False
     try:
@@ -385,10 +391,6 @@ def _of_task(record: dict, task: Task) -> bool:
     except ImitateError:
         return False
     return True
-
-
-def _is_number(value: object) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool)
 
 
 def last_records(out: Path) -> list[dict]:
@@ -409,6 +411,8 @@ def last_records(out: Path) -> list[dict]:
     try:
         digests = [t["digest"] for t in summary.get("teachers", ())] or [summary["suite_digest"]]
         task = get_task(summary.get("task", tasks.DEFAULT))  # written before it: the default
+        if not all(isinstance(d, str) for d in digests):
+            raise TypeError(f"digests {digests!r:.60} are not all text")
     except (KeyError, TypeError, AttributeError) as err:
         raise ImitateError(
             f"{out / 'summary.json'} is not an evaluation's summary ({type(err).__name__}: "

@@ -76,6 +76,8 @@ def evaluated(run: Run, eval_dir: Path) -> Evaluated:
             summary["suite"], source=str(eval_dir / "summary.json"), task=run.config.task
         )
         draw_seed, digests = summary["seed"], {t["seed"]: t["digest"] for t in summary["teachers"]}
+        if not all(type(seed) is int for seed in digests):  # each names a folder
+            raise TypeError(f"teacher seeds {list(digests)!r:.60} are not all whole numbers")
     except (KeyError, TypeError) as err:
         raise ImitateError(
             f"{eval_dir / 'summary.json'} is not an evaluation's summary ({type(err).__name__}: "

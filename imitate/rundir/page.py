@@ -254,11 +254,12 @@ def _headline(report: dict, task: Words) -> list[tuple[str, str]]:
             ("min distance, physics", _mm(replay["min_distance_m"])),
         ]
     if opt:
-        pair = " / ".join(opt["closest_pair"]) or "none within 0.2 m"
+        pair = " / ".join(map(str, opt["closest_pair"])) or "none within 0.2 m"
         rows += [
             ("min distance, plan", f"{_mm(opt['min_distance_m'])} ({escape(pair)})"),
             (f"{escape(task.phase)} phase error",
-             f"{1e3 * opt[task.error_keys[0]]:.1f} mm, {opt[task.error_keys[1]]:.2f}°"),
+             f"{_num(opt[task.error_keys[0]], '.1f', 1e3)} mm, "
+             f"{_num(opt[task.error_keys[1]], '.2f')}°"),
         ]
         rows.append(("optimizer", "converged" if opt["converged"] else (
             f"not converged: stopped at its limit of {opt['iterations']} iterations with the "
@@ -273,14 +274,14 @@ def _headline(report: dict, task: Words) -> list[tuple[str, str]]:
         found, shown = (escape(str(demos[name])) for name in ("detected", "expected"))
         rows.append(("demonstrations found", f"{found} of {shown}"))
     if perception:
-        rows.append(("tracking error", f"{perception['pos_err_mm_median']:.1f} mm median, "
-                     f"{perception['pos_err_mm_p95']:.1f} mm p95"))
+        rows.append(("tracking error", f"{_num(perception['pos_err_mm_median'], '.1f')} mm "
+                     f"median, {_num(perception['pos_err_mm_p95'], '.1f')} mm p95"))
     return rows
 
 
 def _timings(timings: dict) -> str:
     rows = [(escape(stage), _n(seconds, ".1f")) for stage, seconds in timings.items()]
-    rows.append(("<b>total</b>", _n(sum(timings.values()), ".1f")))
+    rows.append(("<b>total</b>", _n(sum(v for v in timings.values() if v is not None), ".1f")))
     return _table(rows, ("stage", "seconds"))
 
 
@@ -316,8 +317,8 @@ def _sweep(opt: dict) -> str:
     chosen_weight = opt["collision_weight"]
     rows = [
         (_n(e["weight"] / chosen_weight if chosen_weight else 0.0, "g"), _n(e["weight"], "g"),
-         _n(_mm(e["min_distance_m"])), _n(1e3 * e["max_deviation_m"], ".1f"),
-         _n(100 * e["change_high_variance_share"], ".0f"))
+         _n(_mm(e["min_distance_m"])), _n(_num(e["max_deviation_m"], ".1f", 1e3)),
+         _n(_num(e["change_high_variance_share"], ".0f", 100)))
         for e in opt["sweep"]
     ]
     header = ("sweep", "weight", "min distance, plan", "max deviation from weight 0 [mm]",
@@ -387,15 +388,20 @@ def _links(paths) -> str:
     return f"<ul class=files>{items}</ul>"
 
 
-def _n(value: float | str, spec: str = "") -> str:
-    """A number (or its HTML) right-aligned in its own cell."""
-    return f"<td class=n>{value:{spec}}</td>"
+def _n(value: float | str | None, spec: str = "") -> str:
+    """A number (or its HTML) right-aligned in its own cell; "—" for ``None``."""
+    return f"<td class=n>{'—' if value is None else format(value, spec)}</td>"
 
 
-def _mm(metres: float) -> str:
-    """A distance [m] in mm, red where negative (penetrating)."""
-    text = f"{1e3 * metres:.1f} mm"
-    return f"<span class=bad>{text}</span>" if metres < 0 else text
+def _num(value: float | None, spec: str, scale: float = 1.0) -> str:
+    """``value * scale`` formatted by ``spec``; "—" where it was not measured (``None``)."""
+    return "—" if value is None else format(scale * value, spec)
+
+
+def _mm(metres: float | None) -> str:
+    """A distance [m] in mm, red where negative (penetrating); "—" for ``None``."""
+    text = f"{_num(metres, '.1f', 1e3)} mm"
+    return f"<span class=bad>{text}</span>" if metres is not None and metres < 0 else text
 
 
 def _yes_no(flag: bool, yes: str, no: str) -> str:
