@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from numbers import Real
 from typing import Any
 
-from imitate.errors import ImitateError
+from imitate.errors import ImitateError, quoted
 
 __all__ = ["DEFAULT", "NAMES", "Option", "check", "module", "options", "settings"]
 
@@ -67,7 +67,7 @@ class Option:
 def check(name: str) -> None:
     """Raise ``ImitateError`` unless ``name`` is a task's."""
     if name not in NAMES:
-        raise ImitateError(f"task {name!r} unknown; accepted: {list(NAMES)}")
+        raise ImitateError(f"task {quoted(name)} unknown; accepted: {list(NAMES)}")
 
 
 def module(name: str, part: str):

@@ -295,3 +295,23 @@ def test_an_unknown_setting_is_named_within_a_line_of_reasonable_length(tmp_path
         RunConfig.from_json(values)
     message = str(error.value)
     assert len(message) < 2000 and "['k0', 'k1', 'k2', 'k3', 'k4'] and 5 more" in message
+
+
+def test_long_values_are_cut_in_the_error_line(tmp_path):
+    """Review T10i, W9, L4: a megabyte of task name, sweep or weightings was quoted whole."""
+    from imitate.evaluation.compare import compare, parse_sweep
+    from imitate.evaluation.suite import Suite
+
+    long = "x" * 1_000_000
+    for call in (lambda: tasks.check(long), lambda: parse_sweep(f"path_length_weight={long}"),
+                 lambda: compare(tmp_path, Suite.default(), ("variance", long))):
+        with pytest.raises(ImitateError) as error:
+            call()
+        assert len(str(error.value)) < 600 and "xxx..." in str(error.value)
+
+
+def test_an_empty_sweep_is_refused_not_taken_for_none(run_dir, capsys):
+    """Review W7a: ``--sweep ''`` (an unset shell variable) ran a plain comparison."""
+    assert main(["compare", str(run_dir), "--sweep", "", "--n", "1"]) == 1
+    assert "--sweep '' not accepted" in one_error_line(capsys.readouterr().err, "compare")
+    assert not (run_dir / "compare").exists()

@@ -89,10 +89,10 @@ def _then(text: str, kept: str | None) -> str:
 
 def _flags(message: str) -> str:
     """``message`` with each ``name='value'`` of a parameter in :data:`FLAGS` written as its
-    flag and value (``--similarity variance,flat``)."""
+    flag and value (``--similarity variance,flat``; an empty value as ``''``)."""
     names = "|".join(FLAGS)
     return re.sub(
-        rf"\b({names})=(['\"])(.*?)\2", lambda m: f"{FLAGS[m[1]]} {m[3]}", message
+        rf"\b({names})=(['\"])(.*?)\2", lambda m: f"{FLAGS[m[1]]} {m[3] or m[2] * 2}", message
     )
 
 
@@ -235,7 +235,7 @@ def eval_command(args: argparse.Namespace) -> int:
             folder = compare.out_folder(args.run_dir, name, args.levels)
         outcome.kept = f"the finished variations are kept in {folder}; run it again to go on"
         if args.command == "compare":
-            sweep = compare.parse_sweep(args.levels, task.name) if args.levels else None
+            sweep = compare.parse_sweep(args.levels, task.name) if args.levels is not None else None
             result = compare.compare(
                 args.run_dir, suite, args.weightings.split(","), name=name, n=args.n,
                 seed=args.seed, n_teachers=args.teachers, sweep=sweep, workers=args.workers,

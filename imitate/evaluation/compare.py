@@ -44,7 +44,7 @@ from scipy import stats
 
 from imitate.envs import tasks
 from imitate.envs.task import Task
-from imitate.errors import ImitateError
+from imitate.errors import ImitateError, quoted
 from imitate.evaluation.compare_report import markdown, measures, plot_comparison, plot_dose
 from imitate.evaluation.inference import ed50, mean_ci, teacher_effect
 from imitate.evaluation.record import change_keys, error_keys, score_keys
@@ -90,7 +90,7 @@ def parse_sweep(text: str, task: str = tasks.DEFAULT) -> tuple[str, tuple[float,
     accepted = keys(task)
     numeric = [k for k, v in accepted.items() if not (v.is_name or v.is_switch or v.integer)
                and v.choices is None]
-    refused = f"sweep={text!r} not accepted: KEY=V1,V2,... with KEY one of {numeric} and " \
+    refused = f"sweep={quoted(text)} not accepted: KEY=V1,V2,... with KEY one of {numeric} and " \
               "two or more increasing values, e.g. path_length_weight=10,20,40,70"
     if key not in numeric:
         raise ImitateError(refused)
@@ -104,7 +104,7 @@ def parse_sweep(text: str, task: str = tasks.DEFAULT) -> tuple[str, tuple[float,
     outside = [v for v in levels if not k.low <= v <= k.high]
     if outside:
         raise ImitateError(
-            f"sweep={text!r} not accepted: {key} {outside[0]:g} is outside {k.low:g}.."
+            f"sweep={quoted(text)} not accepted: {key} {outside[0]:g} is outside {k.low:g}.."
             f"{k.high:g}; give values within it"
         )
     return key, levels
@@ -152,7 +152,7 @@ def compare(
     unknown = [s for s in similarities if s not in SIMILARITIES]
     if unknown or len(set(similarities)) != len(similarities) or len(similarities) < 2:
         raise ImitateError(
-            f"similarities={','.join(similarities)!r} not accepted: two or more of "
+            f"similarities={quoted(','.join(similarities))} not accepted: two or more of "
             f"{', '.join(SIMILARITIES)}, each once"
         )
     endpoint = parse_primary(primary or "-".join(similarities[:2]), similarities)
