@@ -194,6 +194,18 @@ def test_help_states_the_real_defaults():
     assert shown >= {"n_demos", "k_max", "collision_weight", "video_width"}
 
 
+def test_a_task_settings_help_states_each_tasks_range_and_default():
+    """Review: ``--glass-grasp`` showed pour's default (0.05) for insert too (0.03)."""
+    from imitate.envs import tasks
+
+    page = " ".join(build_parser().parse_known_args(["run"])[0].parser.format_help().split())
+    for task in tasks.NAMES:
+        for name, option in tasks.options(task).items():
+            if option.stage in stages_of("run"):
+                stated = f"{task} {option.low:g}..{option.high:g}, default {option.default:g}"
+                assert stated in page, (task, name)
+
+
 def test_settings_refuse_values_outside_the_range_their_help_states():
     for name, setting, default in settings():
         if setting.low is None:

@@ -172,28 +172,33 @@ def _add_run(sub: argparse.ArgumentParser, command: str) -> None:
 
 def _add_task_options(group, stage: str) -> None:
     """One flag per task setting first used by ``stage`` (``--particles``), for every task
-    that has it; a flag not given leaves no attribute."""
+    that has it, its help with each task's range and default; a flag not given leaves no
+    attribute. The flag takes what any of its tasks accepts; the run's task checks it."""
+    import dataclasses
+
     from imitate.envs import tasks
 
-    owners: dict[str, list[str]] = {}
-    declared: dict[str, tasks.Option] = {}
+    declared: dict[str, dict[str, tasks.Option]] = {}
     for task in tasks.NAMES:
         for name, option in tasks.options(task).items():
             if option.stage == stage:
-                owners.setdefault(name, []).append(task)
-                declared.setdefault(name, option)
-    for name, option in declared.items():
+                declared.setdefault(name, {})[task] = option
+    for name, by_task in declared.items():
+        first = next(iter(by_task.values()))
+        option = dataclasses.replace(first, low=min(o.low for o in by_task.values()),
+                                     high=max(o.high for o in by_task.values()))
         kind = int if option.integer else float
 
         def read(text: str, name: str = name, option: tasks.Option = option) -> float:
             return option.value(name, (int if option.integer else float)(text))
 
         read.__name__ = kind.__name__  # argparse names it in "invalid float value"
+        each = "; ".join(f"{task} {o.low:g}..{o.high:g}, default {o.default:g}"
+                         for task, o in by_task.items())
         group.add_argument(
             f"--{name.replace('_', '-')}", dest=OPTION + name, type=_argument_type(read),
             default=argparse.SUPPRESS, metavar=kind.__name__.upper(),
-            help=f"{option.help}, {option.low:g}..{option.high:g} (default {option.default:g}; "
-            f"task {', '.join(owners[name])})",
+            help=f"{first.help} ({each})",
         )
 
 
