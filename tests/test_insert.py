@@ -4,6 +4,7 @@ physics, the clearance with the stick in the glass, and the robot's eyes seeing 
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import cv2
 import gymnasium as gym
@@ -207,3 +208,23 @@ def test_the_robot_sees_the_stick_and_the_glass_in_the_teachers_hands():
     models = object_models(sess.motion.objects)
     assert [m.name for m in models] == [objects.STICK, objects.GLASS]
     assert all(np.count_nonzero(m.colour.mask(hsv)) > 50 for m in models)
+
+
+def test_a_quick_insert_run_end_to_end_reports_its_declared_keys(tmp_path):
+    """``imitate run --task insert --quick``: every stage, on rendered images; its report holds
+    every key the task declares, each of its kind (as the next stage would read it), and its
+    page shows the insertion's headline."""
+    from imitate.cli import main
+    from imitate.rundir import layout
+    from imitate.rundir.schema import check_values
+    from imitate.stages.runner import run_keys
+
+    run_dir = tmp_path / "insert"
+    assert main(["run", "--task", "insert", "--quick", "--out", str(run_dir)]) == 0
+    report = json.loads((run_dir / layout.REPORT).read_text())
+    task = get_task("insert")
+    check_values(report, run_dir / layout.REPORT, *run_keys(task))
+    replay = report["replay"]
+    assert {key.split(".")[1] for key in task.keys if key.startswith("replay.")} <= set(replay)
+    assert np.isfinite(replay["insert_depth"]) and replay["outcome"] in task.outcomes
+    assert "insertion depth" in (run_dir / layout.PAGE).read_text()
