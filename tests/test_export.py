@@ -269,6 +269,12 @@ def test_lerobot(run, tmp_path):
     print("lerobot teacher:", {k: f["names"][:3] for k, f in features.items() if f["names"]})
     segments = run.demos.segments
     assert [len(t["action"]) for t in teacher] == [len(d.times) - 1 for d in segments]
+    for name, count in (("robot", 1), ("teacher", len(segments))):  # the dataset cards
+        card = (out / name / "README.md").read_text()
+        front = card.split("---\n")[1]
+        assert "license: apache-2.0" in front and "- LeRobot" in front
+        assert f"{count} episode{'s' * (count != 1)}," in card and "muehlig2009" in card
+        assert "`action`: float" in card
 
 
 def fast_renderer(model, height, width, shadows=True):

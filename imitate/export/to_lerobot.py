@@ -17,7 +17,9 @@ Each dataset holds its episodes back to back in one file per kind:
   ``dataset_from_index..dataset_to_index``, its span of each video
   ``from_timestamp..to_timestamp`` [s], its statistics ``stats/<feature>/<stat>`` and, where the
   episode has any, ``metadata``: JSON of what it is, e.g. an evaluated variation's settings and
-  outcome), ``meta/stats.json`` (the statistics over all episodes).
+  outcome), ``meta/stats.json`` (the statistics over all episodes);
+- ``README.md``: the dataset card (Hugging Face's form, as LeRobot's own datasets have it):
+  what was recorded, its features, its licence and the paper to cite.
 
 A row holds the observation before the step, so an episode's last observation is not stored.
 Both datasets name their features alike: ``<observation>.<component>`` (``<tool>.x``, ...), and
@@ -98,6 +100,55 @@ def _write_dataset(root: Path, episodes: Iterable[Episode], robot_type: str | No
     aggregated = {key: _aggregate([s[key] for s in stats]) for key in stats[0]}
     (root / "meta" / "stats.json").write_text(json.dumps(aggregated, indent=4) + "\n")
     (root / "meta" / "info.json").write_text(json.dumps(info, indent=4) + "\n")
+    (root / "README.md").write_text(_card(root.name, instruction, info))
+
+
+def _card(name: str, instruction: str, info: dict) -> str:
+    """The dataset card of dataset ``name`` (``robot`` or ``teacher``)."""
+    who = {"robot": "the humanoid's reproductions, replayed in MuJoCo physics",
+           "teacher": "the teacher's demonstrations, as the humanoid observed them"}[name]
+    features = "\n".join(f"- `{key}`: {f['dtype']} {f['shape']}"
+                         for key, f in info["features"].items())
+    n = info["total_episodes"]
+    counts = f"{n} episode{'s' * (n != 1)}, {info['total_frames']} frames at {info['fps']} fps"
+    return f"""---
+license: apache-2.0
+task_categories:
+- robotics
+tags:
+- LeRobot
+- imitate
+- imitation-learning
+- mujoco
+configs:
+- config_name: default
+  data_files: data/*/*.parquet
+---
+
+# imitate: {instruction}
+
+{counts} of {who},
+written by imitate (the Python package `imitate-humanoid`), a MuJoCo reproduction of
+task-level imitation learning with variance-based movement optimization (Mühlig et al., ICRA
+2009). LeRobot dataset format {CODEBASE_VERSION}; `meta/info.json` holds the features, an
+episode's `metadata` (in `meta/episodes/`) what it is.
+
+## Features
+
+{features}
+
+## Citation
+
+```bibtex
+@inproceedings{{muehlig2009task,
+  title     = {{Task-level Imitation Learning using Variance-based Movement Optimization}},
+  author    = {{M{{\"u}}hlig, Manuel and Gienger, Michael and Hellbach, Sven and Steil, Jochen J.
+               and Goerick, Christian}},
+  booktitle = {{IEEE International Conference on Robotics and Automation (ICRA)}},
+  year      = {{2009}}
+}}
+```
+"""
 
 
 def _path(root: Path, template: str, **keys: str) -> Path:
