@@ -248,7 +248,8 @@ def test_ed50_is_where_the_mean_curve_crosses_half_with_an_interval_over_teacher
 def test_a_sweep_is_numeric_increasing_and_refused_in_one_line():
     assert parse_sweep("path_length_weight=10,20,40") == ("path_length_weight", (10, 20, 40))
     for bad in ("path_length_weight=40,20", "similarity=1,2", "nope=1,2", "collision_weight=1",
-                "collision_weight=a,b", "path_length_weight=10,5000"):
+                "collision_weight=a,b", "path_length_weight=10,5000",
+                "path_length_weight=" + ",".join(str(v) for v in range(1, 22))):
         with pytest.raises(ImitateError, match="not accepted"):
             parse_sweep(bad)
 

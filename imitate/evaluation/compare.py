@@ -79,6 +79,9 @@ log = logging.getLogger(__name__)
 TEACHERS = 10  # teachers a comparison uses unless told: the unit of its inference
 
 
+MAX_LEVELS = 20  # values of a --sweep: each level is a comparison of its own
+
+
 def parse_sweep(text: str, task: str = tasks.DEFAULT) -> tuple[str, tuple[float, ...]]:
     """``KEY=V1,V2,...`` as the key (of a suite of ``task``) and its increasing values.
 
@@ -100,6 +103,11 @@ def parse_sweep(text: str, task: str = tasks.DEFAULT) -> tuple[str, tuple[float,
         raise ImitateError(refused) from None
     if len(levels) < 2 or any(b <= a for a, b in itertools.pairwise(levels)):
         raise ImitateError(refused)
+    if len(levels) > MAX_LEVELS:
+        raise ImitateError(
+            f"sweep of {len(levels)} values not accepted: at most {MAX_LEVELS} (each is a whole "
+            "comparison); give fewer"
+        )
     k = accepted[key]
     outside = [v for v in levels if not k.low <= v <= k.high]
     if outside:
