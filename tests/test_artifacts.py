@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from imitate.errors import ImitateError
+from imitate.rundir import artifacts
 from imitate.rundir.artifacts import (
     load_json,
     load_npz,
@@ -31,6 +32,21 @@ def test_npz_round_trip(tmp_path):
     loaded = load_npz(path, required=("t", "x"))
     for name, value in arrays.items():
         np.testing.assert_array_equal(loaded[name], value)
+
+
+def test_an_npz_that_would_inflate_beyond_the_bound_is_not_read(tmp_path, monkeypatch):
+    """Review X9: a small file with a huge deflated member took gigabytes; the sizes its
+    directory states are checked before any member is read."""
+    import zipfile
+
+    path = tmp_path / "model.npz"
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        archive.writestr("bomb.npy", b"\0" * 4_000_000)  # 4 MB of zeros, 4 kB on disk
+    assert path.stat().st_size < 20_000
+    monkeypatch.setattr(artifacts, "MAX_NPZ_BYTES", 2**20)
+    with pytest.raises(ImitateError, match=r"model.npz holds 4 MiB of arrays, more than imitate "
+                                           r"writes \(at most 1 MiB\)"):
+        load_npz(path)
 
 
 def test_interrupted_write_leaves_nothing(tmp_path):

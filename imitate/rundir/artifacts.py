@@ -30,8 +30,8 @@ from imitate.rundir import signals
 from imitate.rundir.layout import EXPORT, MANIFEST, OWN
 
 __all__ = [
-    "Arrays", "Staging", "cut_commits", "digest", "leftovers", "load_json", "load_npz",
-    "refuse_link", "remove_temporary", "save_bytes", "save_json", "save_npz", "staged",
+    "MAX_NPZ_BYTES", "Arrays", "Staging", "cut_commits", "digest", "leftovers", "load_json",
+    "load_npz", "refuse_link", "remove_temporary", "save_bytes", "save_json", "save_npz", "staged",
     "write_atomic",
 ]
 
@@ -39,6 +39,9 @@ __all__ = [
 _TEMPORARY = re.compile(r"\.(?P<name>.+)\.\d+-[0-9a-f]{8}\.partial(?P<suffix>(\.[^.]*)?)")
 # an export's temporary folder (tempfile.mkdtemp's 8 characters)
 _EXPORT_TEMPORARY = re.compile(r"\.[a-z0-9]+\.[a-z0-9_]{8}\.partial")
+# The most an .npz artifact's arrays may take once read [bytes]: a run's are a few MB; a file
+# that inflates beyond it (a zip bomb) is refused before its members are read.
+MAX_NPZ_BYTES = 256 * 2**20
 
 
 class Staging:
@@ -337,6 +340,12 @@ def load_npz(path: Path, required: tuple[str, ...] = (), hint: str = "") -> Arra
     path = Path(path)
     check_regular(path)
     try:
+        with zipfile.ZipFile(path) as archive:
+            inflated = sum(member.file_size for member in archive.infolist())
+        if inflated > MAX_NPZ_BYTES:
+            raise ImitateError(_hinted(
+                f"{path} holds {inflated / 2**20:.0f} MiB of arrays, more than imitate writes "
+                f"(at most {MAX_NPZ_BYTES / 2**20:.0f} MiB); it is not read", hint))
         with np.load(path, allow_pickle=False) as npz:
             arrays = Arrays(path, {name: npz[name] for name in npz.files}, hint)
     except FileNotFoundError:
