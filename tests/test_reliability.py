@@ -315,3 +315,17 @@ def test_an_empty_sweep_is_refused_not_taken_for_none(run_dir, capsys):
     assert main(["compare", str(run_dir), "--sweep", "", "--n", "1"]) == 1
     assert "--sweep '' not accepted" in one_error_line(capsys.readouterr().err, "compare")
     assert not (run_dir / "compare").exists()
+
+
+def test_names_a_manifest_holds_outside_the_run_are_not_opened(run_dir, monkeypatch):
+    """Review X5: ``../../x`` or an absolute name among a stage's outputs was hashed."""
+    outside = run_dir.parent / "users-file.bin"
+    outside.write_bytes(b"private")
+    manifest = json.loads((run_dir / provenance.MANIFEST).read_text())
+    manifest["learn"]["outputs"]["../users-file.bin"] = "0" * 64
+    manifest["learn"]["outputs"][str(outside)] = "0" * 64
+    opened = []
+    real = provenance.digest
+    monkeypatch.setattr(provenance, "digest", lambda path: opened.append(path) or real(path))
+    provenance.outdated(run_dir, load_config(run_dir), manifest)
+    assert opened and all(Path(p).parent == run_dir or run_dir in Path(p).parents for p in opened)

@@ -156,12 +156,15 @@ def _current(
     run_dir: Path, staged: Mapping[str, Path] | None = None
 ) -> Callable[[str], str | None]:
     """``current(name)``: the digest of the run's file ``name`` now (``staged``: files written
-    but not yet in place, relative path -> where they are), ``None`` if absent; each hashed
-    once."""
+    but not yet in place, relative path -> where they are), ``None`` if absent or no name a run
+    holds (:data:`~imitate.rundir.layout.OWN`: a manifest's names are not followed out of the
+    run); each hashed once."""
     staged = staged or {}
 
     @functools.cache
     def current(name: str) -> str | None:
+        if name not in staged and name not in layout.OWN:
+            return None
         path = staged.get(name, run_dir / name)
         return digest(path) if path.is_file() else None
 
