@@ -329,3 +329,13 @@ def test_names_a_manifest_holds_outside_the_run_are_not_opened(run_dir, monkeypa
     monkeypatch.setattr(provenance, "digest", lambda path: opened.append(path) or real(path))
     provenance.outdated(run_dir, load_config(run_dir), manifest)
     assert opened and all(Path(p).parent == run_dir or run_dir in Path(p).parents for p in opened)
+
+
+def test_a_run_switched_to_another_task_is_told_what_to_run_again(run_dir, capsys):
+    """Review T11a: with config.json switched to insert, replay advised deleting report.json
+    (checked against the new task's keys before provenance named the real problem)."""
+    config = json.loads((run_dir / "config.json").read_text())
+    (run_dir / "config.json").write_text(json.dumps({**config, "task": "insert", "options": {}}))
+    assert main(["replay", str(run_dir)]) == 1
+    line = one_error_line(capsys.readouterr().err, "replay")
+    assert "report.json" not in line and "imitate " in line and "--force" in line

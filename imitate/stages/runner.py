@@ -45,11 +45,11 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
     current = table.find(stage)
     run_dir = Path(run_dir)
     task = get_task(config.task)
-    previous = _previous_report(run_dir, _report_task(run_dir, task))
     manifest = provenance.load(run_dir)
     problems = provenance.stale(run_dir, current, config, manifest)
-    if problems and not force:
+    if problems and not force:  # before the report, which a switched task would misread
         raise ImitateError(f"{problems[0]}, or add --force to go on anyway")
+    previous = _previous_report(run_dir, _report_task(run_dir, task))
     for problem in problems:
         log.warning("%s; going on anyway (--force)", problem)
     for name in (*current.writes, layout.REPORT, layout.PAGE, layout.MANIFEST):
