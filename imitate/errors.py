@@ -10,3 +10,17 @@ def quoted(value: object, limit: int = 60) -> str:
     "...")."""
     text = repr(value)
     return text if len(text) <= limit else f"{text[: limit - 3]}..."
+
+
+def shell_word(text: object) -> str:
+    """``text`` as one word of a shell command to copy from a message: as it is where that is
+    safe, else quoted (:func:`shlex.quote`), or as ``$'...'`` with escapes where it holds a
+    control character (a newline would otherwise break the message's one line)."""
+    import shlex
+
+    text = str(text)
+    if text.isprintable():
+        return shlex.quote(text)
+    escaped = "".join(c if c.isprintable() and c not in "'\\" else
+                      f"\\x{ord(c):02x}" if ord(c) < 256 else f"\\u{ord(c):04x}" for c in text)
+    return f"$'{escaped}'"

@@ -339,3 +339,18 @@ def test_a_run_switched_to_another_task_is_told_what_to_run_again(run_dir, capsy
     assert main(["replay", str(run_dir)]) == 1
     line = one_error_line(capsys.readouterr().err, "replay")
     assert "report.json" not in line and "imitate " in line and "--force" in line
+
+
+def test_a_rerun_command_is_one_line_a_shell_reads_back(run_dir, capsys):
+    """Review N-e12: a newline in the run directory's path came out as a space in the re-run
+    command."""
+    from imitate.errors import shell_word
+
+    assert shell_word("runs/latest") == "runs/latest" and shell_word("my runs") == "'my runs'"
+    assert shell_word("a\nb'c") == "$'a\\x0ab\\x27c'"
+    odd = run_dir.parent / "a\nb"
+    run_dir.rename(odd)
+    (odd / "model.npz").unlink()
+    assert main(["optimize", str(odd)]) == 1
+    line = one_error_line(capsys.readouterr().err, "optimize")
+    assert f"`imitate learn {shell_word(odd)}`" in line

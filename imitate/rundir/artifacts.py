@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from imitate.errors import ImitateError
+from imitate.errors import ImitateError, shell_word
 from imitate.rundir import signals
 from imitate.rundir.layout import EXPORT, MANIFEST, OWN
 
@@ -279,7 +279,7 @@ def cut_commits(run_dir: Path, left: list[Path]) -> list[str]:
                 found.append(
                     f"{run_dir}: the commit of stage {stage} was cut short: {', '.join(replaced)} "
                     f"{'is' if len(replaced) == 1 else 'are'} new, its other files and "
-                    f"{MANIFEST} as before; run `imitate {stage} {run_dir}` again"
+                    f"{MANIFEST} as before; run `imitate {stage} {shell_word(run_dir)}` again"
                 )
     return found
 

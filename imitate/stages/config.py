@@ -17,7 +17,7 @@ import numpy as np
 
 from imitate import defaults
 from imitate.envs import tasks
-from imitate.errors import ImitateError
+from imitate.errors import ImitateError, shell_word
 from imitate.rundir.artifacts import load_json
 from imitate.stages import table
 
@@ -367,7 +367,7 @@ def load_config(run_dir: Path) -> RunConfig:
     if not isinstance(values, dict):
         raise ImitateError(
             f"{path} holds a JSON {_json_kind_of(values)}, not an object of settings; re-run "
-            f"`imitate observe {run_dir}` to write it"
+            f"`imitate observe {shell_word(run_dir)}` to write it"
         )
     defaults = {name: default for name, _, default in settings()}
     for name, value in values.items():

@@ -23,7 +23,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 from imitate.envs import tasks
-from imitate.errors import ImitateError
+from imitate.errors import ImitateError, shell_word
 from imitate.rundir import layout
 from imitate.rundir.artifacts import digest, load_json
 from imitate.stages import table
@@ -94,7 +94,7 @@ def stale(
             continue
         problem = _fault(s, files, manifest.get(s.name), _settings(s, config), current)
         if problem:
-            problems.append(f"{problem}; re-run `imitate {s.name} {run_dir}`")
+            problems.append(f"{problem}; re-run `imitate {s.name} {shell_word(run_dir)}`")
     return problems
 
 

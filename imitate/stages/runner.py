@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from imitate.envs.task import Task, get_task
-from imitate.errors import ImitateError
+from imitate.errors import ImitateError, shell_word
 from imitate.rundir import layout, page
 from imitate.rundir.artifacts import refuse_link, save_json, staged
 from imitate.rundir.schema import KINDS, REPORT_SCHEMA, check_values, load_report, report_keys
@@ -71,7 +71,7 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
         }
         for name, (files, why) in later.items():
             log.info("out of date: %s (%s); `imitate %s %s` makes it again",
-                        files, why, name, run_dir)
+                        files, why, name, shell_word(run_dir))
         page.save_run_page(run_dir, report, config.to_json(), task, later)
     log.debug("%s wrote %s in %.1f s", stage, ", ".join(sorted(outputs)), seconds)
     return report

@@ -14,7 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from imitate.errors import ImitateError
+from imitate.errors import ImitateError, shell_word
 from imitate.rundir import layout
 
 __all__ = ["NAMES", "RUN_HELP", "STAGES", "Stage", "find", "producer", "rerun"]
@@ -123,4 +123,4 @@ def rerun(path: Path) -> str:
     """What to do about the run file ``path`` when it is missing or unusable: ``"re-run
     `imitate learn RUN` to write it"`` (the command of :func:`producer`)."""
     path = Path(path)
-    return f"re-run `imitate {producer(path.name)} {path.parent}` to write it"
+    return f"re-run `imitate {producer(path.name)} {shell_word(path.parent)}` to write it"
