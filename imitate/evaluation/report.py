@@ -169,7 +169,9 @@ def teacher_table(rows: Sequence[dict], task: Task) -> str:
 def _default_run(run: object, measure: str) -> str:
     """A teacher's default run (its report's ``replay`` section, read as it is) as the table
     shows it: each replay's ``measure`` and the success; "-" where it has no such values."""
-    values = run.get(f"{measure}s") if isinstance(run, dict) else None
+    if not isinstance(run, dict):
+        return "-"
+    values = run.get(f"{measure}s")
     if not (isinstance(values, list) and all(is_number(v) for v in values)
             and isinstance(run.get("success"), bool)):
         return "-"
