@@ -366,21 +366,15 @@ def test_targets_follow_an_action_at_most_at_max_target_speed():
 
 
 def test_random_actions_do_not_diverge_the_physics():
-    """Uniform random actions: with the targets followed at once the insertion's physics
-    diverges within 100 steps (2 of 3 episodes here); at the default speed it holds, joints
-    under 30 rad/s (scripts/experiments/random_actions.py: 100 episodes of 500 steps a task)."""
-    diverged, fastest = {}, 0.0
-    for speed in (np.inf, bimanual.MAX_TARGET_SPEED):
-        env = InsertingEnv(max_target_speed=speed)
-        diverged[speed] = 0
-        for episode in range(3):
-            env.reset(seed=episode)
-            env.action_space.seed(episode)
-            for _ in range(100):
-                *_, info = env.step(env.action_space.sample())
-                if info["diverged"]:
-                    diverged[speed] += 1
-                    break
-                if speed < np.inf:
-                    fastest = max(fastest, np.abs(env.data.qvel[env._joint_dof]).max())
-    assert diverged[np.inf] >= 1 and diverged[bimanual.MAX_TARGET_SPEED] == 0 and fastest < 30.0
+    """Uniform random actions at the default ``max_target_speed``: the physics holds, joints
+    under 30 rad/s. (Followed at once, the insertion's diverged in 20 of 20 episodes, at step 66
+    of 500 in the median: scripts/experiments/random_actions.py, recorded in scripts/README.md.)"""
+    env, fastest = InsertingEnv(), 0.0
+    for episode in range(3):
+        env.reset(seed=episode)
+        env.action_space.seed(episode)
+        for _ in range(100):
+            *_, info = env.step(env.action_space.sample())
+            assert not info["diverged"]
+            fastest = max(fastest, np.abs(env.data.qvel[env._joint_dof]).max())
+    assert fastest < 30.0
