@@ -136,8 +136,8 @@ class TeacherConfig:
                 f"variation={self.variation!r} not accepted: one of {TEACHER_VARIATIONS}"
             )
         tasks.check(self.task)
-        script = tasks.module(self.task, "teacher").SCRIPT
-        if self.variation == "misleading" and script.mislead is None:
+        misleading = self.variation == "misleading"
+        if misleading and tasks.module(self.task, "teacher").SCRIPT.mislead is None:
             raise ImitateError(
                 f"variation='misleading' not accepted for task {self.task!r}: its script "
                 "declares no misleading direction; use 'aligned' or 'misaligned'"
