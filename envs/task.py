@@ -19,7 +19,7 @@ from imitate.envs import tasks
 from imitate.envs.assembly import Obstacle, SceneConfig
 from imitate.envs.bimanual import BimanualEnv
 
-__all__ = ["Score", "Task", "Watcher", "get_task", "shared_outcome", "shown"]
+__all__ = ["Score", "Task", "Watcher", "get_task", "shared_outcome"]
 
 
 class Watcher(Protocol):
@@ -210,12 +210,6 @@ class Task:
         names = [n for n in self.options if not n.endswith("_grasp")]
         get = values.get if isinstance(values, Mapping) else lambda n: getattr(values, n)
         return {name: get(name) for name in names}
-
-
-def shown(value: float | None, spec: str, scale: float = 1.0) -> str:
-    """``value * scale`` formatted by ``spec`` for a page; "—" where it was not measured (a
-    report's ``null``)."""
-    return "—" if value is None else format(scale * value, spec)
 
 
 def shared_outcome(plan_min_distance: float, replays: Sequence[Mapping[str, Any]]) -> str | None:

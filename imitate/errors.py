@@ -1,4 +1,7 @@
-"""The one root exception of the project; every user-facing error is an ``ImitateError``."""
+"""The one root exception of the project; every user-facing error is an ``ImitateError``; and
+how a message shows a value (:func:`quoted`) or a command's word (:func:`shell_word`)."""
+
+import shlex
 
 
 class ImitateError(Exception):
@@ -16,8 +19,6 @@ def shell_word(text: object) -> str:
     """``text`` as one word of a shell command to copy from a message: as it is where that is
     safe, else quoted (:func:`shlex.quote`), or as ``$'...'`` with escapes where it holds a
     control character (a newline would otherwise break the message's one line)."""
-    import shlex
-
     text = str(text)
     if text.isprintable():
         return shlex.quote(text)

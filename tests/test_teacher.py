@@ -137,17 +137,24 @@ def test_misaligned_teacher_varies_in_the_pour_and_agrees_in_the_swing(seed):
     assert all(np.argmax(spread["misaligned"][u][0]) == 1 for u in POUR)  # along the stream
 
 
+def _beside_aligned(variation: str):
+    """The aligned session of seed 5 and the ``variation`` one, checked to share the timing, the
+    tremor, the tilt planes and the glass's path."""
+    aligned, varied = (
+        script_demonstrations(TeacherConfig(seed=5, variation=v)) for v in ("aligned", variation)
+    )
+    for name in ("boundaries", "warps", "tilt_planes", "tremor"):
+        assert np.array_equal(getattr(aligned, name), getattr(varied, name)), name
+    t = np.linspace(0.0, aligned.duration, 500)
+    assert np.array_equal(aligned.poses(t)["glass"][0], varied.poses(t)["glass"][0])
+    return aligned, varied
+
+
 def test_misaligned_offsets_are_bounded_and_move_only_the_bottle():
     """Same seed, same session but for where the bottle's mouth is: the timing, the tremor, the
     tilt planes and the glass are the aligned teacher's; the mouth's offsets along the stream while
     pouring are evenly spread over +-offset and centred."""
-    aligned, misaligned = (
-        script_demonstrations(TeacherConfig(seed=5, variation=v)) for v in ("aligned", "misaligned")
-    )
-    for name in ("boundaries", "warps", "tilt_planes", "tremor"):
-        assert np.array_equal(getattr(aligned, name), getattr(misaligned, name)), name
-    t = np.linspace(0.0, aligned.duration, 500)
-    assert np.array_equal(aligned.poses(t)["glass"][0], misaligned.poses(t)["glass"][0])
+    aligned, misaligned = _beside_aligned("misaligned")
     u = [_WAYPOINTS[row][0] for row in _POUR_ROWS]
     nominal = [_WAYPOINTS[row][3][1] for row in _POUR_ROWS]
     offsets = np.array([path(u)[:, 5] - nominal for path in misaligned.paths])
@@ -195,13 +202,7 @@ def test_bad_variation_is_refused():
 def test_misleading_teacher_tilts_apart_only_while_pouring():
     """Same seed, same session as the aligned teacher but for the bottle's tilt while pouring:
     offset evenly over +-12 deg and centred; the glass and everything else the same."""
-    aligned, misleading = (
-        script_demonstrations(TeacherConfig(seed=5, variation=v)) for v in ("aligned", "misleading")
-    )
-    for name in ("boundaries", "warps", "tilt_planes", "tremor"):
-        assert np.array_equal(getattr(aligned, name), getattr(misleading, name)), name
-    t = np.linspace(0.0, aligned.duration, 500)
-    assert np.array_equal(aligned.poses(t)["glass"][0], misleading.poses(t)["glass"][0])
+    aligned, misleading = _beside_aligned("misleading")
     u = [_WAYPOINTS[row][0] for row in _POUR_ROWS]
     tilt = np.degrees([path(u)[:, 7] - other(u)[:, 7]
                        for path, other in zip(misleading.paths, aligned.paths, strict=True)])

@@ -12,8 +12,9 @@ from imitate.envs.insert.env import InsertingEnv
 from imitate.envs.insert.geometry import InsertGeometry
 from imitate.envs.insert.options import ENV_ID
 from imitate.envs.insert.outcome import OUTCOMES, SUCCESS_DEPTH, outcome
-from imitate.envs.task import Score, Task, shown
+from imitate.envs.task import Score, Task
 from imitate.models import objects
+from imitate.rundir.page import shown
 
 __all__ = ["TASK", "insert_phase"]
 

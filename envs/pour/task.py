@@ -12,7 +12,8 @@ from imitate.envs.pour.env import PouringEnv
 from imitate.envs.pour.geometry import PourGeometry
 from imitate.envs.pour.options import ENV_ID
 from imitate.envs.pour.outcome import OUTCOMES, SUCCESS_FRACTION, outcome
-from imitate.envs.task import Score, Task, shown
+from imitate.envs.task import Score, Task
+from imitate.rundir.page import shown
 
 __all__ = ["TASK", "pour_phase"]
 

@@ -9,6 +9,7 @@ The command line is built for the sub-command given only, from plain constants
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import difflib
 import logging
 import re
@@ -174,8 +175,6 @@ def _add_task_options(group, stage: str) -> None:
     """One flag per task setting first used by ``stage`` (``--particles``), for every task
     that has it, its help with each task's range and default; a flag not given leaves no
     attribute. The flag takes what any of its tasks accepts; the run's task checks it."""
-    import dataclasses
-
     from imitate.envs import tasks
 
     declared: dict[str, dict[str, tasks.Option]] = {}

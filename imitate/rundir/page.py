@@ -17,7 +17,9 @@ from typing import Any, Protocol
 from imitate.rundir.artifacts import write_atomic
 from imitate.rundir.layout import PAGE
 
-__all__ = ["CAPTIONS", "Words", "eval_page", "run_page", "save_eval_page", "save_run_page"]
+__all__ = [
+    "CAPTIONS", "Words", "eval_page", "run_page", "save_eval_page", "save_run_page", "shown",
+]
 
 
 class Words(Protocol):
@@ -258,8 +260,8 @@ def _headline(report: dict, task: Words) -> list[tuple[str, str]]:
         rows += [
             ("min distance, plan", f"{_mm(opt['min_distance_m'])} ({escape(pair)})"),
             (f"{escape(task.phase)} phase error",
-             f"{_num(opt[task.error_keys[0]], '.1f', 1e3)} mm, "
-             f"{_num(opt[task.error_keys[1]], '.2f')}°"),
+             f"{shown(opt[task.error_keys[0]], '.1f', 1e3)} mm, "
+             f"{shown(opt[task.error_keys[1]], '.2f')}°"),
         ]
         rows.append(("optimizer", "converged" if opt["converged"] else (
             f"not converged: stopped at its limit of {opt['iterations']} iterations with the "
@@ -271,11 +273,11 @@ def _headline(report: dict, task: Words) -> list[tuple[str, str]]:
             "n_components", "bic", "n_components_fast_bic", "n_components_full_bic"))
         rows.append(("K chosen", f"{k} ({bic} BIC; fast {fast}, full {full})"))
     if demos:
-        found, shown = (escape(str(demos[name])) for name in ("detected", "expected"))
-        rows.append(("demonstrations found", f"{found} of {shown}"))
+        found, expected = (escape(str(demos[name])) for name in ("detected", "expected"))
+        rows.append(("demonstrations found", f"{found} of {expected}"))
     if perception:
-        rows.append(("tracking error", f"{_num(perception['pos_err_mm_median'], '.1f')} mm "
-                     f"median, {_num(perception['pos_err_mm_p95'], '.1f')} mm p95"))
+        rows.append(("tracking error", f"{shown(perception['pos_err_mm_median'], '.1f')} mm "
+                     f"median, {shown(perception['pos_err_mm_p95'], '.1f')} mm p95"))
     return rows
 
 
@@ -317,8 +319,8 @@ def _sweep(opt: dict) -> str:
     chosen_weight = opt["collision_weight"]
     rows = [
         (_n(e["weight"] / chosen_weight if chosen_weight else 0.0, "g"), _n(e["weight"], "g"),
-         _n(_mm(e["min_distance_m"])), _n(_num(e["max_deviation_m"], ".1f", 1e3)),
-         _n(_num(e["change_high_variance_share"], ".0f", 100)))
+         _n(_mm(e["min_distance_m"])), _n(shown(e["max_deviation_m"], ".1f", 1e3)),
+         _n(shown(e["change_high_variance_share"], ".0f", 100)))
         for e in opt["sweep"]
     ]
     header = ("sweep", "weight", "min distance, plan", "max deviation from weight 0 [mm]",
@@ -393,14 +395,15 @@ def _n(value: float | str | None, spec: str = "") -> str:
     return f"<td class=n>{'—' if value is None else format(value, spec)}</td>"
 
 
-def _num(value: float | None, spec: str, scale: float = 1.0) -> str:
-    """``value * scale`` formatted by ``spec``; "—" where it was not measured (``None``)."""
+def shown(value: float | None, spec: str, scale: float = 1.0) -> str:
+    """``value * scale`` formatted by ``spec`` for the page (a task's headline too); "—" where
+    it was not measured (a report's ``null``)."""
     return "—" if value is None else format(scale * value, spec)
 
 
 def _mm(metres: float | None) -> str:
     """A distance [m] in mm, red where negative (penetrating); "—" for ``None``."""
-    text = f"{_num(metres, '.1f', 1e3)} mm"
+    text = f"{shown(metres, '.1f', 1e3)} mm"
     return f"<span class=bad>{text}</span>" if metres is not None and metres < 0 else text
 
 
