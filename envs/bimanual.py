@@ -42,11 +42,10 @@ DIVERGENCE = (
     mujoco.mjtWarning.mjWARN_BADQACC,
 )
 # How fast [rad/s] the joint targets may move by default: a step's action is followed at most
-# this far (``max_target_speed * dt``). Planned movements stay below a third of it (at most 3.4
-# rad/s in the default plans of teachers 0, 1 and 1000-1003), so their replays are unchanged;
-# uniform random targets, followed at once, slammed the arms through the body and diverged the
-# physics in 20 of 20 episodes of Inserting-v0 and 10 of 20 of Pouring-v0
-# (scripts/experiments/random_actions.py).
+# this far (``max_target_speed * dt``). Planned movements stay well below it, so their replays
+# are unchanged (tests/test_env.py); uniform random targets, followed at once, slammed the arms
+# through the body and diverged the physics in 20 of 20 episodes of Inserting-v0 and 10 of 20 of
+# Pouring-v0 (scripts/experiments/random_actions.py).
 MAX_TARGET_SPEED = 10.0
 # How far [m] below its shoulder the teacher's hand hangs at rest (arms down, hands by the hips).
 TEACHER_HAND_DROP = 0.53

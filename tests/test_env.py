@@ -378,3 +378,14 @@ def test_random_actions_do_not_diverge_the_physics():
             assert not info["diverged"]
             fastest = max(fastest, np.abs(env.data.qvel[env._joint_dof]).max())
     assert fastest < 30.0
+
+
+def test_a_planned_replay_is_played_as_planned(quick_run):
+    """The quick run's plan moves its targets well within ``max_target_speed``: the limit
+    leaves every planned action as it is."""
+    run = imitate.load_run(quick_run)
+    env = PouringEnv(particles=0)
+    env.reset(seed=0)
+    targets = imitate.actions(run.plan, env)
+    fastest = np.abs(np.diff(np.vstack([env.data.ctrl, targets]), axis=0)).max() / env.dt
+    assert fastest < 0.5 * bimanual.MAX_TARGET_SPEED, fastest

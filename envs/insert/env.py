@@ -11,7 +11,7 @@ do. This is where planned movements are replayed.
 ``Box(ctrl_low, ctrl_high, (18,), float32)``: target angles [rad] in ``models.humanoid.JOINTS``
 order, clipped to the joint ranges. The servos' targets follow an action at ``max_target_speed``
 (10 rad/s: at most 0.2 rad a step), so that random actions cannot throw the arms through the
-body; planned movements (under 4 rad/s) are followed exactly.
+body; planned movements (well under it) are followed exactly.
 
 ## Observation space
 ``obs_type="state"``: ``Box((50,), float64)``, see ``observation_structure``: robot joint
