@@ -9,8 +9,8 @@ up, learned under ``RUN_DIR/eval/teachers/`` as ``imitate eval`` learns them), i
 reproduction is moved in the critical phase along 14 directions (the 7 task dimensions, the 7
 eigen-directions of the demonstrations' covariance there) by each magnitude [tolerances] either
 way and replayed from ``--seeds`` seeds. Each teacher's result is kept in
-``RUN_DIR/sensitivity/seed-S.json`` (a run again reuses those of the same model, code and
-settings); the script prints per teacher each direction's tolerance, the demonstrations' variance
+``RUN_DIR/sensitivity/seed-S.json`` with its model's SHA-256 (a run again reuses those of the
+same model, code and settings); the script prints per teacher each direction's tolerance, the demonstrations' variance
 along it and the two alignments, and writes ``sensitivity.png``. With ``--against`` (a
 ``compare.json`` of ``variance`` and ``uniform``), it also prints the rank correlation over
 teachers between each alignment and ``variance - uniform``'s success difference, and how often
@@ -118,7 +118,9 @@ def main() -> None:
             done[seed] += 1
             print(f"  teacher {seed}: {done[seed]}/14 directions", file=sys.stderr, flush=True)
             if done[seed] == 14:
-                results[seed] = {"seed": seed, "key": keys[seed], "magnitudes": magnitudes,
+                model = hashlib.sha256(models[seed].model_bytes).hexdigest()
+                results[seed] = {"seed": seed, "key": keys[seed], "model": model,
+                                 "magnitudes": magnitudes,
                                  **summary(learned[seed], task, rates[seed], magnitudes)}
                 save_json(out / f"seed-{seed}.json", results[seed])
     report(results, task, magnitudes, args.seeds)
