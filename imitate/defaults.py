@@ -9,8 +9,8 @@ from imitate.models.scene import TABLE_X, TABLE_Y
 
 __all__ = [
     "BIC_METHODS", "COLLISION_WEIGHT", "DEFAULT_BIC", "EXPORT_FORMATS",
-    "MAX_ITER", "MAX_WEIGHT", "NULLSPACE_PUSH",
-    "OBSTACLE_MAX_LIFT", "OBSTACLE_SHAPES", "PATH_LENGTH_WEIGHT", "SIGMA_MAX_SCALE", "SIMILARITIES",
+    "MAX_ITER", "MAX_WEIGHT", "NULLSPACE_PUSH", "OBSTACLE_MAX_LIFT", "OBSTACLE_SHAPES",
+    "PATH_LENGTH_WEIGHT", "RUN_SIMILARITIES", "SIGMA_MAX_SCALE", "SIMILARITIES",
     "SIMILARITY", "SMOOTHING", "TABLE_X", "TABLE_Y", "TEACHER_VARIATION", "TEACHER_VARIATIONS",
 ]
 
@@ -22,7 +22,12 @@ SMOOTHING = 0.3
 BIC_METHODS = ("full", "fast")
 DEFAULT_BIC = "full"
 # the planner (imitate.motion: SIMILARITIES, PlanConfig)
-SIMILARITIES = ("variance", "uniform", "inverted", "precision", "inverse_variance", "oracle")
+SIMILARITIES = (
+    "variance", "uniform", "inverted", "precision", "inverse_variance", "oracle", "importance",
+)
+# those a run can plan with: ``importance`` reads a teacher's measured tolerance, which
+# ``imitate compare`` and ``imitate eval`` load
+RUN_SIMILARITIES = SIMILARITIES[:-1]
 SIMILARITY = "variance"
 COLLISION_WEIGHT = 10000.0
 # Largest collision weight, 100 times the default: it keeps the weighted costs and the

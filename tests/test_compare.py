@@ -11,7 +11,7 @@ from imitate.cli import main
 from imitate.demos.oracle import oracle_model
 from imitate.envs.task import get_task
 from imitate.errors import ImitateError
-from imitate.evaluation import Suite, evaluate, named_suite
+from imitate.evaluation import Suite, evaluate, named_suite, sensitivity
 from imitate.evaluation.compare import compare, dose, paired, parse_sweep, settings_digest
 from imitate.evaluation.compare_report import markdown, plot_comparison
 from imitate.evaluation.inference import crossing, ed50, teacher_effect
@@ -20,7 +20,7 @@ from imitate.evaluation.suite_run import RESULTS, default_out, last_records
 from imitate.evaluation.teachers import teachers
 from imitate.learning import LearningConfig
 from imitate.motion.replay import planning_task
-from imitate.rundir.artifacts import save_npz
+from imitate.rundir.artifacts import save_json, save_npz
 from imitate.stages import provenance, runner
 from imitate.stages.config import RunConfig, load_config
 
@@ -151,6 +151,19 @@ def test_compare_reports_the_primary_endpoint_in_each_block_of_teachers(quick_ru
     with pytest.raises(ImitateError, match="--primary 'variance-precision' not accepted"):
         compare(quick_run, Suite.from_dict(TINY), ["uniform", "variance"],
                 primary="variance-precision")
+
+
+def test_the_importance_weighting_plans_with_the_teachers_measured_tolerance(model_dir):
+    with pytest.raises(ImitateError, match="needs teacher 0's measured tolerance"):
+        compare(model_dir, Suite.from_dict(TINY), ["variance", "importance"], name="importance",
+                n=1, n_teachers=1, workers=1)
+    path = sensitivity.result_path(model_dir, 0)
+    path.parent.mkdir()
+    save_json(path, {"model": sensitivity.model_digest((model_dir / "model.npz").read_bytes()),
+                     "magnitudes": [1, 2, 4], "quadratic_form": np.eye(7).tolist()})
+    result = compare(model_dir, Suite.from_dict(TINY), ["variance", "importance"],
+                     name="importance", n=1, n_teachers=1, workers=1)
+    assert result["weightings"]["importance"]["variations"] == 1
 
 
 def test_compare_appends_through_no_hard_link(model_dir, tmp_path):

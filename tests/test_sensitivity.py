@@ -105,3 +105,27 @@ def test_alignment_is_the_rank_correlation_of_precision_and_importance():
     against = sens.alignment(covariance, -aligned)
     assert against == pytest.approx({"eigen": -1.0, "diagonal": -1.0})
     assert np.isnan(sens.alignment(covariance, np.zeros(14))["eigen"])
+
+
+def test_the_importance_weighting_reads_a_result_of_the_teachers_own_model(tmp_path):
+    from imitate.errors import ImitateError
+    from imitate.evaluation.teachers import Teacher
+    from imitate.rundir.artifacts import save_json
+    from imitate.stages.files import Learned
+
+    teacher = Teacher(3, tmp_path / "model.npz", Learned(None, np.eye(3)), b"model", None)
+    with pytest.raises(ImitateError, match="teacher 3's measured tolerance.*missing"):
+        sens.with_importance(tmp_path, [teacher])
+    form = np.diag(np.arange(1.0, 8.0))
+    path = sens.result_path(tmp_path, 3)
+    path.parent.mkdir()
+    result = {"model": sens.model_digest(b"other"), "magnitudes": [1, 2, 4],
+              "quadratic_form": form.tolist()}
+    save_json(path, result)
+    with pytest.raises(ImitateError, match="measured on another model than teacher 3's"):
+        sens.with_importance(tmp_path, [teacher])
+    save_json(path, {**result, "model": sens.model_digest(b"model")})
+    (read,) = sens.with_importance(tmp_path, [teacher])
+    np.testing.assert_array_equal(read.learned.importance, form + np.eye(7) / 16)
+    assert teacher.learned.importance is None  # the teacher given is left as it was
+    assert read.digest_bytes != teacher.digest_bytes == b"model"  # its records are others

@@ -55,7 +55,8 @@ def test_eq21_is_w_max_at_zero_zero_from_sigma_max_and_linear_between():
 CRITICAL = np.arange(41) >= 30  # the oracle's steps
 
 
-@pytest.mark.parametrize("similarity", [s for s in SIMILARITIES if s != "precision"])
+@pytest.mark.parametrize("similarity", [s for s in SIMILARITIES
+                                        if s not in ("precision", "importance")])
 def test_each_diagonal_weighting_has_eq21s_total_per_dimension(gmr, similarity):
     variance, covariance = gmr
     w = weighting(similarity, variance, covariance, W_MAX, SIGMA_MAX, critical=CRITICAL)
@@ -73,6 +74,32 @@ def test_the_oracle_is_stiffest_on_the_critical_steps_and_even_elsewhere(gmr):
     assert np.all(w[0] < W_MAX)
     with pytest.raises(ImitateError, match="oracle.*needs the steps"):
         weighting("oracle", variance, covariance, W_MAX, SIGMA_MAX)
+
+
+def test_importance_is_eq21_but_the_measured_form_on_the_critical_steps(gmr):
+    variance, covariance = gmr
+    form = np.array([[2.0, 0.5], [0.5, 1.0]])  # tolerance units
+    w = weighting("importance", variance, covariance, W_MAX, SIGMA_MAX, critical=CRITICAL,
+                  importance=form)
+    ramp = similarity_weights(variance, W_MAX, SIGMA_MAX)
+    assert w.shape == covariance.shape
+    np.testing.assert_array_equal(w[~CRITICAL], np.einsum("ti,ij->tij", ramp, np.eye(2))[
+        ~CRITICAL])
+    in_task_units = form * np.sqrt(np.outer(W_MAX, W_MAX))
+    gain = w[CRITICAL][0, 0, 0] / in_task_units[0, 0]
+    assert gain > 0
+    np.testing.assert_allclose(w[CRITICAL], np.broadcast_to(gain * in_task_units,
+                                                            w[CRITICAL].shape), rtol=1e-12)
+    # the critical steps keep eq. 21's total there, counted as precision's (tolerance units)
+    marginal = 1.0 / np.diagonal(np.linalg.inv(w[CRITICAL]), axis1=1, axis2=2)
+    np.testing.assert_allclose(np.sum(marginal / W_MAX), np.sum(ramp[CRITICAL] / W_MAX),
+                               rtol=1e-10)
+    for bad in (None, np.zeros((2, 2)), np.ones((3, 3)), np.array([[1.0, 2.0], [0.0, 1.0]])):
+        with pytest.raises(ImitateError, match="needs the task's measured importance"):
+            weighting("importance", variance, covariance, W_MAX, SIGMA_MAX, critical=CRITICAL,
+                      importance=bad)
+    with pytest.raises(ImitateError, match="importance.*needs the steps"):
+        weighting("importance", variance, covariance, W_MAX, SIGMA_MAX, importance=form)
 
 
 def test_uniform_is_constant_and_inverted_rises_with_the_variance(gmr):
@@ -163,8 +190,12 @@ def test_every_weighting_plans_and_its_plan_keeps_the_diagonals(precision_proble
     for similarity in SIMILARITIES:
         config = PlanConfig(dt=0.1, collision_weight=0.0, max_iter=3, similarity=similarity)
         plan = plan_from_model(task, learned, q0=humanoid.rest_pose(), config=config,
-                               critical=get_task("pour").critical)
+                               critical=get_task("pour").critical, importance=np.eye(7))
         assert plan.weights.shape == plan.mean.shape and np.all(np.isfinite(plan.x))
     with pytest.raises(ImitateError, match="oracle.*needs the task's critical phase"):
         plan_from_model(task, learned, q0=humanoid.rest_pose(),
                         config=PlanConfig(dt=0.1, max_iter=3, similarity="oracle"))
+    with pytest.raises(ImitateError, match="needs the task's measured importance"):
+        plan_from_model(task, learned, q0=humanoid.rest_pose(),
+                        config=PlanConfig(dt=0.1, max_iter=3, similarity="importance"),
+                        critical=get_task("pour").critical)

@@ -50,6 +50,7 @@ from imitate.evaluation.inference import ed50, mean_ci, teacher_effect
 from imitate.evaluation.record import change_keys, error_keys, score_keys
 from imitate.evaluation.replication import CONFIRMATION_SEED, parse_primary, replication
 from imitate.evaluation.report import MARGIN, wilson
+from imitate.evaluation.sensitivity import with_importance
 from imitate.evaluation.suite import Suite, keys
 from imitate.evaluation.suite_run import (
     RESULTS,
@@ -192,7 +193,9 @@ def compare(
                  f", confirmation teachers {confirmation[0]}-{confirmation[-1]}"
                  if confirmation else "")
         models = teachers(run_dir, run_dir / "eval", n_teachers, confirmation, workers)
-        code, model_bytes = provenance.code_digest(), {t.seed: t.model_bytes for t in models}
+        if "importance" in similarities:
+            models = with_importance(run_dir, models)
+        code, model_bytes = provenance.code_digest(), {t.seed: t.digest_bytes for t in models}
         drawn: dict[tuple[int, str], list[Draw]] = {}
         places: dict = {}  # each teacher's weight-0 path and critical place, at every level
         for i, level in enumerate(levels):

@@ -15,6 +15,11 @@ stiffness of a quadratic loss that reaches 1 there. The 7 x 7 quadratic form ``Q
 units) holding these importances is fitted by non-negative least squares over the probed
 directions' rank-one forms (:func:`quadratic_form`): 14 directions fix 14 of its 28 numbers.
 
+A teacher's result is kept in ``RUN_DIR/sensitivity/seed-S.json`` (:func:`result_path`, written
+by ``scripts/experiments/sensitivity.py``); :func:`with_importance` gives the teachers the form
+``Q + I / k^2`` (``k`` the largest move probed: a direction no move failed keeps the importance
+of that move) for the ``importance`` weighting (:func:`~imitate.motion.costs.weighting`).
+
 The **alignment** of a teacher is the rank correlation between the demonstrations' precision
 (inverse variance, tolerance units) and the measured importance over the covariance's
 eigen-directions, and in diagonal form over the 7 task dimensions: eq. 21 assumes it is high.
@@ -23,13 +28,18 @@ eigen-directions, and in diagonal form over the 7 task dimensions: eq. 21 assume
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import json
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 from scipy.optimize import nnls
 from scipy.stats import spearmanr
 
 from imitate.envs.task import Task
+from imitate.errors import ImitateError
+from imitate.evaluation.teachers import Teacher
 from imitate.learning import LearnedModel
 from imitate.models import humanoid
 from imitate.motion import Plan, PlanConfig, plan_from_model
@@ -40,8 +50,8 @@ from imitate.taskspace import ANGLES, TASK_DIMS
 
 __all__ = [
     "DIRECTION_NAMES", "MAGNITUDES", "RAMP", "SEEDS", "alignment", "critical_covariance",
-    "failure_rates", "moved", "probe_directions", "quadratic_form", "reproduction", "tolerance",
-    "window",
+    "failure_rates", "model_digest", "moved", "probe_directions", "quadratic_form",
+    "reproduction", "result_path", "tolerance", "window", "with_importance",
 ]
 
 MAGNITUDES = (1.0, 2.0, 4.0)  # moves [tolerances], each way
@@ -165,3 +175,44 @@ def alignment(covariance: np.ndarray, importance: np.ndarray) -> dict[str, float
         out[name] = float("nan") if constant else float(spearmanr(precision, measured)[0])
     return out
 
+
+
+def result_path(run_dir: Path, seed: int) -> Path:
+    """Where teacher ``seed``'s result is kept in ``run_dir``."""
+    return Path(run_dir) / "sensitivity" / f"seed-{seed}.json"
+
+
+def model_digest(model_bytes: bytes) -> str:
+    """The SHA-256 a result names its teacher's ``model.npz`` by."""
+    return hashlib.sha256(model_bytes).hexdigest()
+
+
+def with_importance(run_dir: Path, models: Sequence[Teacher]) -> list[Teacher]:
+    """``models`` with each teacher's measured importance (:attr:`Learned.importance`):
+    ``Q + I / k^2`` of its result in ``run_dir``.
+
+    Raises:
+        ImitateError: a teacher without a result, or with one measured on another model.
+    """
+    measure_it = (f"python scripts/experiments/sensitivity.py {run_dir} --teachers N "
+                  "[--confirm M] measures the run's teachers")
+    out = []
+    for t in models:
+        path = result_path(run_dir, t.seed)
+        try:
+            result = json.loads(path.read_text())
+        except (OSError, ValueError):
+            raise ImitateError(
+                f"similarity 'importance' needs teacher {t.seed}'s measured tolerance; {path} "
+                f"is missing or unreadable: {measure_it}"
+            ) from None
+        if not isinstance(result, dict) or result.get("model") != model_digest(t.model_bytes):
+            raise ImitateError(
+                f"{path} was measured on another model than teacher {t.seed}'s (learned again "
+                f"since, or an older result): {measure_it}"
+            )
+        floor = 1.0 / max(result["magnitudes"]) ** 2
+        form = np.asarray(result["quadratic_form"], float) + floor * np.eye(len(TOLERANCE))
+        learned = dataclasses.replace(t.learned, importance=form)
+        out.append(dataclasses.replace(t, learned=learned))
+    return out

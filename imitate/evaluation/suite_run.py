@@ -37,6 +37,7 @@ from imitate.errors import ImitateError
 from imitate.evaluation.parallel import Job, run_local, run_ray
 from imitate.evaluation.record import change_keys, error_keys, is_number, score_keys
 from imitate.evaluation.report import failure_video, plot_outcomes, summarize, summarize_teachers
+from imitate.evaluation.sensitivity import with_importance
 from imitate.evaluation.suite import KEYS, Suite
 from imitate.evaluation.teachers import Teacher, check_model, check_run, run_task, teachers
 from imitate.evaluation.variation import CriticalPlace, Variation, draw, free_places
@@ -104,6 +105,8 @@ def evaluate(
         check_folder(out, run_dir)
         out.mkdir(parents=True, exist_ok=True)
         models = teachers(run_dir, run_dir / "eval", n_teachers, workers=workers)
+        if suite["similarity"] == "importance":
+            models = with_importance(run_dir, models)
         drawn = draw_jobs(models, suite, seed, n)
         records, run = run_jobs(out / RESULTS, drawn, models, workers, ray, progress, task)
         digests = [d.digest for d in drawn]
@@ -236,7 +239,7 @@ def draw_jobs(
             places[t.seed] = free_places(t.learned.model, t.learned.gaze, suite["max_iter"], task)
         path, place = places[t.seed]
         drawn.append(Draw(
-            t.seed, suite.digest(seed, t.seed, t.model_bytes, code), path,
+            t.seed, suite.digest(seed, t.seed, t.digest_bytes, code), path,
             tuple(draw(suite, seed, i, path, place) for i in range(n)),
         ))
     return drawn

@@ -57,6 +57,13 @@ class Teacher:
     model_bytes: bytes
     default_run: dict | None
 
+    @property
+    def digest_bytes(self) -> bytes:
+        """What its records depend on: the model's bytes, and its measured importance where
+        it plans with one."""
+        importance = self.learned.importance
+        return self.model_bytes + (b"" if importance is None else importance.tobytes())
+
 
 def teacher_seeds(run_seed: int, n: int) -> tuple[int, ...]:
     """The seeds of ``n`` teachers: the run's own first, then the next ones.

@@ -32,13 +32,15 @@ __all__ = ["Trial", "physics", "plan_variation", "replay_once"]
 
 
 def plan_variation(
-    learned: LearnedModel, gaze: np.ndarray, variation: Variation, task: Task
+    learned: LearnedModel, gaze: np.ndarray, variation: Variation, task: Task,
+    importance: np.ndarray | None = None,
 ) -> Plan:
     """The reproduction of ``learned`` in the variation's scene of ``task`` (its obstacle,
-    fixtures and settings) and joint ranges."""
+    fixtures and settings) and joint ranges; ``importance`` for that weighting
+    (:attr:`Learned.importance`)."""
     return plan_from_model(
         variation.planning_task(task, gaze), learned, q0=humanoid.rest_pose(),
-        config=variation.plan, critical=task.critical,
+        config=variation.plan, critical=task.critical, importance=importance,
     )
 
 
@@ -90,6 +92,7 @@ class Trial:
 
     def __init__(self, learned: Learned, task: Task):
         self.learned, self.gaze, self.task = learned.model, learned.gaze, task
+        self.importance = learned.importance
         self._free: dict[tuple[str, int], Plan] = {}
 
     def free(self, similarity: str, max_iter: int) -> Plan:
@@ -102,6 +105,7 @@ class Trial:
             self._free[key] = plan_from_model(
                 planning_task(self.task.scene(), self.gaze), self.learned,
                 q0=humanoid.rest_pose(), config=config, critical=self.task.critical,
+                importance=self.importance,
             )
         return self._free[key]
 
@@ -111,7 +115,7 @@ class Trial:
         ``variation`` alone, timings aside."""
         task = self.task
         start = time.perf_counter()
-        plan = plan_variation(self.learned, self.gaze, variation, task)
+        plan = plan_variation(self.learned, self.gaze, variation, task, self.importance)
         plan_seconds = time.perf_counter() - start
         replays = [replay_once(plan, variation, task, s, self.gaze) for s in variation.replay_seeds]
         scores = [cast(dict, r)[task.score.measure] for r in replays]

@@ -86,6 +86,7 @@ def weighting(
     w_max: np.ndarray,
     sigma_max: np.ndarray,
     critical: np.ndarray | None = None,
+    importance: np.ndarray | None = None,
 ) -> np.ndarray:
     """``W_t`` of a similarity weighting, with eq. 21's total weight: per dimension
     (``sum_t W_t[d, d]``) for the diagonal ones, so that only where the weight sits differs;
@@ -103,6 +104,11 @@ def weighting(
       21's largest) on each ``critical`` step (the phase that decides success), the rest of the
       total evenly on the others. (All of it on the critical steps leaves the attractors before
       them free: the optimizer swings them into the chest.)
+    - ``importance``: the task's measured tolerance instead of the demonstrations' agreement:
+      on each ``critical`` step one gain times ``importance`` (a quadratic form in tolerance
+      units, e.g. :mod:`imitate.evaluation.sensitivity`'s), with eq. 21's total over those steps
+      (counted as for ``precision``); eq. 21 on the others. The upper reference: what a
+      weighting that knew the task's tolerance would do.
 
     Args:
         similarity: One of :data:`SIMILARITIES`.
@@ -112,10 +118,14 @@ def weighting(
         w_max: ``(m,)`` eq. 21's weights at zero variance (``1 / tolerance^2``), > 0 for
             ``precision`` and ``inverse_variance``.
         sigma_max: ``(m,)`` eq. 21's variances where the weight reaches zero.
-        critical: ``(T,)`` bool, the steps that decide success; read by ``oracle`` only.
+        critical: ``(T,)`` bool, the steps that decide success; read by ``oracle`` and
+            ``importance``.
+        importance: ``(m, m)`` symmetric positive definite, tolerance units (``1`` on the
+            diagonal is eq. 21's ``w_max``); read by ``importance`` only.
 
     Returns:
-        ``(T, m)`` diagonals of ``W_t``, or ``(T, m, m)`` matrices for ``precision``.
+        ``(T, m)`` diagonals of ``W_t``, or ``(T, m, m)`` matrices for ``precision`` and
+        ``importance``.
 
     Raises:
         ImitateError: an unknown ``similarity``, or one without what it reads.
@@ -127,7 +137,7 @@ def weighting(
     total = ramp.sum(axis=0)  # (m,) eq. 21's weight per dimension over the steps
     if similarity == "variance":
         return ramp
-    if similarity in ("precision", "inverse_variance") and not np.all(w_max > 0):
+    if similarity in ("precision", "inverse_variance", "importance") and not np.all(w_max > 0):
         raise ImitateError(
             f"similarity {similarity!r} needs every w_max > 0 (its floor is lambda / w_max); "
             f"got {w_max}: set each w_max > 0, or use a diagonal weighting"
@@ -141,16 +151,18 @@ def weighting(
         marginal = 1.0 / (diagonal * w_max + REGULARIZATION)
         gain = np.sum(total / w_max) / np.sum(marginal)
         return gain * regularized_precision(covariance, w_max)
-    if similarity == "oracle":
+    if similarity in ("oracle", "importance"):
         if critical is None or len(critical) != len(variance) or not np.any(critical):
             raise ImitateError(
-                f"similarity 'oracle' needs the steps that decide success, (T,) = "
+                f"similarity {similarity!r} needs the steps that decide success, (T,) = "
                 f"({len(variance)},) bools, some true; got {critical!r}"
             )
-        critical = np.asarray(critical, bool)
-        stiff = np.minimum(w_max * critical.sum(), total)  # (m,) w_max on each critical step
-        rest = (total - stiff) / max(int(np.sum(~critical)), 1)
-        return np.where(critical[:, None], stiff / critical.sum(), rest)
+        steps = np.asarray(critical, bool)
+        if similarity == "importance":
+            return _importance(ramp, w_max, steps, importance)
+        stiff = np.minimum(w_max * steps.sum(), total)  # (m,) w_max on each critical step
+        rest = (total - stiff) / max(int(np.sum(~steps)), 1)
+        return np.where(steps[:, None], stiff / steps.sum(), rest)
     if similarity == "inverse_variance":
         shape = 1.0 / (variance + REGULARIZATION / w_max)
     elif similarity == "uniform":
@@ -158,6 +170,30 @@ def weighting(
     else:
         shape = np.clip(variance / np.asarray(sigma_max, float), 0.0, 1.0)
     return shape * total / np.maximum(shape.sum(axis=0), 1e-300)
+
+
+def _importance(
+    ramp: np.ndarray, w_max: np.ndarray, critical: np.ndarray, importance: np.ndarray | None
+) -> np.ndarray:
+    """``(T, m, m)``: eq. 21's ``ramp`` ``(T, m)`` as diagonal matrices, but on the
+    ``critical`` steps one gain times ``importance`` (tolerance units) in task units, the gain
+    giving those steps eq. 21's total there (see :func:`weighting`)."""
+    m = ramp.shape[1]
+    form = None if importance is None else np.asarray(importance, float)
+    if (
+        form is None or form.shape != (m, m) or not np.all(np.isfinite(form))
+        or not np.allclose(form, form.T) or np.linalg.eigvalsh(form)[0] <= 0
+    ):
+        raise ImitateError(
+            f"similarity 'importance' needs the task's measured importance: a symmetric "
+            f"positive definite ({m}, {m}) form in tolerance units; got {importance!r:.80}"
+        )
+    scale = np.sqrt(w_max)  # 1 / tolerance per dimension
+    marginal = 1.0 / np.diag(np.linalg.inv(form))  # tolerance units, per critical step
+    gain = np.sum(ramp[critical] / w_max) / (critical.sum() * marginal.sum())
+    weights = np.einsum("ti,ij->tij", ramp, np.eye(m))
+    weights[critical] = gain * form * np.outer(scale, scale)
+    return weights
 
 
 class Similarity:

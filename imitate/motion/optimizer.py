@@ -202,6 +202,7 @@ def setup(
     q0: np.ndarray,
     config: PlanConfig = PlanConfig(),
     critical: Callable[[np.ndarray], np.ndarray] | None = None,
+    importance: np.ndarray | None = None,
 ) -> Setup:
     """The problem :func:`plan_from_model` optimizes: resampled GMR, eq. 21 weights, attractor
     dynamics (attractors every ``attractor_spacing`` seconds, or one per GMM component with
@@ -215,11 +216,13 @@ def setup(
         q0: ``(n,)`` current posture [rad].
         config: Parameters.
         critical: The task's critical phase: the steps ``(T,) bool`` of a mean ``(T, m)``; the
-            ``"oracle"`` weighting needs it.
+            ``"oracle"`` and ``"importance"`` weightings need it.
+        importance: ``(m, m)`` the task's measured importance in the critical phase (tolerance
+            units, positive definite); the ``"importance"`` weighting needs it.
 
     Raises:
-        ImitateError: On inconsistent shapes or non-finite inputs, or the oracle weighting
-            without ``critical``.
+        ImitateError: On inconsistent shapes or non-finite inputs, or the oracle or importance
+            weighting without what it reads.
     """
     times, mean, variance = (
         np.asarray(v, dtype=float) for v in (model.times, model.mean, model.variance)
@@ -253,12 +256,16 @@ def setup(
         flat = np.asarray(model.covariance, dtype=float).reshape(len(times), -1)
         cov = np.column_stack([np.interp(grid, times, f) for f in flat.T])
         cov = cov.reshape(len(grid), task.m, task.m)
-    steps = None  # the oracle's: the task's critical phase
-    if c.similarity == "oracle":
+    steps = None  # the oracle's and importance's: the task's critical phase
+    if c.similarity in ("oracle", "importance"):
         if critical is None:
-            raise ImitateError("similarity='oracle' needs the task's critical phase (critical=)")
+            raise ImitateError(
+                f"similarity={c.similarity!r} needs the task's critical phase (critical=)"
+            )
         steps = critical(mu)
-    weights = weighting(c.similarity, var, cov, w_max, np.maximum(sigma_max, 1e-12), steps)
+    weights = weighting(
+        c.similarity, var, cov, w_max, np.maximum(sigma_max, 1e-12), steps, importance
+    )
 
     duration = grid[-1] - grid[0]
     if c.attractor_spacing is None:  # the paper: one attractor per GMM component
@@ -297,6 +304,7 @@ def plan_from_model(
     q0: np.ndarray,
     config: PlanConfig = PlanConfig(),
     critical: Callable[[np.ndarray], np.ndarray] | None = None,
+    importance: np.ndarray | None = None,
 ) -> Plan:
     """Optimizes a whole-body movement that reproduces the learned task (paper section V).
 
@@ -306,7 +314,10 @@ def plan_from_model(
         q0: ``(n,)`` current posture [rad]; the plan starts where RMR brings it onto the GMR
             mean's start.
         config: Parameters.
-        critical: The task's critical phase (:func:`setup`), for the oracle weighting.
+        critical: The task's critical phase (:func:`setup`), for the oracle and importance
+            weightings.
+        importance: The task's measured importance (:func:`setup`), for the importance
+            weighting.
 
     Returns:
         The :class:`Plan`; never raises for a colliding, unreachable or unconverged result, it
@@ -316,7 +327,7 @@ def plan_from_model(
         ImitateError: On inconsistent shapes or non-finite inputs.
     """
     c = config
-    start = setup(task, model, q0=q0, config=c, critical=critical)
+    start = setup(task, model, q0=q0, config=c, critical=critical, importance=importance)
     problem, a0, mu = start.problem, start.a0, start.mean
 
     history: list[tuple[float, dict[str, float]]] = []

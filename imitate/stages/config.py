@@ -216,8 +216,9 @@ class RunConfig:
         "(stiff where they varied: a negative control), precision (minimal intervention: the GMR "
         "precision with its cross-covariances), inverse_variance (its diagonal, no sigma_max "
         "ramp) or oracle (phase-informed eq. 21: its largest weight on the task's critical "
-        "phase); each alternative has eq. 21's total weight", stage="optimize",
-        flag="--similarity", choices=defaults.SIMILARITIES,
+        "phase); each alternative has eq. 21's total weight (importance, the task's measured "
+        "tolerance, is for imitate eval and compare)", stage="optimize",
+        flag="--similarity", choices=defaults.RUN_SIMILARITIES,
     )
     sigma_max_scale: float = _setting(
         defaults.SIGMA_MAX_SCALE, "eq. 21's sigma_max as a multiple of each dimension's "

@@ -10,8 +10,9 @@ reproduction is moved in the critical phase along 14 directions (the 7 task dime
 eigen-directions of the demonstrations' covariance there) by each magnitude [tolerances] either
 way and replayed from ``--seeds`` seeds. Each teacher's result is kept in
 ``RUN_DIR/sensitivity/seed-S.json`` with its model's SHA-256 (a run again reuses those of the
-same model, code and settings); the script prints per teacher each direction's tolerance, the demonstrations' variance
-along it and the two alignments, and writes ``sensitivity.png``. With ``--against`` (a
+same model, code and settings; ``imitate compare --similarity importance`` plans with them); the
+script prints per teacher each direction's tolerance, the demonstrations' variance along it and
+the two alignments, and writes ``sensitivity.png``. With ``--against`` (a
 ``compare.json`` of ``variance`` and ``uniform``), it also prints the rank correlation over
 teachers between each alignment and ``variance - uniform``'s success difference, and how often
 the alignment's sign predicts the difference's.
@@ -102,7 +103,7 @@ def main() -> None:
     }
     results: dict[int, dict] = {}
     for s in models:
-        path = out / f"seed-{s}.json"
+        path = sens.result_path(args.run_dir, s)
         if path.exists() and (kept := json.loads(path.read_text())).get("key") == keys[s]:
             results[s] = kept
     jobs = [(s, i, magnitudes, args.seeds) for s in models if s not in results for i in range(14)]
@@ -118,11 +119,11 @@ def main() -> None:
             done[seed] += 1
             print(f"  teacher {seed}: {done[seed]}/14 directions", file=sys.stderr, flush=True)
             if done[seed] == 14:
-                model = hashlib.sha256(models[seed].model_bytes).hexdigest()
+                model = sens.model_digest(models[seed].model_bytes)
                 results[seed] = {"seed": seed, "key": keys[seed], "model": model,
                                  "magnitudes": magnitudes,
                                  **summary(learned[seed], task, rates[seed], magnitudes)}
-                save_json(out / f"seed-{seed}.json", results[seed])
+                save_json(sens.result_path(args.run_dir, seed), results[seed])
     report(results, task, magnitudes, args.seeds)
     save_bytes(out / "sensitivity.png", figure_png(plot(results)))
     if args.against:

@@ -25,10 +25,14 @@ class Learned:
     Attributes:
         model: The model (GMM and GMR, learned with DTW).
         gaze: ``(3, 3)`` gaze frame its task space is expressed in.
+        importance: ``(m, m)`` the task's measured importance in the critical phase (tolerance
+            units, :mod:`imitate.evaluation.sensitivity`), which the ``importance`` weighting
+            plans with; ``None`` where not measured (not in ``model.npz``).
     """
 
     model: LearnedModel
     gaze: np.ndarray
+    importance: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
