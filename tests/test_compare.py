@@ -13,12 +13,13 @@ from imitate.envs.task import get_task
 from imitate.errors import ImitateError
 from imitate.evaluation import Suite, evaluate, named_suite, sensitivity
 from imitate.evaluation.compare import compare, dose, paired, parse_sweep, settings_digest
-from imitate.evaluation.compare_report import markdown, plot_comparison
+from imitate.evaluation.compare_report import BUDGET, markdown, plot_comparison
 from imitate.evaluation.inference import crossing, ed50, teacher_effect
 from imitate.evaluation.report import wilson
 from imitate.evaluation.suite_run import RESULTS, default_out, last_records
 from imitate.evaluation.teachers import teachers
 from imitate.learning import LearningConfig
+from imitate.motion import SIMILARITIES
 from imitate.motion.replay import planning_task
 from imitate.rundir.artifacts import save_json, save_npz
 from imitate.stages import provenance, runner
@@ -122,6 +123,9 @@ def test_compare_plans_the_same_variations_for_every_weighting(model_dir):
     assert json.loads((out / "compare.json").read_text())["pairs"] == result["pairs"]
     assert "| variance vs inverted |" in (out / "compare.md").read_text()
     assert "Within these models" in (out / "compare.md").read_text()
+    assert ("Total weight (variance: eq. 21's; inverted: eq. 21's per dimension)."
+            in (out / "compare.md").read_text())
+    assert set(BUDGET) == set(SIMILARITIES)  # every weighting says what its total matches
     assert (out / "compare.png").stat().st_size > 0
     again = compare(model_dir, Suite.from_dict(TINY), ["variance", "inverted"], name="tiny",
                     n=2, n_teachers=1, workers=1)

@@ -23,6 +23,18 @@ def measures(task: Task) -> tuple[str, str, str]:
     return "success_rate", score_keys(task)[1], "mahalanobis_rms"
 
 
+# What each weighting's total weight is matched to (:func:`~imitate.motion.costs.weighting`):
+# one rule per kind, so that a difference is where the weight sits, not how much there is.
+_PER_DIMENSION = "eq. 21's per dimension"
+_OVERALL = ("eq. 21's over all dimensions, each counted as its stiffness when the others adjust "
+            "(tolerance units)")
+BUDGET = {
+    "variance": "eq. 21's", "uniform": _PER_DIMENSION, "inverted": _PER_DIMENSION,
+    "inverse_variance": _PER_DIMENSION, "oracle": _PER_DIMENSION, "precision": _OVERALL,
+    "importance": "eq. 21's outside the critical phase; inside it, " + _OVERALL,
+}
+
+
 def markdown(result: dict, task: Task) -> str:
     """``compare.md`` of a comparison of ``task``: the weightings' table and the pairs' tests,
     or the sweep's tables."""
@@ -31,6 +43,9 @@ def markdown(result: dict, task: Task) -> str:
     head = (f"Suite `{result['suite_name']}`, {_count(n, 'variation')} x "
             f"{_count(len(result['teachers']), 'teacher')} (teacher seeds {teachers_}; "
             f"variation seed {result['seed']}), paired.")
+    weightings = result["weightings"] if "weightings" in result else result["levels"][0][
+        "weightings"]
+    head += " Total weight (" + "; ".join(f"{w}: {BUDGET[w]}" for w in weightings) + ")."
     if "sweep" in result:
         return "\n".join([head, "", *_sweep_tables(result, task)])
     primary = [*_primary(result["replication"]), ""] if "replication" in result else []
