@@ -11,13 +11,16 @@ For each teacher (read as ``bench_compare.py`` reads them), variation ``0..n-1``
 - ``reference``: as ``imitate compare`` replays it (its first replay seed);
 - ``reseeded``: the same physics from the next seed (another initial-state noise);
 - each ``--variant``: the reference's seed with ``particles=N`` (the liquid's spheres, as the
-  pour task's setting) and/or ``iterations=N`` (MuJoCo's solver iterations), e.g.
+  pour task's setting) and/or MuJoCo's options (:data:`OPTIONS`): ``iterations=N``,
+  ``ls_iterations=N``, ``tolerance=X``, ``solver=cg|newton|pgs``, ``cone=pyramidal|elliptic``,
+  ``sleep=X`` (islands at rest sleep below this velocity), ``islands=0``; e.g.
   ``particles=30,iterations=20``.
 
 Prints per arm the success rate, the share of variations whose outcome (and success) agrees with
 the reference's, the mean absolute difference of the pour fraction and the physics' processor
-seconds per replay. A cheaper arm is as good as the reference where it agrees with it as often
-as ``reseeded`` does.
+seconds per replay; then the share of the reference's physics steps spent in MuJoCo's constraint
+solver and collision detection (its timers). A cheaper arm is as good as the reference where it
+agrees with it as often as ``reseeded`` does.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ import sys
 import time
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 from imitate.envs.task import get_task
@@ -38,32 +42,60 @@ from imitate.evaluation.trial import physics, plan_variation
 from imitate.motion.replay import measure
 from imitate.stages.config import load_config
 
+# MuJoCo's options a variant may set: name -> how its text is read.
+OPTIONS = {
+    "iterations": int, "ls_iterations": int, "tolerance": float,
+    "solver": lambda v: int(getattr(mujoco.mjtSolver, f"mjSOL_{v.upper()}")),
+    "cone": lambda v: int(getattr(mujoco.mjtCone, f"mjCONE_{v.upper()}")),
+    "sleep": float, "islands": int,
+}
 
-def parse_variant(text: str) -> dict[str, int]:
-    """``particles=30,iterations=20`` as a dict of whole numbers."""
+
+def parse_variant(text: str) -> dict[str, float]:
+    """``particles=30,iterations=20`` as a dict of the settings' values."""
+    readers = {"particles": int, **OPTIONS}
     try:
         pairs = dict(item.split("=") for item in text.split(","))
-        variant = {key: int(value) for key, value in pairs.items()}
-    except ValueError:
+        variant = {key: readers[key](value) for key, value in pairs.items()}
+    except (ValueError, KeyError, AttributeError):
         variant = {}
-    if not variant or set(variant) - {"particles", "iterations"}:
-        sys.exit(f"--variant {text!r} not accepted: particles=N and/or iterations=N, "
-                 "comma-separated")
+    if not variant:
+        sys.exit(f"--variant {text!r} not accepted: comma-separated NAME=VALUE of particles, "
+                 f"{', '.join(OPTIONS)}")
     return variant
 
 
-def replayed(plan, variation, task, gaze, seed: int, variant: dict) -> tuple[str, float, float]:
-    """The outcome, the pour fraction and the physics' processor seconds of one replay."""
+def configure(model: mujoco.MjModel, variant: dict) -> None:
+    """``model``'s options set as ``variant`` says (:data:`OPTIONS`)."""
+    for key, value in variant.items():
+        if key == "sleep":
+            model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_SLEEP
+            model.opt.sleep_tolerance = value
+        elif key == "islands" and not value:
+            model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_ISLAND
+        elif key in OPTIONS and key != "islands":
+            setattr(model.opt, key, value)
+
+
+# MuJoCo's timers a step's time is split into (the rest: kinematics, inertia, actuation, ...).
+TIMERS = {"constraint solver": mujoco.mjtTimer.mjTIMER_CONSTRAINT,
+          "collision": mujoco.mjtTimer.mjTIMER_POS_COLLISION,
+          "step": mujoco.mjtTimer.mjTIMER_STEP}
+
+
+def replayed(plan, variation, task, gaze, seed: int, variant: dict) -> tuple:
+    """The outcome, the pour fraction, the physics' processor seconds of one replay and MuJoCo's
+    timers of its steps [s] (:data:`TIMERS`)."""
     options = {**variation.options, **{k: v for k, v in variant.items() if k == "particles"}}
     variation = dataclasses.replace(variation, options=options)
     env = physics(variation, task)
-    if "iterations" in variant:
-        env.model.opt.iterations = variant["iterations"]
+    configure(env.model, variant)
     start = time.thread_time()
     _, record, _ = measure(task, plan, env, seed=seed, gaze=gaze, options=variation.options)
     seconds = time.thread_time() - start
+    timers = {name: env.data.timer[int(t)].duration for name, t in TIMERS.items()}
     outcome = task.outcome(plan.min_distance, [record], variation.options)
-    return outcome, float(record[task.score.measure]), seconds
+    return outcome, float(record[task.score.measure]), seconds, timers
 
 
 def main() -> None:
@@ -121,6 +153,10 @@ def main() -> None:
               f"{np.mean([r[2] for r in arm_rows]):17.3f}  " + ", ".join(
                   f"{s} {success[weighting == s].mean():.0%}" for s in args.similarity.split(",")
               ))
+    steps = {name: sum(r[3][name] for r in reference) for name in TIMERS}
+    shares = ", ".join(f"{name} {steps[name] / steps['step']:.0%}" for name in TIMERS
+                       if name != "step")
+    print(f"the reference's physics steps by MuJoCo's timers: {shares}")
 
 
 if __name__ == "__main__":
