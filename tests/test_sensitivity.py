@@ -129,3 +129,23 @@ def test_the_importance_weighting_reads_a_result_of_the_teachers_own_model(tmp_p
     np.testing.assert_array_equal(read.learned.importance, form + np.eye(7) / 16)
     assert teacher.learned.importance is None  # the teacher given is left as it was
     assert read.digest_bytes != teacher.digest_bytes == b"model"  # its records are others
+
+
+def test_the_command_measures_a_teacher_keeps_it_and_reuses_it(run_dir, capsys):
+    """One move either way, one replay: the whole command, its result kept with the run."""
+    import json
+
+    from imitate.cli import main
+
+    args = ["sensitivity", str(run_dir), "--magnitudes", "4", "--seeds", "1", "--workers", "2"]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "| teacher | dx | dy | dz |" in out and "| 0 |" in out
+    result = json.loads(sens.result_path(run_dir, 0).read_text())
+    assert result["model"] == sens.model_digest((run_dir / "model.npz").read_bytes())
+    assert np.array(result["rates"]).shape == (14, 2, 1)
+    assert np.all(np.linalg.eigvalsh(result["quadratic_form"]) >= -1e-9)
+    assert (run_dir / "sensitivity" / "sensitivity.png").stat().st_size > 0
+    written = sens.result_path(run_dir, 0).stat().st_mtime_ns
+    assert main(args) == 0
+    assert sens.result_path(run_dir, 0).stat().st_mtime_ns == written  # kept, not measured again

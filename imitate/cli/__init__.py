@@ -5,6 +5,7 @@
     imitate run --quick --out runs/quick      # small images, 3 demonstrations: under a minute
     imitate optimize runs/latest --collision-weight 30   # re-plan with the learned model
     imitate replay runs/latest && imitate figures runs/latest
+    imitate sensitivity runs/latest --teachers 3   # what the task tolerates, per teacher
 
 Each stage reads the previous stage's artifacts in the run directory (see
 :mod:`imitate.stages.table`); settings given on the command line replace those in its
@@ -44,4 +45,6 @@ def main(argv: list[str] | None = None) -> int:
         return commands.export_command(args)
     if args.command in ("eval", "compare"):
         return commands.eval_command(args)
+    if args.command == "sensitivity":
+        return commands.sensitivity_command(args)
     return commands.stages_command(args, " ".join(["imitate", *argv]))

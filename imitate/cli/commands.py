@@ -257,6 +257,42 @@ def eval_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def sensitivity_command(args: argparse.Namespace) -> int:
+    """``imitate sensitivity`` of ``args.run_dir``: measures its teachers' tolerance and prints
+    the table (and, ``--against``, the alignments beside a comparison)."""
+    import json
+
+    from imitate.envs.task import get_task
+    from imitate.evaluation import run_task, sensitivity_run
+
+    with exits(args.command, "the teachers measured are kept; run it again to go on") as outcome:
+        compared = None
+        if args.against is not None:
+            try:
+                compared = json.loads(args.against.read_text())
+            except (OSError, ValueError) as err:
+                raise ImitateError(f"--against {args.against}: not a readable compare.json "
+                                   f"({err})") from None
+        try:
+            magnitudes = [float(k) for k in args.magnitudes.split(",")]
+        except ValueError:
+            raise ImitateError(f"--magnitudes {args.magnitudes!r} not accepted: numbers, "
+                               "comma-separated, e.g. 1,2,4") from None
+        results = sensitivity_run.measure(
+            args.run_dir, args.teachers, args.confirm, args.workers or os.cpu_count() or 1,
+            magnitudes, args.seeds,
+        )
+        text = sensitivity_run.report(results, get_task(run_task(args.run_dir)), args.seeds)
+        if compared is not None:
+            text += "\n\n" + sensitivity_run.predict(results, compared)
+        folder = args.run_dir / "sensitivity"
+        text += f"\n\nresults: {folder} (figure: {sensitivity_run.FIGURE})"
+    if outcome.status:
+        return outcome.status
+    print(text)
+    return 0
+
+
 def export_command(args: argparse.Namespace) -> int:
     """``imitate export``: writes the datasets, prints where."""
     from imitate.export import export as write

@@ -37,9 +37,13 @@ COMPARE_HELP = (
     "similarity weightings on the same variations, paired over teachers: a primary endpoint in "
     "development and confirmation teachers with intervals, power and a clustered model"
 )
+SENSITIVITY_HELP = (
+    "the task's measured tolerance per teacher: its reproduction moved in the critical phase "
+    "along 14 directions and replayed, kept for the importance weighting"
+)
 COMMANDS = {
     **{s.name: s.help for s in STAGES}, "run": RUN_HELP, "export": EXPORT_HELP,
-    "eval": EVAL_HELP, "compare": COMPARE_HELP,
+    "eval": EVAL_HELP, "compare": COMPARE_HELP, "sensitivity": SENSITIVITY_HELP,
 }
 
 
@@ -79,6 +83,8 @@ def build_parser(full: Iterable[str] | None = None) -> argparse.ArgumentParser:
             _add_eval(sub)
         elif command == "compare":
             _add_compare(sub)
+        elif command == "sensitivity":
+            _add_sensitivity(sub)
         else:
             _add_run(sub, command)
     return parser
@@ -329,6 +335,26 @@ def _add_compare(sub: argparse.ArgumentParser) -> None:
                      help="compare at every value of a numeric suite key (a dose-response "
                      "curve per weighting and its ED50), e.g. path_length_weight=10,20,40,70 "
                      "or collision_weight=100,300,1000,3000,10000")
+
+
+def _add_sensitivity(sub: argparse.ArgumentParser) -> None:
+    """The ``sensitivity`` sub-command's arguments (see
+    :mod:`imitate.evaluation.sensitivity_run`)."""
+    sub.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="run directory with model.npz")
+    sub.add_argument("--teachers", type=int, default=1, metavar="N",
+                     help="teachers: the run's and the next seeds' (default 1)")
+    sub.add_argument("--confirm", type=_count, default=0, metavar="N",
+                     help="confirmation teachers beside --teachers: seeds 1000 and up (default 0)")
+    sub.add_argument("--magnitudes", default="1,2,4", metavar="K1,K2,...",
+                     help="moves either way [tolerances: 1 cm, 2 deg, 0.05], increasing "
+                     "(default 1,2,4)")
+    sub.add_argument("--seeds", type=int, default=3, metavar="S",
+                     help="replays of each moved plan (default 3)")
+    sub.add_argument("--workers", type=int, metavar="W",
+                     help="local worker processes (default: one per core)")
+    sub.add_argument("--against", type=Path, metavar="COMPARE_JSON",
+                     help="a compare.json of variance and uniform: each alignment set beside "
+                     "their per-teacher success difference")
 
 
 def _add_variations(sub, teachers: int) -> None:

@@ -16,9 +16,10 @@ units) holding these importances is fitted by non-negative least squares over th
 directions' rank-one forms (:func:`quadratic_form`): 14 directions fix 14 of its 28 numbers.
 
 A teacher's result is kept in ``RUN_DIR/sensitivity/seed-S.json`` (:func:`result_path`, written
-by ``scripts/experiments/sensitivity.py``); :func:`with_importance` gives the teachers the form
-``Q + I / k^2`` (``k`` the largest move probed: a direction no move failed keeps the importance
-of that move) for the ``importance`` weighting (:func:`~imitate.motion.costs.weighting`).
+by ``imitate sensitivity``, :mod:`~imitate.evaluation.sensitivity_run`); :func:`with_importance`
+gives the teachers the form ``Q + I / k^2`` (``k`` the largest move probed: a direction no move
+failed keeps the importance of that move) for the ``importance`` weighting
+(:func:`~imitate.motion.costs.weighting`).
 
 The **alignment** of a teacher is the rank correlation between the demonstrations' precision
 (inverse variance, tolerance units) and the measured importance over the covariance's
@@ -194,8 +195,8 @@ def with_importance(run_dir: Path, models: Sequence[Teacher]) -> list[Teacher]:
     Raises:
         ImitateError: a teacher without a result, or with one measured on another model.
     """
-    measure_it = (f"python scripts/experiments/sensitivity.py {run_dir} --teachers N "
-                  "[--confirm M] measures the run's teachers")
+    measure_it = (f"imitate sensitivity {run_dir} --teachers N [--confirm M] measures the run's "
+                  "teachers")
     out = []
     for t in models:
         path = result_path(run_dir, t.seed)

@@ -1,0 +1,226 @@
+"""``imitate sensitivity``: the task's measured tolerance of a run's teachers
+(:mod:`imitate.evaluation.sensitivity`), each kept with the run, and whether the demonstrations
+point at it.
+
+For each teacher (the run's own and the next seeds, then ``confirm`` teachers of seeds 1000 and
+up, learned under ``RUN_DIR/eval/teachers/`` as ``imitate eval`` learns them), its default
+reproduction is moved in the critical phase along 14 directions by each magnitude either way and
+replayed from ``seeds`` seeds, the directions spread over worker processes. Each teacher's result
+is kept in ``RUN_DIR/sensitivity/seed-S.json`` (:func:`~imitate.evaluation.sensitivity.
+result_path`) with its model's SHA-256; a result of the same model, code and settings is reused.
+``imitate compare --similarity importance`` plans with them. :func:`report` is the table per
+teacher; :func:`predict` sets the alignments beside a comparison's ``variance - uniform``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import multiprocessing
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import spearmanr
+
+from imitate.envs.task import Task, get_task
+from imitate.errors import ImitateError
+from imitate.evaluation import sensitivity as sens
+from imitate.evaluation.replication import CONFIRMATION_SEED
+from imitate.evaluation.teachers import MAX_TEACHERS, check_model, check_run, run_task, teachers
+from imitate.figures.plots import figure_png
+from imitate.motion.replay import planning_task
+from imitate.rundir.artifacts import save_bytes, save_json
+from imitate.rundir.lock import locked
+from imitate.stages.progress import bar
+from imitate.stages.provenance import code_digest
+
+__all__ = ["FIGURE", "measure", "predict", "report"]
+
+FIGURE = "sensitivity.png"  # in RUN_DIR/sensitivity/
+MAX_SEEDS = 20  # replays of each moved plan, at most
+_worker: dict = {}
+
+
+def measure(
+    run_dir: Path, n_teachers: int = 1, confirm: int = 0, workers: int = 1,
+    magnitudes: Sequence[float] = sens.MAGNITUDES, seeds: int = sens.SEEDS,
+    progress: bool | None = None,
+) -> dict[int, dict]:
+    """Each teacher's result (see the module) by seed, measured where not kept; the figure
+    ``RUN_DIR/sensitivity/sensitivity.png`` drawn. Holds the run's lock throughout.
+
+    Raises:
+        ImitateError: ``magnitudes`` not positive and increasing, ``seeds`` outside
+            1..:data:`MAX_SEEDS`, teacher counts out of range, or what
+            :func:`~imitate.evaluation.teachers.teachers` refuses.
+    """
+    magnitudes = tuple(float(k) for k in magnitudes)
+    if not magnitudes or magnitudes[0] <= 0 or any(b <= a for a, b in zip(
+            magnitudes, magnitudes[1:], strict=False)) or not np.all(np.isfinite(magnitudes)):
+        raise ImitateError(f"--magnitudes {','.join(map(str, magnitudes))} not accepted: "
+                           "positive tolerances, increasing, e.g. 1,2,4")
+    for name, value, low, high in (("--seeds", seeds, 1, MAX_SEEDS),
+                                   ("--teachers", n_teachers, 1, MAX_TEACHERS),
+                                   ("--confirm", confirm, 0, MAX_TEACHERS)):
+        if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+            raise ImitateError(f"{name} {value!r} not accepted: a whole number in {low}..{high}")
+    run_dir = check_run(run_dir)
+    task = get_task(run_task(run_dir))
+    with locked(run_dir, f"imitate sensitivity {run_dir}"):
+        check_model(run_dir)
+        more = tuple(range(CONFIRMATION_SEED, CONFIRMATION_SEED + confirm))
+        models = {t.seed: t for t in teachers(run_dir, run_dir / "eval", n_teachers, more,
+                                              workers)}
+        code = code_digest()
+        keys = {s: hashlib.sha256(t.model_bytes + json.dumps([code, magnitudes, seeds]).encode())
+                .hexdigest() for s, t in models.items()}
+        results: dict[int, dict] = {}
+        for s in models:
+            path = sens.result_path(run_dir, s)
+            kept = _json(path)
+            if isinstance(kept, dict) and kept.get("key") == keys[s]:
+                results[s] = kept
+        jobs = [(s, i, magnitudes, seeds) for s in models if s not in results
+                for i in range(len(sens.DIRECTION_NAMES))]
+        rates = {s: np.zeros((len(sens.DIRECTION_NAMES), 2, len(magnitudes))) for s in models}
+        done = dict.fromkeys(models, 0)
+        learned = {s: t.learned for s, t in models.items()}
+        sens.result_path(run_dir, 0).parent.mkdir(exist_ok=True)
+        if jobs:
+            context = multiprocessing.get_context("spawn")
+            with context.Pool(min(workers, len(jobs)), _start, (learned, task.name)) as pool:
+                found = pool.imap_unordered(_probe, jobs)
+                for seed, index, r in bar(found, progress, total=len(jobs), desc="sensitivity",
+                                          unit="direction"):
+                    rates[seed][index] = r
+                    done[seed] += 1
+                    if done[seed] == len(sens.DIRECTION_NAMES):
+                        results[seed] = {
+                            "seed": seed, "key": keys[seed],
+                            "model": sens.model_digest(models[seed].model_bytes),
+                            "magnitudes": magnitudes,
+                            **_summary(learned[seed], task, rates[seed], magnitudes),
+                        }
+                        save_json(sens.result_path(run_dir, seed), results[seed])
+        figure = sens.result_path(run_dir, 0).parent / FIGURE
+        save_bytes(figure, figure_png(_plot(results)))
+    return {s: results[s] for s in sorted(results)}
+
+
+def _json(path: Path) -> object:
+    """``path``'s JSON, ``None`` where missing or unreadable."""
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _start(models: dict, task: str) -> None:
+    _worker.update(models=models, task=get_task(task), plans={})
+
+
+def _probe(job: tuple[int, int, tuple[float, ...], int]) -> tuple[int, int, list]:
+    """One teacher's failure rates along one direction (in a worker)."""
+    seed, index, magnitudes, seeds = job
+    learned, task = _worker["models"][seed], _worker["task"]
+    if seed not in _worker["plans"]:
+        plan = sens.reproduction(learned.model, learned.gaze, task)
+        covariance = sens.critical_covariance(learned.model, plan, task.critical(plan.mean))
+        _worker["plans"][seed] = plan, sens.probe_directions(covariance)
+    plan, directions = _worker["plans"][seed]
+    task_map = planning_task(task.scene(), learned.gaze)
+    rates = sens.failure_rates(plan, task_map, task, learned.gaze, directions[index],
+                               magnitudes, seeds)
+    return seed, index, rates.tolist()
+
+
+def _summary(learned, task: Task, rates: np.ndarray, magnitudes) -> dict:
+    """A teacher's result from its failure rates ``(14, 2, k)``."""
+    plan = sens.reproduction(learned.model, learned.gaze, task)
+    covariance = sens.critical_covariance(learned.model, plan, task.critical(plan.mean))
+    directions = sens.probe_directions(covariance)
+    tolerances = np.array([sens.tolerance(r, magnitudes) for r in rates])
+    importance = 1.0 / tolerances**2
+    return {
+        "directions": directions.tolist(),
+        "variance_along": np.einsum("ij,jk,ik->i", directions, covariance, directions).tolist(),
+        "rates": rates.tolist(),
+        "tolerance": [t if np.isfinite(t) else None for t in tolerances],
+        "quadratic_form": sens.quadratic_form(directions, importance).tolist(),
+        "alignment": sens.alignment(covariance, importance),
+    }
+
+
+def report(results: dict[int, dict], task: Task, seeds: int) -> str:
+    """Per teacher: each direction's tolerance, the demonstrations' variance along it and the
+    two alignments (markdown)."""
+    magnitudes = next(iter(results.values()))["magnitudes"]
+    lines = [
+        f"{task.name}: moves of {', '.join(f'{k:g}' for k in magnitudes)} tolerances either way "
+        f"in the critical phase, {seeds} replays each; tolerance [tolerances] (variance along it "
+        "[tolerances^2])", "",
+        "| teacher | " + " | ".join(sens.DIRECTION_NAMES) + " | alignment eigen | diagonal |",
+        "|---" * (len(sens.DIRECTION_NAMES) + 3) + "|",
+    ]
+    for s, r in results.items():
+        cells = [f"{'>' + format(magnitudes[-1], 'g') if t is None else format(t, '.1f')} "
+                 f"({v:.2f})" for t, v in zip(r["tolerance"], r["variance_along"], strict=True)]
+        a = r["alignment"]
+        lines.append(f"| {s} | " + " | ".join(cells)
+                     + f" | {a['eigen']:+.2f} | {a['diagonal']:+.2f} |")
+    return "\n".join(lines)
+
+
+def predict(results: dict[int, dict], compared: dict) -> str:
+    """Each alignment against the per-teacher success difference ``variance - uniform`` of a
+    comparison's ``compare.json`` contents (markdown).
+
+    Raises:
+        ImitateError: a comparison without ``variance`` and ``uniform``, or of none of these
+            teachers.
+    """
+    weightings = compared.get("weightings", {}) if isinstance(compared, dict) else {}
+    if not {"variance", "uniform"} <= set(weightings):
+        raise ImitateError("--against needs a compare.json of variance and uniform (imitate "
+                           "compare RUN --similarity variance,uniform)")
+    rates = {w: weightings[w]["by_teacher"] for w in ("variance", "uniform")}
+    seeds = [s for s in results if str(s) in rates["variance"]]
+    if not seeds:
+        raise ImitateError("--against: the comparison has none of these teachers")
+    difference = np.array([rates["variance"][str(s)]["success_rate"]
+                           - rates["uniform"][str(s)]["success_rate"] for s in seeds])
+    lines = [
+        f"against {len(seeds)} teachers' variance - uniform (success; mean "
+        f"{100 * difference.mean():+.1f} pp):", "",
+        "| alignment | Spearman over teachers | sign predicted (alignment > 0 : eq. 21 wins) |",
+        "|---|---|---|",
+    ]
+    for name in ("eigen", "diagonal"):
+        index = np.array([results[s]["alignment"][name] for s in seeds])
+        ok = np.isfinite(index) & (difference != 0)
+        rho = spearmanr(index[ok], difference[ok])[0] if ok.sum() > 2 else float("nan")
+        hits = int(np.sum(np.sign(index[ok]) == np.sign(difference[ok])))
+        lines.append(f"| {name} | {rho:+.2f} | {hits} of {ok.sum()} (ties and NaN left out) |")
+    return "\n".join(lines)
+
+
+def _plot(results: dict[int, dict]):
+    """The demonstrations' precision against the measured importance, per direction."""
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(9, 4), layout="constrained")
+    for ax, (name, rows) in zip(figure.subplots(1, 2),
+                                (("task dimensions", slice(0, 7)),
+                                 ("eigen-directions", slice(7, 14))), strict=True):
+        for s, r in sorted(results.items()):
+            variance = np.array(r["variance_along"])[rows]
+            tol = np.array([np.nan if t is None else t for t in r["tolerance"]])[rows]
+            ax.scatter(1.0 / variance, np.where(np.isfinite(tol), 1.0 / tol**2, 1e-2), s=12,
+                       label=str(s))
+        ax.set(xscale="log", yscale="log", title=name,
+               xlabel="demonstrations' precision [1/tolerance^2]",
+               ylabel="measured importance [1/tolerance^2] (never failed: 0.01)")
+    if results:
+        figure.axes[0].legend(title="teacher", fontsize=6, ncols=2)
+    return figure
