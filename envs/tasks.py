@@ -2,24 +2,41 @@
 ``options`` module (its own run settings, read by the command line's help without MuJoCo), a
 ``teacher`` module (its demonstrations' :class:`~imitate.envs.teacher_motion.Script`,
 ``SCRIPT``) and a ``task`` module (its :class:`~imitate.envs.task.Task`, ``TASK``, which
-:func:`imitate.envs.task.get_task` imports).
+:func:`imitate.envs.task.get_task` imports). :data:`NAMES` are found, not listed: every package
+of ``imitate.envs`` with these three modules is a task (:func:`found`).
 """
 
 from __future__ import annotations
 
 import importlib
 import math
+import pkgutil
 from collections.abc import Mapping
 from dataclasses import dataclass
 from numbers import Real
+from pathlib import Path
 from typing import Any
 
 from imitate.errors import ImitateError, quoted
 
-__all__ = ["DEFAULT", "NAMES", "Option", "check", "module", "options", "settings"]
+__all__ = ["DEFAULT", "NAMES", "PARTS", "Option", "check", "found", "module", "options",
+           "settings"]
 
-NAMES = ("pour", "insert")
+PARTS = ("options", "teacher", "task")  # the modules that make a package of envs a task
 DEFAULT = "pour"
+
+
+def found(folder: Path = Path(__file__).parent) -> tuple[str, ...]:
+    """The tasks in ``folder`` (``imitate.envs``'s): its packages with every module of
+    :data:`PARTS`, :data:`DEFAULT` first, the others by name; nothing imported."""
+    names = sorted(
+        info.name for info in pkgutil.iter_modules([str(folder)])
+        if info.ispkg and all((folder / info.name / f"{part}.py").is_file() for part in PARTS)
+    )
+    return tuple(sorted(names, key=lambda name: name != DEFAULT))
+
+
+NAMES = found()
 
 
 @dataclass(frozen=True)

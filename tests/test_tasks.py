@@ -62,6 +62,15 @@ def test_every_task_gives_what_the_generic_layers_use(name):
     assert set(task.reset_options()) == {f"{obj}_grasp" for obj in task.objects}
 
 
+def test_a_task_is_a_folder_found_by_its_modules_not_a_list(tmp_path):
+    for name, parts in (("stack", tasks.PARTS), ("pour", tasks.PARTS), ("notes", ("task",))):
+        (tmp_path / name).mkdir()
+        for part in ("__init__", *parts):
+            (tmp_path / name / f"{part}.py").write_text("")
+    assert tasks.found(tmp_path) == ("pour", "stack")  # the default first; no half a task
+    assert tasks.found() == tasks.NAMES and set(tasks.NAMES) == {"pour", "insert"}
+
+
 def test_an_unknown_task_is_refused_with_the_known_ones():
     with pytest.raises(ImitateError, match=r"task 'stir' unknown; accepted: \['pour', 'insert'\]"):
         get_task("stir")
