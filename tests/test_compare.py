@@ -168,6 +168,9 @@ def test_the_importance_weighting_plans_with_the_teachers_measured_tolerance(mod
     result = compare(model_dir, Suite.from_dict(TINY), ["variance", "importance"],
                      name="importance", n=1, n_teachers=1, workers=1)
     assert result["weightings"]["importance"]["variations"] == 1
+    summary = evaluate(model_dir, Suite.from_dict({**TINY, "similarity": "importance"}), n=1,
+                       workers=1, videos=0)
+    assert summary["variations"] == 1
 
 
 def test_compare_appends_through_no_hard_link(model_dir, tmp_path):
