@@ -107,8 +107,8 @@ def weighting(
     - ``importance``: the task's measured tolerance instead of the demonstrations' agreement:
       on each ``critical`` step one gain times ``importance`` (a quadratic form in tolerance
       units, e.g. :mod:`imitate.evaluation.sensitivity`'s), with eq. 21's total over those steps
-      (counted as for ``precision``); eq. 21 on the others. The upper reference: what a
-      weighting that knew the task's tolerance would do.
+      (counted as for ``precision``); eq. 21 on the others. Meant as the upper reference:
+      what a weighting that knew the task's tolerance would do.
 
     Args:
         similarity: One of :data:`SIMILARITIES`.
