@@ -156,7 +156,7 @@ def test_bad_flag_values_are_refused(argv, expected, tmp_path, capsys):
 def test_cli_knows_every_stage_in_order():
     from imitate.stages.table import NAMES
 
-    assert tuple(COMMANDS) == (*NAMES, "run", "export", "eval", "compare")
+    assert tuple(COMMANDS) == (*NAMES, "run", "export", "eval", "compare", "sensitivity")
     parser = build_parser()
     for command in COMMANDS:
         args, _ = parser.parse_known_args([command, "RUN_DIR", "--format", "hdf5"])
