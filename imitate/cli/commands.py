@@ -263,7 +263,7 @@ def sensitivity_command(args: argparse.Namespace) -> int:
     import json
 
     from imitate.envs.task import get_task
-    from imitate.evaluation import run_task, sensitivity_run
+    from imitate.evaluation import run_task, sensitivity, sensitivity_run
 
     with exits(args.command, "the teachers measured are kept; run it again to go on") as outcome:
         compared = None
@@ -285,7 +285,7 @@ def sensitivity_command(args: argparse.Namespace) -> int:
         text = sensitivity_run.report(results, get_task(run_task(args.run_dir)), args.seeds)
         if compared is not None:
             text += "\n\n" + sensitivity_run.predict(results, compared)
-        folder = args.run_dir / "sensitivity"
+        folder = sensitivity.results_folder(args.run_dir)
         text += f"\n\nresults: {folder} (figure: {sensitivity_run.FIGURE})"
     if outcome.status:
         return outcome.status

@@ -52,7 +52,7 @@ from imitate.taskspace import ANGLES, TASK_DIMS
 __all__ = [
     "DIRECTION_NAMES", "MAGNITUDES", "RAMP", "SEEDS", "alignment", "critical_covariance",
     "failure_rates", "model_digest", "moved", "probe_directions", "quadratic_form",
-    "reproduction", "result_path", "tolerance", "window", "with_importance",
+    "reproduction", "result_path", "results_folder", "tolerance", "window", "with_importance",
 ]
 
 MAGNITUDES = (1.0, 2.0, 4.0)  # moves [tolerances], each way
@@ -178,9 +178,14 @@ def alignment(covariance: np.ndarray, importance: np.ndarray) -> dict[str, float
 
 
 
+def results_folder(run_dir: Path) -> Path:
+    """Where ``run_dir`` keeps its teachers' results."""
+    return Path(run_dir) / "sensitivity"
+
+
 def result_path(run_dir: Path, seed: int) -> Path:
     """Where teacher ``seed``'s result is kept in ``run_dir``."""
-    return Path(run_dir) / "sensitivity" / f"seed-{seed}.json"
+    return results_folder(run_dir) / f"seed-{seed}.json"
 
 
 def model_digest(model_bytes: bytes) -> str:

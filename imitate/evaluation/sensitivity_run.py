@@ -86,7 +86,7 @@ def measure(
         rates = {s: np.zeros((len(sens.DIRECTION_NAMES), 2, len(magnitudes))) for s in models}
         done = dict.fromkeys(models, 0)
         learned = {s: t.learned for s, t in models.items()}
-        sens.result_path(run_dir, 0).parent.mkdir(exist_ok=True)
+        sens.results_folder(run_dir).mkdir(exist_ok=True)
         if jobs:
             context = multiprocessing.get_context("spawn")
             with context.Pool(min(workers, len(jobs)), _start, (learned, task.name)) as pool:
@@ -103,8 +103,7 @@ def measure(
                             **_summary(learned[seed], task, rates[seed], magnitudes),
                         }
                         save_json(sens.result_path(run_dir, seed), results[seed])
-        figure = sens.result_path(run_dir, 0).parent / FIGURE
-        save_bytes(figure, figure_png(_plot(results)))
+        save_bytes(sens.results_folder(run_dir) / FIGURE, figure_png(_plot(results)))
     return {s: results[s] for s in sorted(results)}
 
 
