@@ -279,7 +279,8 @@ def sensitivity_command(args: argparse.Namespace) -> int:
             raise ImitateError(f"--magnitudes {args.magnitudes!r} not accepted: numbers, "
                                "comma-separated, e.g. 1,2,4") from None
         results = sensitivity_run.measure(
-            args.run_dir, args.teachers, args.confirm, args.workers or os.cpu_count() or 1,
+            args.run_dir, args.teachers, args.confirm,
+            (os.cpu_count() or 1) if args.workers is None else args.workers,
             magnitudes, args.seeds,
         )
         text = sensitivity_run.report(results, get_task(run_task(args.run_dir)), args.seeds)

@@ -39,6 +39,7 @@ __all__ = ["FIGURE", "measure", "predict", "report"]
 
 FIGURE = "sensitivity.png"  # in RUN_DIR/sensitivity/
 MAX_SEEDS = 20  # replays of each moved plan, at most
+MAX_WORKERS = 256
 _worker: dict = {}
 
 
@@ -52,7 +53,7 @@ def measure(
 
     Raises:
         ImitateError: ``magnitudes`` not positive and increasing, ``seeds`` outside
-            1..:data:`MAX_SEEDS`, teacher counts out of range, or what
+            1..:data:`MAX_SEEDS`, teacher or worker counts out of range, or what
             :func:`~imitate.evaluation.teachers.teachers` refuses.
     """
     magnitudes = tuple(float(k) for k in magnitudes)
@@ -62,7 +63,8 @@ def measure(
                            "positive tolerances, increasing, e.g. 1,2,4")
     for name, value, low, high in (("--seeds", seeds, 1, MAX_SEEDS),
                                    ("--teachers", n_teachers, 1, MAX_TEACHERS),
-                                   ("--confirm", confirm, 0, MAX_TEACHERS)):
+                                   ("--confirm", confirm, 0, MAX_TEACHERS),
+                                   ("--workers", workers, 1, MAX_WORKERS)):
         if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
             raise ImitateError(f"{name} {value!r} not accepted: a whole number in {low}..{high}")
     run_dir = check_run(run_dir)
