@@ -27,7 +27,7 @@ SIMILARITIES = (
 )
 # those a run can plan with: ``importance`` reads a teacher's measured tolerance, which
 # ``imitate compare`` and ``imitate eval`` load
-RUN_SIMILARITIES = SIMILARITIES[:-1]
+RUN_SIMILARITIES = tuple(s for s in SIMILARITIES if s != "importance")
 SIMILARITY = "variance"
 COLLISION_WEIGHT = 10000.0
 # Largest collision weight, 100 times the default: it keeps the weighted costs and the

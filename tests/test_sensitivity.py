@@ -124,6 +124,12 @@ def test_the_importance_weighting_reads_a_result_of_the_teachers_own_model(tmp_p
     save_json(path, result)
     with pytest.raises(ImitateError, match="measured on another model than teacher 3's"):
         sens.with_importance(tmp_path, [teacher])
+    save_json(path, {**result, "model": sens.model_digest(b"model"), "quadratic_form": [[1.0]]})
+    with pytest.raises(ImitateError, match="holds no usable quadratic form"):
+        sens.with_importance(tmp_path, [teacher])
+    path.write_text('{"model": "cut sh')
+    with pytest.raises(ImitateError, match="is corrupt"):
+        sens.with_importance(tmp_path, [teacher])
     save_json(path, {**result, "model": sens.model_digest(b"model")})
     (read,) = sens.with_importance(tmp_path, [teacher])
     np.testing.assert_array_equal(read.learned.importance, form + np.eye(7) / 16)

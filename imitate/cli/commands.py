@@ -260,19 +260,12 @@ def eval_command(args: argparse.Namespace) -> int:
 def sensitivity_command(args: argparse.Namespace) -> int:
     """``imitate sensitivity`` of ``args.run_dir``: measures its teachers' tolerance and prints
     the table (and, ``--against``, the alignments beside a comparison)."""
-    import json
-
     from imitate.envs.task import get_task
     from imitate.evaluation import run_task, sensitivity, sensitivity_run
+    from imitate.rundir.artifacts import load_json
 
     with exits(args.command, "the teachers measured are kept; run it again to go on") as outcome:
-        compared = None
-        if args.against is not None:
-            try:
-                compared = json.loads(args.against.read_text())
-            except (OSError, ValueError) as err:
-                raise ImitateError(f"--against {args.against}: not a readable compare.json "
-                                   f"({err})") from None
+        compared = None if args.against is None else load_json(args.against)
         try:
             magnitudes = [float(k) for k in args.magnitudes.split(",")]
         except ValueError:

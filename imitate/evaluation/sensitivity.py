@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import json
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -47,6 +46,7 @@ from imitate.motion import Plan, PlanConfig, plan_from_model
 from imitate.motion.costs import TOLERANCE
 from imitate.motion.replay import measure, planning_task
 from imitate.motion.taskspace import TaskMap
+from imitate.rundir.artifacts import load_json
 from imitate.taskspace import ANGLES, TASK_DIMS
 
 __all__ = [
@@ -198,27 +198,34 @@ def with_importance(run_dir: Path, models: Sequence[Teacher]) -> list[Teacher]:
     ``Q + I / k^2`` of its result in ``run_dir``.
 
     Raises:
-        ImitateError: a teacher without a result, or with one measured on another model.
+        ImitateError: a teacher without a usable result, or with one measured on another
+            model.
     """
     measure_it = (f"imitate sensitivity {run_dir} --teachers N [--confirm M] measures the run's "
                   "teachers")
     out = []
     for t in models:
         path = result_path(run_dir, t.seed)
-        try:
-            result = json.loads(path.read_text())
-        except (OSError, ValueError):
+        if not path.exists():
             raise ImitateError(
                 f"similarity 'importance' needs teacher {t.seed}'s measured tolerance; {path} "
-                f"is missing or unreadable: {measure_it}"
-            ) from None
+                f"is missing: {measure_it}"
+            )
+        result = load_json(path, hint=measure_it)
         if not isinstance(result, dict) or result.get("model") != model_digest(t.model_bytes):
             raise ImitateError(
                 f"{path} was measured on another model than teacher {t.seed}'s (learned again "
                 f"since, or an older result): {measure_it}"
             )
-        floor = 1.0 / max(result["magnitudes"]) ** 2
-        form = np.asarray(result["quadratic_form"], float) + floor * np.eye(len(TOLERANCE))
+        m = len(TOLERANCE)
+        try:
+            form = np.asarray(result["quadratic_form"], float)
+            floor = 1.0 / max(result["magnitudes"]) ** 2
+        except (KeyError, TypeError, ValueError):
+            form = None
+        if form is None or form.shape != (m, m) or not np.isfinite(floor):
+            raise ImitateError(f"{path} holds no usable quadratic form: {measure_it}")
+        form = form + floor * np.eye(m)
         learned = dataclasses.replace(t.learned, importance=form)
         out.append(dataclasses.replace(t, learned=learned))
     return out

@@ -30,7 +30,7 @@ from imitate.evaluation.replication import CONFIRMATION_SEED
 from imitate.evaluation.teachers import MAX_TEACHERS, check_model, check_run, run_task, teachers
 from imitate.figures.plots import figure_png
 from imitate.motion.replay import planning_task
-from imitate.rundir.artifacts import save_bytes, save_json
+from imitate.rundir.artifacts import load_json, save_bytes, save_json
 from imitate.rundir.lock import locked
 from imitate.stages.progress import bar
 from imitate.stages.provenance import code_digest
@@ -80,7 +80,10 @@ def measure(
         results: dict[int, dict] = {}
         for s in models:
             path = sens.result_path(run_dir, s)
-            kept = _json(path)
+            try:
+                kept = load_json(path) if path.exists() else None
+            except ImitateError:  # cut short or corrupt: measured again
+                kept = None
             if isinstance(kept, dict) and kept.get("key") == keys[s]:
                 results[s] = kept
         jobs = [(s, i, magnitudes, seeds) for s in models if s not in results
@@ -107,14 +110,6 @@ def measure(
                         save_json(sens.result_path(run_dir, seed), results[seed])
         save_bytes(sens.results_folder(run_dir) / FIGURE, figure_png(_plot(results)))
     return {s: results[s] for s in sorted(results)}
-
-
-def _json(path: Path) -> object:
-    """``path``'s JSON, ``None`` where missing or unreadable."""
-    try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
 
 
 def _start(models: dict, task: str) -> None:

@@ -71,9 +71,10 @@ def configure(model: mujoco.MjModel, variant: dict) -> None:
         if key == "sleep":
             model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_SLEEP
             model.opt.sleep_tolerance = value
-        elif key == "islands" and not value:
-            model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_ISLAND
-        elif key in OPTIONS and key != "islands":
+        elif key == "islands":
+            if not value:
+                model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_ISLAND
+        elif key != "particles":
             setattr(model.opt, key, value)
 
 
