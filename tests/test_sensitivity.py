@@ -147,6 +147,7 @@ def test_the_command_measures_a_teacher_keeps_it_and_reuses_it(run_dir, capsys):
     assert main(args) == 0
     out = capsys.readouterr().out
     assert "| teacher | dx | dy | dz |" in out and "| 0 |" in out
+    assert "alignment over 1 teacher(s): eigen median " in out
     result = json.loads(sens.result_path(run_dir, 0).read_text())
     assert result["model"] == sens.model_digest((run_dir / "model.npz").read_bytes())
     assert np.array(result["rates"]).shape == (14, 2, 1)

@@ -165,6 +165,11 @@ def report(results: dict[int, dict], task: Task, seeds: int) -> str:
         a = r["alignment"]
         lines.append(f"| {s} | " + " | ".join(cells)
                      + f" | {a['eigen']:+.2f} | {a['diagonal']:+.2f} |")
+    eigen, diagonal = (np.array([r["alignment"][k] for r in results.values()])
+                       for k in ("eigen", "diagonal"))
+    lines += ["", f"alignment over {len(results)} teacher(s): eigen median "
+              f"{np.nanmedian(eigen):+.2f}, {np.sum(eigen > 0)} above 0; diagonal median "
+              f"{np.nanmedian(diagonal):+.2f}, {np.sum(diagonal < 0)} below 0"]
     return "\n".join(lines)
 
 
