@@ -21,6 +21,7 @@ from imitate import defaults
 from imitate.envs.collision import INSIDE, inside
 from imitate.errors import ImitateError
 from imitate.models import humanoid, model_path, objects, scene, shapes, teacher
+from imitate.taskspace import EQ1, TaskSpace
 
 HOLDERS = ("robot", "teacher")
 OBSTACLE_SHAPES = defaults.OBSTACLE_SHAPES
@@ -145,6 +146,8 @@ class SceneConfig:
         tool_inside: the tool goes into the target (a stick into the glass): the clearance
             keeps the tool clear of the target's walls instead of its solid hulls
             (:func:`clearance_geoms`).
+        space: the task space the planner maps the scene through (its places are bodies of
+            the scene).
     """
 
     teacher: bool = True
@@ -154,6 +157,7 @@ class SceneConfig:
     objects: tuple[str, ...] = (shapes.BOTTLE, shapes.GLASS)
     grasps: tuple[float, ...] = (shapes.GRASP[shapes.BOTTLE], shapes.GRASP[shapes.GLASS])
     tool_inside: bool = False
+    space: TaskSpace = EQ1
 
     def __post_init__(self):
         if not isinstance(self.teacher, bool | np.bool_):

@@ -2,7 +2,7 @@
 
 The learner, the tracker, the planner, the stages, the evaluation and the exports know a task
 only through this value (:func:`get_task`): its objects (the tool, moved to the
-target), its env, the labels of its task space, its own settings, how a replay is measured and
+target), its env, its task space, its own settings, how a replay is measured and
 judged, and its critical phase.
 """
 
@@ -18,6 +18,7 @@ import numpy as np
 from imitate.envs import tasks
 from imitate.envs.assembly import Obstacle, SceneConfig
 from imitate.envs.bimanual import BimanualEnv
+from imitate.taskspace import EQ1, OBJECTS, TaskSpace
 
 __all__ = ["Score", "Task", "Watcher", "get_task", "shared_outcome"]
 
@@ -72,7 +73,6 @@ class Task:
         name: Its name, one of ``imitate.envs.tasks.NAMES``.
         env: Its env class; its ``objects`` are the tool (right hand) and the target (left).
         env_id: Its Gymnasium id.
-        dims: Labels of the 7 task-space columns (eq. 1) in figures and exports.
         phase: The name of its critical phase (report keys ``<phase>_phase_err_m``).
         outcomes: The outcomes of a reproduction, ``"success"`` first.
         measures: The keys of a replay's record that the task adds (from the env's ``info`` at
@@ -80,7 +80,7 @@ class Task:
         keys: The report keys it adds (``replay.*``), with unit and meaning.
         outcome: ``outcome(plan_min_distance [m], records, options) -> str``, one of
             ``outcomes``.
-        critical: ``critical(mean (T, 7)) -> (T,) bool``: the steps of a learned mean in the
+        critical: ``critical(mean (T, m)) -> (T,) bool``: the steps of a learned mean in the
             task's critical phase (where its success is decided).
         watcher: Makes the :class:`Watcher` of a replay.
         suites: Folder of its evaluation suites (``*.toml``).
@@ -99,12 +99,13 @@ class Task:
             variation and the env's ``info`` after the episode's last step.
         replays: Physics replays per reproduction, each from its own seed; the outcome asks
             every one to succeed.
+        space: Its task space (:class:`~imitate.taskspace.TaskSpace`), over its objects' roles
+            and places in its scene; eq. 1 unless declared.
     """
 
     name: str
     env: type[BimanualEnv]
     env_id: str
-    dims: tuple[str, ...]
     phase: str
     outcomes: tuple[str, ...]
     measures: Mapping[str, tuple[str, str]]
@@ -121,11 +122,18 @@ class Task:
     kinds: Mapping[str, type | tuple[type, ...]]
     exported: Callable[[Mapping[str, Any], Mapping[str, Any]], dict[str, Any]]
     replays: int = 3
+    space: TaskSpace = EQ1
 
     @property
     def objects(self) -> tuple[str, str]:
         """The tool and the target (body names)."""
         return self.env.objects
+
+    @property
+    def dims(self) -> tuple[str, ...]:
+        """Labels of its task space's columns in figures and exports, in its objects' names
+        (``bottle_angle``)."""
+        return self.space.labels(dict(zip(OBJECTS, self.objects, strict=True)))
 
     @property
     def error_keys(self) -> tuple[str, str]:
@@ -192,6 +200,7 @@ class Task:
         return SceneConfig(
             **self._scene_values(values), objects=self.objects, grasps=grasps,
             obstacles=tuple(obstacles), teacher=teacher, tool_inside=self.env.tool_inside,
+            space=self.space,
         )
 
     def make_env(self, scene: SceneConfig, **kwargs: Any) -> BimanualEnv:

@@ -21,6 +21,7 @@ import numpy as np
 
 from imitate.demos.segment import task_demos
 from imitate.envs.assembly import Obstacle, check_clearance
+from imitate.envs.task import get_task
 from imitate.errors import ImitateError
 from imitate.learning import LearnedModel
 from imitate.motion import Plan
@@ -68,11 +69,12 @@ class Run:
         return DemosFile.load(self.path)
 
     def task_demos(self) -> tuple[list[np.ndarray], float]:
-        """The demonstrations in eq. 1's task space as the ``learn`` stage projects them (one
-        ``(n_i, 7)`` array each, in :attr:`gaze`'s frame) and their rate [Hz]: the arrays
+        """The demonstrations in the task's space as the ``learn`` stage projects them (one
+        ``(n_i, m)`` array each, in :attr:`gaze`'s frame) and their rate [Hz]: the arrays
         :func:`imitate.learn` takes."""
         d = self.demos
-        return task_demos(d.segments, d.objects, d.gaze, smoothing=self.config.smoothing)
+        return task_demos(d.segments, d.objects, d.gaze, get_task(self.config.task).space,
+                          smoothing=self.config.smoothing)
 
     @cached_property
     def learned(self) -> Learned:

@@ -1,21 +1,31 @@
-r"""The task space (paper eq. 1): its columns, the gaze frame, and the map of object trajectories.
+r"""Task spaces: a small vocabulary of terms, eq. 1 among them, the gaze frame, and the map of
+object trajectories.
 
-A bimanual task moves a **tool** (held by the right hand) to a **target** (held by the left).
-``x = (x_diff, phi_tool, phi_target)`` has 7 dimensions:
+A bimanual task moves a **tool** (held by the right hand) to a **target** (held by the left),
+possibly relative to **places** in the scene (bodies the robot does not move, named by their
+body names). A task declares its space (:class:`TaskSpace`) as a sequence of terms:
+
+- :class:`Relative` ``(of, to)``: ``p_of - p_to`` in the world frame, 3 columns ``dx, dy, dz``
+  [m], tolerance 1 cm each;
+- :class:`Angles` ``(of)``: the held object's long axis ``a`` seen from the gaze, 2 columns:
+  ``angle = atan2(a . d, a . r)`` [rad] (clockwise in the image, see below; tolerance 2 deg) and
+  ``gaze = a . f`` [1] (tolerance 0.05).
+
+Eq. 1 of the paper, :data:`EQ1`, is ``(Relative("tool", "target"), Angles("tool"),
+Angles("target"))``, 7 columns:
 
 =====  ==================  =====  ==================================================================
 index  name                unit   meaning
 =====  ==================  =====  ==================================================================
-0-2    ``dx, dy, dz``      m      ``p_tool - p_target`` in the world frame (:data:`POSITION`)
-3      ``tool_angle``      rad    angle of the tool's long axis projected onto the image plane,
-                                  ``atan2(a . d, a . r)`` (clockwise in the image, see below)
+0-2    ``dx, dy, dz``      m      ``p_tool - p_target`` in the world frame
+3      ``tool_angle``      rad    angle of the tool's long axis projected onto the image plane
 4      ``tool_gaze``       1      component of the tool's long axis along the gaze, ``a . f``
 5      ``target_angle``    rad    as 3, for the target
 6      ``target_gaze``     1      as 4, for the target
 =====  ==================  =====  ==================================================================
 
-The angle columns 3 and 5 are :data:`ANGLES`. :func:`task_space` maps observed object
-trajectories (positions and long axes) to demonstrations; the robot's map of its joint angles
+A space maps observed trajectories (positions and long axes) to demonstrations
+(:meth:`TaskSpace.__call__`); the robot's map of its joint angles
 (:class:`imitate.motion.taskspace.TaskMap`) agrees with it at every posture.
 
 The gaze frame, one convention everywhere: ``R_gaze`` is a right-handed orthonormal matrix
@@ -37,33 +47,213 @@ neither chases nor is thrown by an undefined quantity; the ``a . f`` component s
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import ArrayLike
 
 from imitate.errors import ImitateError
 
 __all__ = [
-    "ANGLES",
-    "POSITION",
+    "EQ1",
+    "OBJECTS",
     "SINGULAR_TOL",
-    "TASK_DIMS",
-    "TASK_UNITS",
+    "Angles",
+    "Relative",
+    "TaskSpace",
     "check_gaze",
     "gaze_frame",
     "gaze_of_camera",
     "image_angle",
     "object_orientation",
-    "task_space",
 ]
 
-TASK_DIMS = ("dx", "dy", "dz", "tool_angle", "tool_gaze", "target_angle", "target_gaze")
-TASK_UNITS = ("m", "m", "m", "rad", "1", "rad", "1")
-POSITION = slice(0, 3)  # the columns of p_tool - p_target [m]
-ANGLES = np.array((3, 5))  # the columns of the tool's and the target's angles [rad]
-ANGLES.flags.writeable = False
+OBJECTS = ("tool", "target")  # the held objects' roles; any other name in a term is a place
 # Projected length ``rho`` of a unit axis onto the image plane below which its angle is
 # undefined (the axis lies within about 1e-6 rad of the gaze).
 SINGULAR_TOL = 1e-6
+
+
+@dataclass(frozen=True)
+class Relative:
+    """``p_of - p_to`` in the world frame [m]: 3 columns. ``of`` and ``to`` are roles of
+    :data:`OBJECTS` or places (body names), not the same."""
+
+    of: str
+    to: str
+    units = ("m", "m", "m")
+    tolerance = (0.01, 0.01, 0.01)
+
+    def labels(self, names: Mapping[str, str], alone: bool) -> tuple[str, ...]:
+        """``dx, dy, dz``, or, unless ``alone`` (the space's only position),
+        ``<of>_<to>_dx, ...`` in the task's words ``names`` (role -> name)."""
+        prefix = "" if alone else f"{names.get(self.of, self.of)}_{names.get(self.to, self.to)}_"
+        return tuple(f"{prefix}d{c}" for c in "xyz")
+
+
+@dataclass(frozen=True)
+class Angles:
+    """A held object's orientation as eq. 1 has it: the image angle of its long axis [rad] and
+    the axis' component along the gaze [1]. ``of`` is a role of :data:`OBJECTS`."""
+
+    of: str
+    units = ("rad", "1")
+    tolerance = (float(np.radians(2.0)), 0.05)
+
+    def labels(self, names: Mapping[str, str], alone: bool) -> tuple[str, ...]:
+        """``<of>_angle, <of>_gaze`` in the task's words ``names`` (role -> name)."""
+        name = names.get(self.of, self.of)
+        return f"{name}_angle", f"{name}_gaze"
+
+
+Term = Relative | Angles
+
+
+@dataclass(frozen=True)
+class TaskSpace:
+    """A task space: its terms' columns side by side (see the module docstring).
+
+    Attributes:
+        terms: The terms, in column order; each object has at most one :class:`Angles`.
+
+    Raises:
+        ImitateError: No term, an :class:`Angles` of a place or twice of one object, or a
+            :class:`Relative` of a name to itself.
+    """
+
+    terms: tuple[Term, ...]
+
+    def __post_init__(self) -> None:
+        angled = [t.of for t in self.terms if isinstance(t, Angles)]
+        if not self.terms or not all(isinstance(t, Relative | Angles) for t in self.terms):
+            raise ImitateError(f"a task space needs terms Relative or Angles; got {self.terms}")
+        if set(angled) - set(OBJECTS) or len(set(angled)) < len(angled):
+            raise ImitateError(f"Angles are of the held objects {OBJECTS}, once each; got {angled}")
+        if any(t.of == t.to for t in self.terms if isinstance(t, Relative)):
+            raise ImitateError(f"a Relative term needs two names; got {self.terms}")
+        if not self.positions:
+            raise ImitateError(f"a task space needs a Relative term; got {self.terms}")
+
+    @property
+    def starts(self) -> tuple[int, ...]:
+        """Each term's first column."""
+        widths = [len(t.units) for t in self.terms]
+        return tuple(int(s) for s in np.cumsum([0, *widths[:-1]]))
+
+    @property
+    def m(self) -> int:
+        """The number of columns."""
+        return sum(len(t.units) for t in self.terms)
+
+    @property
+    def units(self) -> tuple[str, ...]:
+        """Each column's unit."""
+        return tuple(u for t in self.terms for u in t.units)
+
+    @property
+    def tolerance(self) -> np.ndarray:
+        """``(m,)`` each column's tolerance, in its unit: the error that matters (1 cm, 2 deg,
+        0.05); eq. 21's weight at zero variance is ``1 / tolerance^2``."""
+        return np.array([v for t in self.terms for v in t.tolerance])
+
+    @property
+    def places(self) -> tuple[str, ...]:
+        """The places its terms name (neither held object), in order of appearance."""
+        names = [n for t in self.terms if isinstance(t, Relative) for n in (t.of, t.to)]
+        return tuple(dict.fromkeys(n for n in names if n not in OBJECTS))
+
+    @property
+    def positions(self) -> tuple[slice, ...]:
+        """The columns of each :class:`Relative` [m]; the first is the task's main one."""
+        return tuple(slice(s, s + 3) for t, s in zip(self.terms, self.starts, strict=True)
+                     if isinstance(t, Relative))
+
+    @property
+    def position_columns(self) -> np.ndarray:
+        """``(3 k,)`` the columns of every :class:`Relative` [m]."""
+        return np.concatenate([np.arange(p.start, p.stop) for p in self.positions])
+
+    def distance(self, x: np.ndarray) -> np.ndarray:
+        """``(...)`` the largest length over the :class:`Relative` terms of task vectors ``x``
+        ``(..., m)`` [m] (of errors or changes: how far the positions are off)."""
+        return np.max([np.linalg.norm(x[..., p], axis=-1) for p in self.positions], axis=0)
+
+    @property
+    def angles(self) -> np.ndarray:
+        """``(k,)`` the angle columns [rad], one per :class:`Angles`, read-only."""
+        cols = np.array([s for t, s in zip(self.terms, self.starts, strict=True)
+                         if isinstance(t, Angles)], dtype=int)
+        cols.flags.writeable = False
+        return cols
+
+    def angle_ref(self, x: np.ndarray) -> np.ndarray:
+        """``(..., 2)`` the tool's and the target's angles in task states ``x`` ``(..., m)``
+        [rad]; 0 for an object without :class:`Angles` (the robot map's branch references)."""
+        ref = np.zeros((*x.shape[:-1], len(OBJECTS)))
+        for t, s in zip(self.terms, self.starts, strict=True):
+            if isinstance(t, Angles):
+                ref[..., OBJECTS.index(t.of)] = x[..., s]
+        return ref
+
+    def labels(self, names: Mapping[str, str] | None = None) -> tuple[str, ...]:
+        """Each column's label in the task's words ``names`` (role -> name: ``{"tool":
+        "bottle"}``), the roles themselves where not given."""
+        alone = len(self.positions) == 1
+        return tuple(c for t in self.terms for c in t.labels(names or {}, alone))
+
+    def __call__(
+        self,
+        tracks: Mapping[str, tuple[ArrayLike, ArrayLike | None]],
+        gaze: ArrayLike,
+        *,
+        singular_tol: float = SINGULAR_TOL,
+    ) -> np.ndarray:
+        """Maps observed trajectories to this space, angles unwrapped over time.
+
+        Args:
+            tracks: By role or place: ``(positions (n_steps, 3) [m], long axes (n_steps, 3))``
+                in the world frame, any non-zero axis length; a place's axes may be ``None``.
+            gaze: ``R_gaze``, shape ``(3, 3)``, right-handed, columns (right, down, forward).
+            singular_tol: Projected axis length below which an angle is undefined and held.
+
+        Returns:
+            ``x``, shape ``(n_steps, m)``, in the units of :attr:`units`.
+
+        Raises:
+            ImitateError: On a missing track, mismatched shapes, non-finite values, zero axes
+                or a bad gaze frame.
+        """
+        missing = sorted({n for t in self.terms for n in vars(t).values()} - set(tracks))
+        if missing:
+            raise ImitateError(f"no track of {missing}; given: {sorted(tracks)}")
+        position = {name: np.asarray(p, dtype=float) for name, (p, _) in tracks.items()}
+        axes = {name: np.asarray(a, dtype=float) for name, (_, a) in tracks.items()
+                if a is not None}
+        shape = next(iter(position.values())).shape
+        if len(shape) != 2 or shape[1] != 3 or shape[0] == 0:
+            raise ImitateError(f"positions must have shape (n_steps, 3); got {shape}")
+        for what, arrays in (("positions", position), ("axes", axes)):
+            for name, arr in arrays.items():
+                if arr.shape != shape:
+                    raise ImitateError(f"{name} {what} must have shape {shape}; got {arr.shape}")
+                if not np.all(np.isfinite(arr)):
+                    raise ImitateError(f"{name} {what} must be finite (no NaN or inf)")
+        x = np.empty((shape[0], self.m))
+        for term, s in zip(self.terms, self.starts, strict=True):
+            if isinstance(term, Relative):
+                x[:, s : s + 3] = position[term.of] - position[term.to]
+                continue
+            axis = axes.get(term.of)
+            if axis is None:
+                raise ImitateError(f"{term.of} needs its long axes for its angles")
+            angle, along, defined = object_orientation(axis, gaze, singular_tol=singular_tol)
+            x[:, s] = np.unwrap(_hold_undefined(angle, defined))
+            x[:, s + 1] = along
+        return x
+
+
+EQ1 = TaskSpace((Relative("tool", "target"), Angles("tool"), Angles("target")))  # the paper's
 
 
 def check_gaze(gaze: ArrayLike) -> np.ndarray:
@@ -193,46 +383,3 @@ def _hold_undefined(angle: np.ndarray, defined: np.ndarray) -> np.ndarray:
     first = int(np.argmax(defined))
     idx[:first] = first
     return angle[idx]
-
-
-def task_space(
-    p_tool: ArrayLike,
-    a_tool: ArrayLike,
-    p_target: ArrayLike,
-    a_target: ArrayLike,
-    gaze: ArrayLike,
-    *,
-    singular_tol: float = SINGULAR_TOL,
-) -> np.ndarray:
-    """Maps object trajectories to the task space of eq. 1, angles unwrapped over time.
-
-    Args:
-        p_tool: Tool positions, shape ``(n_steps, 3)`` [m], world frame.
-        a_tool: Tool long axes, shape ``(n_steps, 3)``, world frame, any non-zero length.
-        p_target: Target positions, shape ``(n_steps, 3)`` [m].
-        a_target: Target long axes, shape ``(n_steps, 3)``.
-        gaze: ``R_gaze``, shape ``(3, 3)``, right-handed, columns (right, down, forward).
-        singular_tol: Projected axis length below which an angle is undefined and held.
-
-    Returns:
-        ``x``, shape ``(n_steps, 7)``, see the module table for units.
-
-    Raises:
-        ImitateError: On mismatched shapes, non-finite values, zero axes or a bad gaze frame.
-    """
-    arrays = [np.asarray(v, dtype=float) for v in (p_tool, a_tool, p_target, a_target)]
-    shape = arrays[0].shape
-    if len(shape) != 2 or shape[1] != 3 or shape[0] == 0:
-        raise ImitateError(f"p_tool must have shape (n_steps, 3); got {shape}")
-    for name, arr in zip(("a_tool", "p_target", "a_target"), arrays[1:], strict=True):
-        if arr.shape != shape:
-            raise ImitateError(f"{name} must have shape {shape} like p_tool; got {arr.shape}")
-    if not all(np.all(np.isfinite(arr)) for arr in arrays):
-        raise ImitateError("object trajectories must be finite (no NaN or inf)")
-    x = np.empty((shape[0], 7))
-    x[:, POSITION] = arrays[0] - arrays[2]
-    for col, axis in zip(ANGLES, (arrays[1], arrays[3]), strict=True):
-        angle, along, defined = object_orientation(axis, gaze, singular_tol=singular_tol)
-        x[:, col] = np.unwrap(_hold_undefined(angle, defined))
-        x[:, col + 1] = along
-    return x

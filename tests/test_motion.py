@@ -30,10 +30,9 @@ from imitate.motion.approach import (
     approach_path,
     bend_approach,
 )
-from imitate.motion.costs import TOLERANCE as _TOLERANCE
 from imitate.motion.optimizer import _PUSH_SCALE
 from imitate.motion.replay import planning_task
-from imitate.taskspace import ANGLES, gaze_frame, object_orientation, task_space
+from imitate.taskspace import EQ1, gaze_frame, object_orientation
 
 DT = 0.1  # coarse steps keep the finite-difference sweeps fast
 
@@ -54,7 +53,7 @@ def _problem(task, learned, control=None):
     start = setup(task, learned, q0=humanoid.rest_pose(), config=c)
     p = start.problem
     a = p.dynamics.fit(start.mean, p.x_start)  # unweighted: the point these checks were set at
-    a = a + np.random.default_rng(0).normal(size=a.shape) * np.array(_TOLERANCE)
+    a = a + np.random.default_rng(0).normal(size=a.shape) * EQ1.tolerance
     return p, a
 
 
@@ -64,7 +63,7 @@ def problem(task, learned):
 
 
 def test_task_map_matches_taskspace_and_finite_differences(task):
-    """At the robot's posture the robot map equals the demonstrations' map ``task_space`` of
+    """At the robot's posture the robot map equals the demonstrations' map (eq. 1) of
     the bottle's and glass's frames (origin, z axis) as MuJoCo places them in the hands."""
     kin = task.kin
     q = humanoid.rest_pose() + np.random.default_rng(1).uniform(-0.2, 0.2, kin.n)
@@ -73,17 +72,17 @@ def test_task_map_matches_taskspace_and_finite_differences(task):
         (kin.data.body(b).xpos[None], kin.data.body(b).xmat.reshape(3, 3)[None, :, 2])
         for b in ("bottle", "glass")
     ]
-    ref_x = task_space(*frames[0], *frames[1], task.gaze)[0]
-    x, J = task(ref_x[ANGLES])
+    ref_x = EQ1({"tool": frames[0], "target": frames[1]}, task.gaze)[0]
+    x, J = task(ref_x[EQ1.angles])
     np.testing.assert_allclose(x, ref_x, atol=1e-12)
     fd = np.zeros_like(J)
     for i in np.flatnonzero(task.driven):
         e = np.zeros(kin.n)
         e[i] = 1e-6
         kin.update(q + e)
-        xp, _ = task(x[ANGLES])
+        xp, _ = task(x[EQ1.angles])
         kin.update(q - e)
-        xm, _ = task(x[ANGLES])
+        xm, _ = task(x[EQ1.angles])
         fd[:, i] = (xp - xm) / 2e-6
     np.testing.assert_allclose(J, fd, atol=1e-6)
 
@@ -123,7 +122,7 @@ def _differences(problem) -> dict[str | None, np.ndarray]:
     """Central finite differences of every weighted cost term (and of the total, key ``None``)
     by each variable, from one sweep of rollouts (each gives every term's value)."""
     p, a = problem
-    scale = np.concatenate([_TOLERANCE, np.full(a.shape[1] - len(_TOLERANCE), _PUSH_SCALE)])
+    scale = np.concatenate([EQ1.tolerance, np.full(a.shape[1] - EQ1.m, _PUSH_SCALE)])
     h = scale * 1e-3
     fd = {name: np.zeros_like(a) for name in (*p.terms, None)}
     for i in range(a.shape[0]):

@@ -7,9 +7,8 @@ import pytest
 from imitate.evaluation import sensitivity as sens
 from imitate.models import humanoid
 from imitate.motion import Plan
-from imitate.motion.costs import TOLERANCE
 from imitate.motion.replay import planning_task
-from imitate.taskspace import ANGLES
+from imitate.taskspace import EQ1
 
 
 def _plan(task_map, steps: int = 9) -> Plan:
@@ -21,7 +20,7 @@ def _plan(task_map, steps: int = 9) -> Plan:
     for row in q:
         task_map.kin.update(row)
         state, _ = task_map(ref)
-        ref = state[ANGLES]
+        ref = state[EQ1.angles]
         x.append(state)
     x = np.array(x)
     return Plan(
@@ -40,12 +39,12 @@ def test_a_move_moves_the_task_state_by_delta(direction):
     task_map = planning_task()
     plan = _plan(task_map)
     ease = np.array([0, 0, 0.5, 1, 1, 1, 0.5, 0, 0], float)
-    delta = 2.0 * np.eye(7)[direction] * np.asarray(TOLERANCE)
+    delta = 2.0 * np.eye(7)[direction] * EQ1.tolerance
     moved = sens.moved(plan, task_map, delta, ease)
     for t, w in enumerate(ease):
         task_map.kin.update(moved.q[t])
-        x, _ = task_map(plan.x[t, ANGLES])
-        change = (x - plan.x[t]) / np.asarray(TOLERANCE)
+        x, _ = task_map(plan.x[t, EQ1.angles])
+        change = (x - plan.x[t]) / EQ1.tolerance
         np.testing.assert_allclose(change, 2.0 * w * np.eye(7)[direction], atol=0.1)
     assert np.array_equal(moved.q[ease == 0], plan.q[ease == 0])
 
@@ -124,7 +123,8 @@ def test_the_importance_weighting_reads_a_result_of_the_teachers_own_model(tmp_p
     save_json(path, result)
     with pytest.raises(ImitateError, match="measured on another model than teacher 3's"):
         sens.with_importance(tmp_path, [teacher])
-    save_json(path, {**result, "model": sens.model_digest(b"model"), "quadratic_form": [[1.0]]})
+    save_json(path, {**result, "model": sens.model_digest(b"model"),
+                     "quadratic_form": [[1.0, 2.0]]})
     with pytest.raises(ImitateError, match="holds no usable quadratic form"):
         sens.with_importance(tmp_path, [teacher])
     path.write_text('{"model": "cut sh')

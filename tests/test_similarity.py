@@ -20,8 +20,8 @@ from imitate.motion import (
     weighting,
 )
 from imitate.motion.costs import REGULARIZATION
-from imitate.motion.costs import TOLERANCE as _TOLERANCE
 from imitate.motion.replay import planning_task
+from imitate.taskspace import EQ1
 
 W_MAX = np.array([4.0, 1.0])
 SIGMA_MAX = np.array([2.0, 0.5])
@@ -171,13 +171,13 @@ def precision_problem():
 def test_precision_similarity_gradient_matches_finite_differences(precision_problem):
     _, _, start = precision_problem
     p = start.problem
-    a = start.a0 + np.random.default_rng(1).normal(size=start.a0.shape) * np.array(_TOLERANCE)
+    a = start.a0 + np.random.default_rng(1).normal(size=start.a0.shape) * EQ1.tolerance
     grad = p.evaluate(a, ("similarity",))[2]
     fd = np.zeros_like(a)
     for i in range(a.shape[0]):
         for j in range(a.shape[1]):
             e = np.zeros_like(a)
-            e[i, j] = _TOLERANCE[j] * 1e-4
+            e[i, j] = EQ1.tolerance[j] * 1e-4
             up = p.evaluate(a + e, ("similarity",), gradient=False)[0]
             down = p.evaluate(a - e, ("similarity",), gradient=False)[0]
             fd[i, j] = (up - down) / (2 * e[i, j])

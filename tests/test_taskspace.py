@@ -14,18 +14,26 @@ from imitate.errors import ImitateError
 from imitate.motion.kinematics import Kinematics
 from imitate.motion.taskspace import TaskMap
 from imitate.taskspace import (
-    ANGLES,
-    POSITION,
-    TASK_DIMS,
-    TASK_UNITS,
+    EQ1,
+    Angles,
+    Relative,
+    TaskSpace,
     gaze_frame,
     gaze_of_camera,
     image_angle,
     object_orientation,
-    task_space,
 )
 
+ANGLES = EQ1.angles
 N_LINKS = 3  # hinges per object chain
+# A space with a place (a body fixed to the world): the target relative to it, the tool relative
+# to the target, the tool's angles only.
+PLACED = TaskSpace((Relative("target", "spot"), Relative("tool", "target"), Angles("tool")))
+
+
+def task_space(p_tool, a_tool, p_target, a_target, gaze, **kwargs):
+    """Eq. 1 of the two objects' trajectories."""
+    return EQ1({"tool": (p_tool, a_tool), "target": (p_target, a_target)}, gaze, **kwargs)
 H = 1e-6  # central-difference step [rad]
 
 
@@ -43,7 +51,7 @@ def _toy_kinematics(seed: int) -> Kinematics:
         for i in range(N_LINKS):
             joints.append(f"{name}{i}")
             xml += (
-                f'<body pos="{_fmt(rng.normal(scale=0.2, size=3))}">'
+                f'<body name="{name}_link{i}" pos="{_fmt(rng.normal(scale=0.2, size=3))}">'
                 f'<joint name="{name}{i}" type="hinge" axis="{_fmt(rng.normal(size=3))}"/>'
                 '<geom type="sphere" size="0.02"/>'
             )
@@ -54,17 +62,20 @@ def _toy_kinematics(seed: int) -> Kinematics:
             '<geom type="cylinder" size="0.03 0.1"/></body>'
         )
         chains.append(xml + close)
+    spot = f'<body name="spot" pos="{_fmt(rng.normal(scale=0.3, size=3))}"/>'
     model = mujoco.MjModel.from_xml_string(
-        f"<mujoco><worldbody>{''.join(chains)}</worldbody></mujoco>"
+        f"<mujoco><worldbody>{''.join(chains)}{spot}</worldbody></mujoco>"
     )
     return Kinematics(model, joints)
 
 
-def _toy(seed: int, gaze: np.ndarray | None = None, fixed=()) -> tuple[TaskMap, np.ndarray]:
+def _toy(
+    seed: int, gaze: np.ndarray | None = None, fixed=(), space: TaskSpace = EQ1
+) -> tuple[TaskMap, np.ndarray]:
     kin = _toy_kinematics(seed)
     gaze = Rotation.random(random_state=seed).as_matrix() if gaze is None else gaze
     q = np.random.default_rng(seed + 50).uniform(-np.pi, np.pi, kin.n)
-    return TaskMap(kin, "tool", "target", gaze, fixed), q
+    return TaskMap(kin, "tool", "target", gaze, fixed, space), q
 
 
 def _at(task: TaskMap, q: np.ndarray, ref) -> tuple[np.ndarray, np.ndarray]:
@@ -84,30 +95,72 @@ def _fd_jacobian(task: TaskMap, q: np.ndarray, ref: np.ndarray) -> np.ndarray:
 
 
 def _frame_task_space(task: TaskMap) -> np.ndarray:
-    """``task_space`` of the tool's and target's frames (origin, z axis) read from MuJoCo."""
+    """The task's space of the tool's and target's frames (origin, z axis) and the places'
+    bodies, read from MuJoCo."""
     d = task.kin.data
-    return task_space(
-        d.body("tool").xpos[None], _axis(task, "tool")[None],
-        d.body("target").xpos[None], _axis(task, "target")[None], task.gaze,
-    )[0]
+    tracks = {role: (d.body(role).xpos[None], _axis(task, role)[None])
+              for role in ("tool", "target")}
+    tracks.update({name: (d.body(name).xpos[None], None) for name in task.space.places})
+    return task.space(tracks, task.gaze)[0]
 
 
-@pytest.mark.parametrize("seed", range(4))
-def test_task_map_value_jacobian_and_rates_match_task_space_and_finite_differences(seed):
-    task, q = _toy(seed)
+@pytest.mark.parametrize(("seed", "space"), [(0, EQ1), (1, EQ1), (2, EQ1), (3, EQ1),
+                                             (4, PLACED), (5, PLACED)])
+def test_task_map_value_jacobian_rates_and_curvature_match_the_space_and_finite_differences(
+    seed, space
+):
+    task, q = _toy(seed, space=space)
     kin = task.kin
     kin.update(q)
     expected = _frame_task_space(task)
-    x, J, frame = task.evaluate(expected[ANGLES])
+    ref = space.angle_ref(expected)
+    x, J, frame = task.evaluate(ref)
+    assert x.shape == (space.m,)
     np.testing.assert_allclose(x, expected, atol=1e-12)  # the robot map is the demos' map
-    np.testing.assert_allclose(J, _fd_jacobian(task, q, x[ANGLES]), atol=1e-6)
-    directions = np.random.default_rng(seed).normal(size=(2, kin.n))
+    np.testing.assert_allclose(J, _fd_jacobian(task, q, ref), atol=1e-6)
+    rng = np.random.default_rng(seed)
+    directions = rng.normal(size=(2, kin.n))
     kin.update(q)
     rates = task.rates(directions, frame)
     for b, rate in zip(directions, rates, strict=True):
-        jp = _at(task, q + H * b, x[ANGLES])[1]
-        jm = _at(task, q - H * b, x[ANGLES])[1]
+        jp = _at(task, q + H * b, ref)[1]
+        jm = _at(task, q - H * b, ref)[1]
         np.testing.assert_allclose(rate, (jp - jm) / (2 * H), atol=1e-6)
+    a, c = rng.normal(size=(2, space.m))
+    kin.update(q)
+    np.testing.assert_allclose(task.curvature(a, directions[0], c, directions[1], frame),
+                               a @ rates[0] + c @ rates[1], atol=1e-9)
+
+
+def test_a_place_must_be_a_body_fixed_to_the_world():
+    kin = _toy_kinematics(0)
+    for place, message in (("nowhere", "no body"), ("tool_link1", "fixed to the world")):
+        space = TaskSpace((Relative("tool", place), Angles("tool")))
+        with pytest.raises(ImitateError, match=message):
+            TaskMap(kin, "tool", "target", np.eye(3), space=space)
+
+
+def test_a_space_is_declared_from_its_terms():
+    assert (EQ1.m, EQ1.units, EQ1.places) == (7, ("m", "m", "m", "rad", "1", "rad", "1"), ())
+    np.testing.assert_allclose(EQ1.tolerance, [0.01] * 3 + [np.radians(2.0), 0.05] * 2)
+    assert PLACED.m == 8 and PLACED.places == ("spot",) and PLACED.angles.tolist() == [6]
+    assert PLACED.labels({"tool": "bottle", "target": "glass"}) == (
+        "glass_spot_dx", "glass_spot_dy", "glass_spot_dz", "bottle_glass_dx", "bottle_glass_dy",
+        "bottle_glass_dz", "bottle_angle", "bottle_gaze")
+    x = np.arange(16.0).reshape(2, 8)
+    np.testing.assert_array_equal(PLACED.angle_ref(x), [[6.0, 0.0], [14.0, 0.0]])
+    np.testing.assert_allclose(PLACED.distance(x), np.linalg.norm(x[:, 3:6], axis=1))
+    for terms, message in (((), "needs terms"), ((Angles("tool"),), "needs a Relative"),
+                           ((Relative("tool", "tool"),), "two names"),
+                           ((Relative("tool", "spot"), Angles("spot")), "held objects"),
+                           ((Relative("tool", "spot"), Angles("tool"), Angles("tool")), "once")):
+        with pytest.raises(ImitateError, match=message):
+            TaskSpace(terms)
+    p, a = np.zeros((2, 3)), np.tile([0.0, 0.0, 1.0], (2, 1))
+    with pytest.raises(ImitateError, match=r"no track of \['spot'\]"):
+        PLACED({"tool": (p, a), "target": (p, a)}, np.eye(3))
+    x = PLACED({"tool": (p + 1.0, a), "target": (p, a), "spot": (p - 2.0, None)}, np.eye(3))
+    np.testing.assert_allclose(x[:, :6], [[2.0, 2.0, 2.0, 1.0, 1.0, 1.0]] * 2)
 
 
 @pytest.mark.parametrize("side", [-1.0, 1.0])
@@ -245,7 +298,7 @@ def test_bad_input_is_rejected():
         task_space(p, a, p, a, np.diag([1.0, 2.0, 1.0]))
     with pytest.raises(ImitateError, match="right-handed"):
         task_space(p, a, p, a, np.diag([1.0, 1.0, -1.0]))  # right, up, forward
-    with pytest.raises(ImitateError, match=r"p_target must have shape \(3, 3\)"):
+    with pytest.raises(ImitateError, match=r"target positions must have shape \(3, 3\)"):
         task_space(p, a, p[:2], a, gaze)
     with pytest.raises(ImitateError, match="finite"):
         task_space(np.full((3, 3), np.nan), a, p, a, gaze)
@@ -256,13 +309,14 @@ def test_bad_input_is_rejected():
 
 
 def test_columns_name_the_position_and_the_angles():
-    assert len(TASK_DIMS) == len(TASK_UNITS) == TaskMap.m
-    assert TASK_DIMS[POSITION] == ("dx", "dy", "dz")
-    assert [TASK_DIMS[i] for i in ANGLES] == ["tool_angle", "target_angle"]
-    assert [TASK_UNITS[i] for i in ANGLES] == ["rad", "rad"]
-    assert [TASK_DIMS[i + 1] for i in ANGLES] == ["tool_gaze", "target_gaze"]
+    dims, units = EQ1.labels(), EQ1.units
+    assert len(dims) == len(units) == EQ1.m == 7
+    assert dims[EQ1.positions[0]] == ("dx", "dy", "dz")
+    assert [dims[i] for i in ANGLES] == ["tool_angle", "target_angle"]
+    assert [units[i] for i in ANGLES] == ["rad", "rad"]
+    assert [dims[i + 1] for i in ANGLES] == ["tool_gaze", "target_gaze"]
     # Pouring prints its own words for the columns: the bottle is the tool, the glass the target.
-    renamed = tuple(d.replace("tool", "bottle").replace("target", "glass") for d in TASK_DIMS)
+    renamed = tuple(d.replace("tool", "bottle").replace("target", "glass") for d in dims)
     assert get_task("pour").dims == renamed
     with pytest.raises(ValueError, match="read-only"):
         ANGLES[0] = 4

@@ -95,7 +95,6 @@ TASK = Task(
     name="insert",
     env=InsertingEnv,
     env_id=ENV_ID,
-    dims=("dx", "dy", "dz", "stick_angle", "stick_gaze", "glass_angle", "glass_gaze"),
     phase="insert",
     outcomes=OUTCOMES,
     measures={

@@ -95,7 +95,6 @@ TASK = Task(
     name="pour",
     env=PouringEnv,
     env_id=ENV_ID,
-    dims=("dx", "dy", "dz", "bottle_angle", "bottle_gaze", "glass_angle", "glass_gaze"),
     phase="pour",
     outcomes=OUTCOMES,
     measures={

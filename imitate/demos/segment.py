@@ -32,7 +32,7 @@ from imitate import defaults
 from imitate.errors import ImitateError
 from imitate.models.shapes import SHAPES
 from imitate.perception import Tracks
-from imitate.taskspace import task_space
+from imitate.taskspace import OBJECTS, TaskSpace
 
 
 @dataclass(frozen=True)
@@ -263,10 +263,11 @@ def segment(tracks: Tracks, config: StillnessConfig = StillnessConfig()) -> list
 
 
 def task_demo(
-    demo: Demonstration, objects: tuple[str, ...], gaze: np.ndarray, *, smoothing: float,
+    demo: Demonstration, objects: tuple[str, ...], gaze: np.ndarray, space: TaskSpace, *,
+    smoothing: float,
     rate: float,
 ) -> np.ndarray:
-    """The task-space demonstration (eq. 1) learned from ``demo``.
+    """The task-space demonstration (in the task's ``space``) learned from ``demo``.
 
     Samples perception left missing (gaps too long to fill) are bridged linearly in time, the
     tracks smoothed by a quadratic Savitzky-Golay filter over ``smoothing`` [s] (not at all
@@ -277,11 +278,12 @@ def task_demo(
         demo: The demonstration; ``objects`` names the first axis of its arrays.
         objects: Object names, the tool's first, then the target's.
         gaze: ``(3, 3)`` gaze frame of the observation.
+        space: The task's space.
         smoothing: Savitzky-Golay window [s]; 0: none.
         rate: Frame rate of the tracks [Hz].
 
     Returns:
-        ``(m, 7)`` task-space samples.
+        ``(n, m)`` task-space samples.
 
     Raises:
         ImitateError: an object was tracked in none of the demonstration's frames.
@@ -293,10 +295,10 @@ def task_demo(
     if 5 <= frames <= position.shape[1]:
         position, axis = _savgol(position, frames), _unit(_savgol(axis, frames))
     bottoms = {
-        name: (position[k] - axis[k] * SHAPES[name].height / 2, axis[k])
-        for k, name in enumerate(objects)
+        role: (position[k] - axis[k] * SHAPES[name].height / 2, axis[k])
+        for k, (role, name) in enumerate(zip(OBJECTS, objects, strict=True))
     }
-    return task_space(*bottoms[objects[0]], *bottoms[objects[1]], gaze)
+    return space(bottoms, gaze)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -304,10 +306,11 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 
 def task_demos(
-    segments: Sequence[Demonstration], objects: tuple[str, ...], gaze: np.ndarray, *,
-    smoothing: float,
+    segments: Sequence[Demonstration], objects: tuple[str, ...], gaze: np.ndarray,
+    space: TaskSpace, *, smoothing: float,
 ) -> tuple[list[np.ndarray], float]:
-    """The demonstrations ``segments`` in the task space (:func:`task_demo` each) and their
+    """The demonstrations ``segments`` in the task ``space`` (:func:`task_demo` each) and their
     rate [Hz] (the first one's median frame rate): what :func:`imitate.learn` takes."""
     rate = 1.0 / float(np.median(np.diff(segments[0].times)))
-    return [task_demo(d, objects, gaze, smoothing=smoothing, rate=rate) for d in segments], rate
+    return [task_demo(d, objects, gaze, space, smoothing=smoothing, rate=rate)
+            for d in segments], rate

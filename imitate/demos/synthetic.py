@@ -12,7 +12,7 @@ canonical movement over a phase variable ``s`` in [0, 1]:
 Each demonstration runs the canonical movement through its own smooth, monotone time warp and
 has its own duration, so raw demonstrations disagree in time (Fig. 4, left) until DTW aligns
 them. Object positions and long axes are generated in the world frame and mapped through
-:func:`imitate.taskspace.task_space`.
+:data:`imitate.taskspace.EQ1`.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from imitate.errors import ImitateError
-from imitate.taskspace import gaze_frame, task_space
+from imitate.taskspace import EQ1, gaze_frame
 
 __all__ = ["SyntheticConfig", "SyntheticDemos", "phased_demos"]
 
@@ -153,13 +153,8 @@ def phased_demos(config: SyntheticConfig | None = None) -> SyntheticDemos:
         a_target = np.column_stack((np.zeros(n), -np.sin(wobble), np.cos(wobble)))
 
         noise = c.noise * rng.standard_normal((4, n, 3))
-        x = task_space(
-            target_pos + rel + noise[0],
-            a_tool + 5 * noise[1],
-            target_pos + noise[2],
-            a_target + 5 * noise[3],
-            gaze,
-        )
+        x = EQ1({"tool": (target_pos + rel + noise[0], a_tool + 5 * noise[1]),
+                 "target": (target_pos + noise[2], a_target + 5 * noise[3])}, gaze)
         demos.append(x)
         t = tau * (n - 1) / c.rate
         windows.append(np.interp([c.act_start, c.act_end], s, t))

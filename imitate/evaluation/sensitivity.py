@@ -4,16 +4,17 @@ agreement points at the same directions (the premise of eq. 21, measured instead
 
 For one teacher, its reproduction in the task's default scene (default settings, eq. 21) is moved
 through the critical phase (``Task.critical``, eased in and out over :data:`RAMP`) by ``k``
-tolerances (:data:`~imitate.motion.costs.TOLERANCE` per dimension: 1 cm, 2 deg, 0.05) along
+tolerances (the task space's per dimension: 1 cm, 2 deg, 0.05) along
 :func:`probe_directions`: each task dimension, then each eigen-direction of the demonstrations'
 covariance there. The move is the joints' least-norm change ``J^+ delta`` at every step
 (:func:`moved`). Each moved plan is replayed in physics from ``seeds`` seeds; a replay fails
 where the task's score is below its threshold or the physics diverged. A direction's
 **tolerance** is the smallest move, either way, at which half the replays fail (interpolated
 between magnitudes; ``inf`` if none does); its **importance** is ``1 / tolerance^2``, the
-stiffness of a quadratic loss that reaches 1 there. The 7 x 7 quadratic form ``Q`` (tolerance
+stiffness of a quadratic loss that reaches 1 there. The m x m quadratic form ``Q`` (tolerance
 units) holding these importances is fitted by non-negative least squares over the probed
-directions' rank-one forms (:func:`quadratic_form`): 14 directions fix 14 of its 28 numbers.
+directions' rank-one forms (:func:`quadratic_form`): for eq. 1, 14 directions fix 14 of its 28
+numbers.
 
 A teacher's result is kept in ``RUN_DIR/sensitivity/seed-S.json`` (:func:`result_path`, written
 by ``imitate sensitivity``, :mod:`~imitate.evaluation.sensitivity_run`); :func:`with_importance`
@@ -43,14 +44,12 @@ from imitate.evaluation.teachers import Teacher
 from imitate.learning import LearnedModel
 from imitate.models import humanoid
 from imitate.motion import Plan, PlanConfig, plan_from_model
-from imitate.motion.costs import TOLERANCE
 from imitate.motion.replay import measure, planning_task
 from imitate.motion.taskspace import TaskMap
 from imitate.rundir.artifacts import load_json
-from imitate.taskspace import ANGLES, TASK_DIMS
 
 __all__ = [
-    "DIRECTION_NAMES", "MAGNITUDES", "RAMP", "SEEDS", "alignment", "critical_covariance",
+    "MAGNITUDES", "RAMP", "SEEDS", "alignment", "critical_covariance", "direction_names",
     "failure_rates", "model_digest", "moved", "probe_directions", "quadratic_form",
     "reproduction", "result_path", "results_folder", "tolerance", "window", "with_importance",
 ]
@@ -59,8 +58,12 @@ MAGNITUDES = (1.0, 2.0, 4.0)  # moves [tolerances], each way
 SEEDS = 3  # replays of each moved plan, seeds 0, 1, 2
 RAMP = 0.4  # [s] over which a move eases in before the critical phase and out after it
 _DAMPING = 1e-8  # of J J^T in the least-norm joint change
-# The probed directions: the task dimensions, then the covariance's eigenvectors, most agreed first.
-DIRECTION_NAMES = (*TASK_DIMS, *(f"eigen {i + 1}" for i in range(7)))
+
+
+def direction_names(task: Task) -> tuple[str, ...]:
+    """The probed directions' names: the task dimensions, then the covariance's eigenvectors,
+    the most agreed first."""
+    return (*task.dims, *(f"eigen {i + 1}" for i in range(len(task.dims))))
 
 
 def reproduction(learned: LearnedModel, gaze: np.ndarray, task: Task) -> Plan:
@@ -72,17 +75,17 @@ def reproduction(learned: LearnedModel, gaze: np.ndarray, task: Task) -> Plan:
     )
 
 
-def critical_covariance(learned: LearnedModel, plan: Plan, critical: np.ndarray) -> np.ndarray:
-    """The GMR covariance averaged over the ``critical`` steps ``(T + 1,)`` of ``plan``, in
-    tolerance units (``D^-1 Sigma D^-1``, ``D = diag(TOLERANCE)``), ``(7, 7)``."""
-    covariance = learned.predict(plan.times[critical])[1].mean(axis=0)
-    scale = 1.0 / np.asarray(TOLERANCE)
+def critical_covariance(learned: LearnedModel, plan: Plan, task: Task) -> np.ndarray:
+    """The GMR covariance averaged over ``task``'s critical steps of ``plan``, in tolerance
+    units (``D^-1 Sigma D^-1``, ``D = diag(tolerance)`` of its space), ``(m, m)``."""
+    covariance = learned.predict(plan.times[task.critical(plan.mean)])[1].mean(axis=0)
+    scale = 1.0 / task.space.tolerance
     return covariance * np.outer(scale, scale)
 
 
 def probe_directions(covariance: np.ndarray) -> np.ndarray:
-    """``(14, 7)`` unit directions in tolerance units: the 7 task dimensions, then the
-    eigenvectors of ``covariance`` ``(7, 7)`` (tolerance units), the most agreed first, each
+    """``(2 m, m)`` unit directions in tolerance units: the m task dimensions, then the
+    eigenvectors of ``covariance`` ``(m, m)`` (tolerance units), the most agreed first, each
     with its largest component positive."""
     vectors = np.linalg.eigh(covariance)[1].T  # rows, ascending eigenvalues
     largest = vectors[np.arange(len(vectors)), np.abs(vectors).argmax(axis=1)]
@@ -91,12 +94,12 @@ def probe_directions(covariance: np.ndarray) -> np.ndarray:
 
 def moved(plan: Plan, task_map: TaskMap, delta: np.ndarray, window: np.ndarray) -> Plan:
     """``plan`` with its joints moved by ``window_t J_t^+ delta`` at every step: the task
-    state moved by ``delta`` ``(7,)`` (task units) to first order where ``window`` ``(T + 1,)``
+    state moved by ``delta`` ``(m,)`` (task units) to first order where ``window`` ``(T + 1,)``
     is 1. ``task_map``'s kinematics are left at the plan's last step."""
     q = plan.q.copy()
     for t in np.flatnonzero(window):
         task_map.kin.update(plan.q[t])
-        _, J = task_map(plan.x[t, ANGLES])
+        _, J = task_map(task_map.space.angle_ref(plan.x[t]))
         q[t] += window[t] * J.T @ np.linalg.solve(J @ J.T + _DAMPING * np.eye(len(J)), delta)
     return dataclasses.replace(plan, q=q)
 
@@ -114,7 +117,7 @@ def failure_rates(
     magnitudes: Sequence[float] = MAGNITUDES, seeds: int = SEEDS,
 ) -> np.ndarray:
     """``(2, len(magnitudes))`` the share of failed replays of ``plan`` moved by ``-k`` (row 0)
-    and ``+k`` (row 1) tolerances along ``direction`` ``(7,)`` (tolerance units) in the critical
+    and ``+k`` (row 1) tolerances along ``direction`` ``(m,)`` (tolerance units) in the critical
     phase, each from ``seeds`` seeds, in the task's default scene; ``magnitudes`` ascending. A
     magnitude past one at which every replay failed is taken as failing, not replayed."""
     critical = task.critical(plan.mean)
@@ -125,7 +128,7 @@ def failure_rates(
             if i and rates[side, i - 1] == 1.0:  # every replay failed: a larger move fails too
                 rates[side, i] = 1.0
                 continue
-            probe = moved(plan, task_map, sign * k * direction * np.asarray(TOLERANCE), ease)
+            probe = moved(plan, task_map, sign * k * direction * task.space.tolerance, ease)
             failed = 0
             for seed in range(seeds):
                 _, record, _ = measure(task, probe, task.make_env(task.scene()), seed=seed,
@@ -151,8 +154,8 @@ def tolerance(rates: np.ndarray, magnitudes: Sequence[float] = MAGNITUDES) -> fl
 
 
 def quadratic_form(directions: np.ndarray, importance: np.ndarray) -> np.ndarray:
-    """``Q`` ``(7, 7)``, positive semi-definite, with ``u_i^T Q u_i`` nearest to
-    ``importance`` ``(k,)`` over ``directions`` ``(k, 7)`` (unit, tolerance units):
+    """``Q`` ``(m, m)``, positive semi-definite, with ``u_i^T Q u_i`` nearest to
+    ``importance`` ``(k,)`` over ``directions`` ``(k, m)`` (unit, tolerance units):
     ``Q = sum_i c_i u_i u_i^T``, ``c >= 0`` by non-negative least squares."""
     design = (directions @ directions.T) ** 2  # (u_j . u_i)^2 = u_j^T (u_i u_i^T) u_j
     coefficients, _ = nnls(design, np.asarray(importance, float))
@@ -217,15 +220,15 @@ def with_importance(run_dir: Path, models: Sequence[Teacher]) -> list[Teacher]:
                 f"{path} was measured on another model than teacher {t.seed}'s (learned again "
                 f"since, or an older result): {measure_it}"
             )
-        m = len(TOLERANCE)
         try:
             form = np.asarray(result["quadratic_form"], float)
             floor = 1.0 / max(result["magnitudes"]) ** 2
         except (KeyError, TypeError, ValueError):
-            form = None
-        if form is None or form.shape != (m, m) or not np.isfinite(floor):
+            form, floor = np.empty(0), np.nan
+        # Square: its size the planner checks against the model's.
+        if form.ndim != 2 or form.shape[0] != form.shape[1] or not np.isfinite(floor):
             raise ImitateError(f"{path} holds no usable quadratic form: {measure_it}")
-        form = form + floor * np.eye(m)
+        form = form + floor * np.eye(len(form))
         learned = dataclasses.replace(t.learned, importance=form)
         out.append(dataclasses.replace(t, learned=learned))
     return out

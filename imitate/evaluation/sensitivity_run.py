@@ -69,6 +69,7 @@ def measure(
             raise ImitateError(f"{name} {value!r} not accepted: a whole number in {low}..{high}")
     run_dir = check_run(run_dir)
     task = get_task(run_task(run_dir))
+    names = sens.direction_names(task)
     with locked(run_dir, f"imitate sensitivity {run_dir}"):
         check_model(run_dir)
         more = tuple(range(CONFIRMATION_SEED, CONFIRMATION_SEED + confirm))
@@ -87,8 +88,8 @@ def measure(
             if isinstance(kept, dict) and kept.get("key") == keys[s]:
                 results[s] = kept
         jobs = [(s, i, magnitudes, seeds) for s in models if s not in results
-                for i in range(len(sens.DIRECTION_NAMES))]
-        rates = {s: np.zeros((len(sens.DIRECTION_NAMES), 2, len(magnitudes))) for s in models}
+                for i in range(len(names))]
+        rates = {s: np.zeros((len(names), 2, len(magnitudes))) for s in models}
         done = dict.fromkeys(models, 0)
         learned = {s: t.learned for s, t in models.items()}
         sens.results_folder(run_dir).mkdir(exist_ok=True)
@@ -100,7 +101,7 @@ def measure(
                                           unit="direction"):
                     rates[seed][index] = r
                     done[seed] += 1
-                    if done[seed] == len(sens.DIRECTION_NAMES):
+                    if done[seed] == len(names):
                         results[seed] = {
                             "seed": seed, "key": keys[seed],
                             "model": sens.model_digest(models[seed].model_bytes),
@@ -108,7 +109,7 @@ def measure(
                             **_summary(learned[seed], task, rates[seed], magnitudes),
                         }
                         save_json(sens.result_path(run_dir, seed), results[seed])
-        save_bytes(sens.results_folder(run_dir) / FIGURE, figure_png(_plot(results)))
+        save_bytes(sens.results_folder(run_dir) / FIGURE, figure_png(_plot(results, task.space.m)))
     return {s: results[s] for s in sorted(results)}
 
 
@@ -122,7 +123,7 @@ def _probe(job: tuple[int, int, tuple[float, ...], int]) -> tuple[int, int, list
     learned, task = _worker["models"][seed], _worker["task"]
     if seed not in _worker["plans"]:
         plan = sens.reproduction(learned.model, learned.gaze, task)
-        covariance = sens.critical_covariance(learned.model, plan, task.critical(plan.mean))
+        covariance = sens.critical_covariance(learned.model, plan, task)
         _worker["plans"][seed] = plan, sens.probe_directions(covariance)
     plan, directions = _worker["plans"][seed]
     task_map = planning_task(task.scene(), learned.gaze)
@@ -132,9 +133,9 @@ def _probe(job: tuple[int, int, tuple[float, ...], int]) -> tuple[int, int, list
 
 
 def _summary(learned, task: Task, rates: np.ndarray, magnitudes) -> dict:
-    """A teacher's result from its failure rates ``(14, 2, k)``."""
+    """A teacher's result from its failure rates ``(2 m, 2, k)``."""
     plan = sens.reproduction(learned.model, learned.gaze, task)
-    covariance = sens.critical_covariance(learned.model, plan, task.critical(plan.mean))
+    covariance = sens.critical_covariance(learned.model, plan, task)
     directions = sens.probe_directions(covariance)
     tolerances = np.array([sens.tolerance(r, magnitudes) for r in rates])
     importance = 1.0 / tolerances**2
@@ -152,12 +153,13 @@ def report(results: dict[int, dict], task: Task, seeds: int) -> str:
     """Per teacher: each direction's tolerance, the demonstrations' variance along it and the
     two alignments (markdown)."""
     magnitudes = next(iter(results.values()))["magnitudes"]
+    names = sens.direction_names(task)
     lines = [
         f"{task.name}: moves of {', '.join(f'{k:g}' for k in magnitudes)} tolerances either way "
         f"in the critical phase, {seeds} replays each; tolerance [tolerances] (variance along it "
         "[tolerances^2])", "",
-        "| teacher | " + " | ".join(sens.DIRECTION_NAMES) + " | alignment eigen | diagonal |",
-        "|---" * (len(sens.DIRECTION_NAMES) + 3) + "|",
+        "| teacher | " + " | ".join(names) + " | alignment eigen | diagonal |",
+        "|---" * (len(names) + 3) + "|",
     ]
     for s, r in results.items():
         cells = [f"{'>' + format(magnitudes[-1], 'g') if t is None else format(t, '.1f')} "
@@ -206,14 +208,15 @@ def predict(results: dict[int, dict], compared: dict) -> str:
     return "\n".join(lines)
 
 
-def _plot(results: dict[int, dict]):
-    """The demonstrations' precision against the measured importance, per direction."""
+def _plot(results: dict[int, dict], m: int):
+    """The demonstrations' precision against the measured importance, per direction of the
+    ``m`` task dimensions and as many eigen-directions."""
     from matplotlib.figure import Figure
 
     figure = Figure(figsize=(9, 4), layout="constrained")
     for ax, (name, rows) in zip(figure.subplots(1, 2),
-                                (("task dimensions", slice(0, 7)),
-                                 ("eigen-directions", slice(7, 14))), strict=True):
+                                (("task dimensions", slice(0, m)),
+                                 ("eigen-directions", slice(m, 2 * m))), strict=True):
         for s, r in sorted(results.items()):
             variance = np.array(r["variance_along"])[rows]
             tol = np.array([np.nan if t is None else t for t in r["tolerance"]])[rows]

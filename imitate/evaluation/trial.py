@@ -121,7 +121,7 @@ class Trial:
         scores = [cast(dict, r)[task.score.measure] for r in replays]
         physics_min = min(r["min_distance_m"] for r in replays)
         critical = task.critical(plan.mean)
-        error = critical_error(plan, critical)
+        error = critical_error(plan, task.space, critical)
         free = self.free(variation.plan.similarity, variation.plan.max_iter)
         mean_key, min_key = score_keys(task)
         record = {
@@ -139,8 +139,9 @@ class Trial:
                 **dict(zip(error_keys(task), error, strict=True)),
                 "seconds": plan_seconds,
             },
-            "change": task_change(plan, free, critical, task.phase),
-            "mahalanobis": mahalanobis(plan, _quiet_predict(self.learned, plan.times)),
+            "change": task_change(plan, free, task.space, critical, task.phase),
+            "mahalanobis": mahalanobis(plan, task.space,
+                                       _quiet_predict(self.learned, plan.times)),
             "replays": replays,
             "physics_min_distance_m": physics_min,
             "clearance_gap_m": plan.min_distance - physics_min,

@@ -194,7 +194,7 @@ def recorded(
         # The Recorder stands in for the env it wraps (its attributes are read through).
         with bar(desc=f"{task.name} episode", unit="step") as progress:  # images take minutes
             replay(plan, cast(BimanualEnv, recorder), seed=seed, options=options, gaze=gaze,
-                   on_step=lambda _: progress.update())
+                   space=task.space, on_step=lambda _: progress.update())
     finally:
         recorder.close()
     rewards, terminated, truncated = (np.array(v) for v in zip(*recorder.steps, strict=True))
@@ -232,7 +232,7 @@ def recorded(
 def teacher_episodes(run: Run, images: bool = False) -> Iterator[Episode]:
     """The teacher's demonstrations as the robot cut them, one episode each, in time order.
 
-    Observations: ``task`` ``(n + 1, 7)``, the task space (eq. 1) of the tracked objects as
+    Observations: ``task`` ``(n + 1, m)``, the task's space of the tracked objects as
     learning takes it (labelled by the task's ``dims``); the tool and the target by name
     ``(n + 1, 7)``, the true object frames (position [m], quaternion wxyz); with ``images``,
     both eyes' images as the robot saw them. Actions: ``(n, 14)`` the next frame's true tool
@@ -257,10 +257,11 @@ def teacher_episodes(run: Run, images: bool = False) -> Iterator[Episode]:
     for demo in demos.segments:
         poses = motion.poses(demo.times)
         true = {obj: np.hstack(poses[obj]) for obj in objects}
-        space = task_demo(
-            demo, demos.objects, demos.gaze, smoothing=config.smoothing, rate=config.fps
+        states = task_demo(
+            demo, demos.objects, demos.gaze, task.space, smoothing=config.smoothing,
+            rate=config.fps,
         )
-        observations = {"task": space, **true}
+        observations = {"task": states, **true}
         if watching is not None:
             pairs = list(frames(dataclasses.replace(watching, times=demo.times)))
             observations.update({eye: np.array(eye_images) for eye, eye_images in zip(

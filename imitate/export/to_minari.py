@@ -70,8 +70,8 @@ def write(root: Path, robot: Iterable[Episode], teacher: Iterable[Episode]) -> N
             }),
             action_space=_space(first.actions),
             description=f"The teacher's demonstrations ({first.instruction}) as the robot cut "
-            f"them. Observations: task (eq. 1 of the tracked objects), {objects} (true frames: "
-            f"position [m], quaternion wxyz). Actions: the next frame's true {objects}; "
+            f"them. Observations: task (the task space of the tracked objects), {objects} (true "
+            f"frames: position [m], quaternion wxyz). Actions: the next frame's true {objects}; "
             "rewards 0.",
         )
         for episode in episodes:  # one at a time: with images an episode is large

@@ -23,7 +23,7 @@ from matplotlib.patches import Ellipse
 
 from imitate.learning import LearnedModel
 from imitate.learning.gmm import GMM
-from imitate.taskspace import TASK_DIMS, TASK_UNITS
+from imitate.taskspace import EQ1
 
 DPI = 110  # dots per inch of the saved figures; Fig. 8 shows its snapshots at their pixel size
 LOOSE = 0.1  # Fig. 9 marks the steps whose similarity weight is below this share of its largest
@@ -64,15 +64,17 @@ def _gmm_panel(ax, data: np.ndarray, gmm: GMM, column: int, title: str) -> None:
 
 
 def plot_gmm_with_and_without_dtw(
-    raw: LearnedModel, aligned: LearnedModel, dim: int = 3, labels: Sequence[str] = TASK_DIMS
+    raw: LearnedModel, aligned: LearnedModel, dim: int = 3,
+    labels: Sequence[str] = EQ1.labels(), units: Sequence[str] = EQ1.units,
 ) -> Figure:
     """Fig. 4: GMM components (2-sigma ellipses) over one task dimension and time.
 
     Args:
         raw: Model learned without DTW (``LearningConfig(use_dtw=False)``).
         aligned: Model learned with DTW.
-        dim: Task-space dimension to show (index into :data:`imitate.taskspace.TASK_DIMS`).
-        labels: The 7 task-space dimensions' labels (the task's ``dims``).
+        dim: Task-space dimension to show (index into ``labels``).
+        labels: The task-space dimensions' labels (the task's ``dims``).
+        units: Their units (its space's).
 
     Returns:
         The figure.
@@ -80,7 +82,7 @@ def plot_gmm_with_and_without_dtw(
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True, layout="constrained")
     _gmm_panel(axes[0], raw.data, raw.gmm, dim + 1, "without DTW")
     _gmm_panel(axes[1], aligned.data, aligned.gmm, dim + 1, "with DTW")
-    axes[0].set_ylabel(f"{labels[dim]} [{TASK_UNITS[dim]}]")
+    axes[0].set_ylabel(f"{labels[dim]} [{units[dim]}]")
     return fig
 
 
@@ -106,15 +108,17 @@ def plot_bic_curves(curves: dict[str, np.ndarray]) -> Figure:
 
 def plot_gmr(
     model: LearnedModel, demos: Sequence[np.ndarray] | None = None,
-    labels: Sequence[str] = TASK_DIMS,
+    labels: Sequence[str] = EQ1.labels(), units: Sequence[str] = EQ1.units,
 ) -> Figure:
     """GMR mean +- 2 sigma over time for every task-space dimension.
 
     Args:
         model: A learned model.
-        demos: Demonstrations to overlay, each of shape ``(n_steps, 7)`` on the model's time
+        demos: Demonstrations to overlay, each of shape ``(n_steps, m)`` on the model's time
             axis; the aligned ones if ``None`` and the model used DTW.
-        labels: The 7 task-space dimensions' labels (the task's ``dims``).
+        labels: The task-space dimensions' labels (the task's ``dims``); ``x0, x1, ...``
+            without a unit where the model has another number of dimensions.
+        units: Their units (its space's).
 
     Returns:
         The figure.
@@ -131,8 +135,8 @@ def plot_gmr(
         ax.fill_between(model.times, model.mean[:, d] - 2 * sigma[:, d],
                         model.mean[:, d] + 2 * sigma[:, d], color="tab:blue", alpha=0.3)
         ax.plot(model.times, model.mean[:, d], color="tab:blue", lw=1.5)
-        name = labels[d] if n_dims == len(TASK_DIMS) else f"x{d}"
-        unit = TASK_UNITS[d] if n_dims == len(TASK_DIMS) else ""
+        name = labels[d] if n_dims == len(labels) else f"x{d}"
+        unit = units[d] if n_dims == len(units) else ""
         ax.set_ylabel(f"{name}\n[{unit}]" if unit else name, fontsize=8)
     np.atleast_1d(axes)[-1].set_xlabel("t [s]")
     return fig
@@ -191,34 +195,39 @@ def plot_collision_sweep(
     clearance: dict[float, np.ndarray],
     similarity: np.ndarray | None = None,
     n_dims: int = 2,
-    labels: Sequence[str] = TASK_DIMS,
+    labels: Sequence[str] = EQ1.labels(),
+    units: Sequence[str] = EQ1.units,
+    position: slice = EQ1.positions[0],
 ) -> Figure:
     """Fig. 9: the reproductions over a sweep of collision weights.
 
-    Panels: the ``n_dims`` relative-position dimensions in which the reproductions differ most
-    (against the GMR mean +- 2 sigma, with the steps where that dimension's similarity weight
-    is below :data:`LOOSE` of its largest: eq. 21 near the dimension's largest variance, where
-    it reaches 0); each reproduction's distance from the
-    smallest weight's (against the steps of high GMR variance); each one's clearance. Steps in
-    collision (clearance < 0) are marked on every curve.
+    Panels: the ``n_dims`` dimensions of the main relative position in which the reproductions
+    differ most (against the GMR mean +- 2 sigma, with the steps where that dimension's similarity
+    weight is below :data:`LOOSE` of its largest: eq. 21 near the dimension's largest variance,
+    where it reaches 0); each reproduction's distance from the smallest weight's (against the steps
+    of high GMR variance); each one's clearance. Steps in collision (clearance < 0) are marked on
+    every curve.
 
     Args:
         times: ``(T,)`` [s].
-        mean: ``(T, 7)`` GMR mean of the task state at ``times`` (units of
-            :data:`~imitate.taskspace.TASK_UNITS`).
-        variance: ``(T, 7)`` GMR variance of each task dimension at ``times`` (those units
+        mean: ``(T, m)`` GMR mean of the task state at ``times`` (in ``units``).
+        variance: ``(T, m)`` GMR variance of each task dimension at ``times`` (those units
             squared).
-        reproductions: ``{collision weight: task states (T, 7)}``.
+        reproductions: ``{collision weight: task states (T, m)}``.
         clearance: ``{collision weight: smallest signed distance (T,) [m]}``.
-        similarity: ``(T, 7)`` diagonals of the similarity weights ``W_t``, or ``None``.
-        n_dims: How many of ``dx, dy, dz`` to show.
-        labels: The 7 task-space dimensions' labels (the task's ``dims``).
+        similarity: ``(T, m)`` diagonals of the similarity weights ``W_t``, or ``None``.
+        n_dims: How many of the main position's ``dx, dy, dz`` to show.
+        labels: The task-space dimensions' labels (the task's ``dims``).
+        units: Their units (its space's).
+        position: The main relative position's columns (its space's first).
     """
     weights = sorted(reproductions)
-    first = reproductions[weights[0]][:, :3]
-    change = {w: 1e3 * np.linalg.norm(reproductions[w][:, :3] - first, axis=1) for w in weights}
-    spread = np.max([np.abs(x[:, :3] - first).max(axis=0) for x in reproductions.values()], axis=0)
-    dims = np.sort(np.argsort(spread)[::-1][:n_dims])
+    first = reproductions[weights[0]][:, position]
+    change = {w: 1e3 * np.linalg.norm(reproductions[w][:, position] - first, axis=1)
+              for w in weights}
+    spread = np.max([np.abs(x[:, position] - first).max(axis=0) for x in reproductions.values()],
+                    axis=0)
+    dims = position.start + np.sort(np.argsort(spread)[::-1][:n_dims])
     colours = dict(zip(weights, plt.cm.viridis(np.linspace(0.0, 0.85, len(weights))), strict=True))
     fig, axes = plt.subplots(
         n_dims + 2, 1, figsize=(9, 2.4 * (n_dims + 2)), sharex=True, layout="constrained"
@@ -234,9 +243,9 @@ def plot_collision_sweep(
                             transform=ax.get_xaxis_transform(),
                             label=f"similarity weight below {LOOSE:.0%} of its largest")
         _sweep_curves(ax, times, {w: reproductions[w][:, d] for w in weights}, clearance, colours)
-        ax.set_ylabel(f"{labels[d]} [{TASK_UNITS[d]}]")
+        ax.set_ylabel(f"{labels[d]} [{units[d]}]")
     ax = axes[-2]
-    position_variance = variance[:, :3].sum(axis=1)
+    position_variance = variance[:, position].sum(axis=1)
     ax.fill_between(times, 0.0, 1.0, where=position_variance > np.median(position_variance),
                     color="#d5e5f5", lw=0, transform=ax.get_xaxis_transform(),
                     label="GMR position variance above its median")

@@ -5,7 +5,7 @@ that implements it):
 
 ==============  =================================================================================
 ``T``           number of planning steps; trajectories have ``T + 1`` samples, step ``dt`` [s]
-``m``           task dimensions (7, eq. 1); ``n`` planned joints (18, head columns zero)
+``m``           task dimensions (7 for eq. 1); ``n`` planned joints (18, head columns zero)
 ``K``           attractors (every 0.15 s, or one per GMM component); ``a`` ``(K, m)`` points
 ``c_t``         null-space push ``(n,)`` [1/rad] (:mod:`.control`), ``(K, n)`` per attractor
 ``x_t``         target (attractor) trajectory ``x = S_x s_0 + Psi a`` (:mod:`.attractors`)

@@ -23,30 +23,35 @@ ensure_writable(__file__)  # before the kernels below are declared
 # Points of the task map: the tool's and the target's origin ``o``, then ``o + a`` with ``a``
 # each one's long axis (its frame's z axis).
 N_POINTS = 4
+# A task space's terms as rows of a table (:func:`term_table`): kind, first and second anchor
+# (0 the tool, 1 the target, 2.. a place), first column. Kinds:
+RELATIVE, ANGLES = 0, 1  # p_a - p_b (3 columns); the angle and gaze component of object a (2)
 
 
 @numba.njit(cache=True)
-def _task_state(xpos, xmat, bodies, gaze, angle_ref, singular_rho2, points, proj, inv, x, rows,
-                axes):
-    """Eq. 1 on the held objects at MuJoCo's kinematics ``xpos (nbody, 3)``, ``xmat (nbody,
-    9)``, and what the Jacobian needs; all outputs are written.
+def _task_state(xpos, xmat, bodies, terms, gaze, angle_ref, singular_rho2, points, proj, inv, x,
+                rows, axes):
+    """A task space's state at MuJoCo's kinematics ``xpos (nbody, 3)``, ``xmat (nbody, 9)``,
+    and what the Jacobian needs; all outputs are written.
 
     Args:
         xpos: ``(nbody, 3)`` MuJoCo's body positions (``data.xpos``) [m].
         xmat: ``(nbody, 9)`` MuJoCo's body orientations, row-major rotation matrices
             (``data.xmat``).
-        bodies: ``(2,)`` the tool's and the target's body ids.
+        bodies: ``(2 + k,)`` the anchors' body ids: the tool, the target, then the places.
+        terms: ``(n_terms, 4)`` the term table (kind, anchor, anchor, first column).
         gaze: ``R_gaze`` ``(3, 3)``, columns right, down, forward.
         angle_ref: ``(2,)`` the angles' reference branches [rad].
         singular_rho2: ``rho^2`` below which an angle is undefined (it is then ``angle_ref``).
         points: ``(4, 3)`` the task map's points (see :data:`N_POINTS`) [m].
         proj: ``(2, 3)`` the axes' gaze coordinates ``p`` (right, down, forward).
         inv: ``(2,)`` ``1 / rho^2`` (0 where the angle is undefined).
-        x: ``(7,)`` the task state.
+        x: ``(m,)`` the task state.
         rows: ``(2, 3)`` the gradients of the two angles with respect to the axes, ``C``'s
             first rows times ``R_gaze^T``: ``(-p_d r + p_r d) / rho^2``.
         axes: ``(2, 3)`` the long axes ``a``.
     """
+    angles = np.empty(2)
     for o in range(2):
         b = bodies[o]
         for c in range(3):
@@ -58,8 +63,6 @@ def _task_state(xpos, xmat, bodies, gaze, angle_ref, singular_rho2, points, proj
             for k in range(3):
                 total += xmat[b, 3 * k + 2] * gaze[k, c]
             proj[o, c] = total
-    for c in range(3):
-        x[c] = points[0, c] - points[1, c]
     for o in range(2):
         pr, pd = proj[o, 0], proj[o, 1]
         rho2 = pr * pr + pd * pd
@@ -70,33 +73,62 @@ def _task_state(xpos, xmat, bodies, gaze, angle_ref, singular_rho2, points, proj
         else:  # undefined: the reference, with a zero gradient
             angle = angle_ref[o]
             s = 0.0
-        x[3 + 2 * o] = angle
-        x[4 + 2 * o] = proj[o, 2]
+        angles[o] = angle
         inv[o] = s
         for c in range(3):
             rows[o, c] = -pd * s * gaze[c, 0] + pr * s * gaze[c, 1]
+    for i in range(terms.shape[0]):
+        kind, first, second, col = terms[i, 0], terms[i, 1], terms[i, 2], terms[i, 3]
+        if kind == RELATIVE:
+            for c in range(3):
+                x[col + c] = _anchor(xpos, bodies, points, first, c) - _anchor(
+                    xpos, bodies, points, second, c)
+        else:
+            x[col] = angles[first]
+            x[col + 1] = proj[first, 2]
 
 
 @numba.njit(cache=True)
-def _task_jacobian(jac, dof, axes, rows, gaze, mask, J, axis_jac, rot_jac):
-    """The task Jacobian ``J (7, n)``, the axes' Jacobians ``axis_jac (2, 3, n)`` (``da/dq``)
+def _anchor(xpos, bodies, points, anchor, c) -> float:
+    """Coordinate ``c`` of an anchor's position: a held object's origin, a place's body."""
+    return points[anchor, c] if anchor < 2 else xpos[bodies[anchor], c]
+
+
+@numba.njit(cache=True)
+def _task_jacobian(jac, dof, terms, axes, rows, gaze, mask, J, axis_jac, rot_jac):
+    """The task Jacobian ``J (m, n)``, the axes' Jacobians ``axis_jac (2, 3, n)`` (``da/dq``)
     and the objects' rotational Jacobians ``rot_jac (2, 3, n)``, all written, from MuJoCo's
     ``jac (2, 2, 3, nv)`` (per object, translational and rotational Jacobian of its origin; the
-    planned joints are the columns ``dof (n,)``); ``da/dq_j = omega_j x a``. Columns where
+    planned joints are the columns ``dof (n,)``); ``da/dq_j = omega_j x a``; a place does not
+    move with the joints. ``terms`` is the term table (see :func:`_task_state`). Columns where
     ``mask (n,)`` is 0 are 0 in ``J``."""
     n = dof.shape[0]
     for j in range(n):
         col = dof[j]
-        for c in range(3):
-            J[c, j] = (jac[0, 0, c, col] - jac[1, 0, c, col]) * mask[j]
         for o in range(2):
             r0, r1, r2 = jac[o, 1, 0, col], jac[o, 1, 1, col], jac[o, 1, 2, col]
             a0, a1, a2 = axes[o, 0], axes[o, 1], axes[o, 2]
-            da0, da1, da2 = r1 * a2 - r2 * a1, r2 * a0 - r0 * a2, r0 * a1 - r1 * a0
             rot_jac[o, 0, j], rot_jac[o, 1, j], rot_jac[o, 2, j] = r0, r1, r2
-            axis_jac[o, 0, j], axis_jac[o, 1, j], axis_jac[o, 2, j] = da0, da1, da2
-            J[3 + 2 * o, j] = (rows[o, 0] * da0 + rows[o, 1] * da1 + rows[o, 2] * da2) * mask[j]
-            J[4 + 2 * o, j] = (gaze[0, 2] * da0 + gaze[1, 2] * da1 + gaze[2, 2] * da2) * mask[j]
+            axis_jac[o, 0, j] = r1 * a2 - r2 * a1
+            axis_jac[o, 1, j] = r2 * a0 - r0 * a2
+            axis_jac[o, 2, j] = r0 * a1 - r1 * a0
+        for i in range(terms.shape[0]):
+            kind, first, second, row = terms[i, 0], terms[i, 1], terms[i, 2], terms[i, 3]
+            if kind == RELATIVE:
+                for c in range(3):
+                    J[row + c, j] = (_moved(jac, first, c, col) - _moved(jac, second, c, col)
+                                     ) * mask[j]
+            else:
+                da0, da1, da2 = axis_jac[first, 0, j], axis_jac[first, 1, j], axis_jac[first, 2, j]
+                J[row, j] = (rows[first, 0] * da0 + rows[first, 1] * da1
+                             + rows[first, 2] * da2) * mask[j]
+                J[row + 1, j] = (gaze[0, 2] * da0 + gaze[1, 2] * da1 + gaze[2, 2] * da2) * mask[j]
+
+
+@numba.njit(cache=True)
+def _moved(jac, anchor, c, col) -> float:
+    """Row ``c``, column ``col`` of an anchor's translational Jacobian (0 for a place)."""
+    return jac[anchor, 0, c, col] if anchor < 2 else 0.0
 
 
 @numba.njit(cache=True)
@@ -108,18 +140,19 @@ def _cross(u, v, out):
 
 
 @numba.njit(cache=True)
-def _curvature(a, b, c, d, rates, dof, axes, rows, proj, inv, axis_jac, rot_jac, gaze, mask,
-               out):
+def _curvature(a, b, c, d, rates, dof, terms, axes, rows, proj, inv, axis_jac, rot_jac, gaze,
+               mask, out):
     """``a^T D_b J + c^T D_d J`` into ``out (n,)`` (see :meth:`TaskMap.curvature`).
 
     Args:
-        a: ``(7,)`` task vector contracted with ``D_b J``.
+        a: ``(m,)`` task vector contracted with ``D_b J``.
         b: ``(n,)`` joint direction [rad].
-        c: ``(7,)`` task vector contracted with ``D_d J``.
+        c: ``(m,)`` task vector contracted with ``D_d J``.
         d: ``(n,)`` joint direction [rad].
         rates: ``(2, 2, 2, 3, nv)`` per direction (``b``, ``d``) and object, the derivatives of
             its origin's translational and rotational Jacobian (columns ``dof (n,)``).
         dof: ``(n,)`` the planned joints' columns in MuJoCo's ``nv`` Jacobian columns.
+        terms: ``(n_terms, 4)`` the term table (see :func:`_task_state`).
         axes: ``(2, 3)`` the long axes ``a`` (task frame, see :class:`TaskFrame`).
         rows: ``(2, 3)`` the angles' gradients with respect to the axes (task frame).
         proj: ``(2, 3)`` the axes' gaze coordinates ``p`` (task frame).
@@ -132,19 +165,25 @@ def _curvature(a, b, c, d, rates, dof, axes, rows, proj, inv, axis_jac, rot_jac,
 
     With ``A = omega x a`` per joint, ``D_b A = omega' x a + omega x a'`` and ``a' = A b``; a
     row ``w`` of ``C R_gaze^T`` weighs it as ``w . (omega' x a) = omega' . (a x w)`` and
-    ``w . (omega x a') = omega . (a' x w)``.
+    ``w . (omega x a') = omega . (a' x w)``. An object without angles has ``w = 0``.
     """
     n = out.shape[0]
     w = np.empty(3)
     moved = np.empty(3)
     across = np.empty((2, 2, 2, 3))  # direction, object, (a x w, a' x w)
     coef = np.zeros((2, 3))  # C' (the angle rows' own derivative): per object, on A's rows
+    weights = np.zeros((2, 2, 2))  # direction, object, (angle row, gaze row) of the vector
+    for i in range(terms.shape[0]):
+        if terms[i, 0] == ANGLES:
+            for k in range(2):
+                vector = a if k == 0 else c
+                weights[k, terms[i, 1], 0] += vector[terms[i, 3]]
+                weights[k, terms[i, 1], 1] += vector[terms[i, 3] + 1]
     for k in range(2):
-        vector = a if k == 0 else c
         direction = b if k == 0 else d
         for o in range(2):
             for e in range(3):
-                w[e] = vector[3 + 2 * o] * rows[o, e] + vector[4 + 2 * o] * gaze[e, 2]
+                w[e] = weights[k, o, 0] * rows[o, e] + weights[k, o, 1] * gaze[e, 2]
                 total = 0.0
                 for j in range(n):
                     total += axis_jac[o, e, j] * direction[j]
@@ -156,7 +195,7 @@ def _curvature(a, b, c, d, rates, dof, axes, rows, proj, inv, axis_jac, rot_jac,
             dpr = gaze[0, 0] * moved[0] + gaze[1, 0] * moved[1] + gaze[2, 0] * moved[2]
             dpd = gaze[0, 1] * moved[0] + gaze[1, 1] * moved[1] + gaze[2, 1] * moved[2]
             ds = -2.0 * (pr * dpr + pd * dpd) * s * s
-            weight = vector[3 + 2 * o]
+            weight = weights[k, o, 0]
             cr = weight * (-dpd * s - pd * ds)
             cd = weight * (dpr * s + pr * ds)
             for e in range(3):
@@ -166,8 +205,12 @@ def _curvature(a, b, c, d, rates, dof, axes, rows, proj, inv, axis_jac, rot_jac,
         total = 0.0
         for k in range(2):
             vector = a if k == 0 else c
-            for e in range(3):
-                total += vector[e] * (rates[k, 0, 0, e, col] - rates[k, 1, 0, e, col])
+            for i in range(terms.shape[0]):
+                if terms[i, 0] == RELATIVE:
+                    first, second, row = terms[i, 1], terms[i, 2], terms[i, 3]
+                    for e in range(3):
+                        total += vector[row + e] * (_moved(rates[k], first, e, col)
+                                                    - _moved(rates[k], second, e, col))
             for o in range(2):
                 for e in range(3):
                     total += across[k, o, 0, e] * rates[k, o, 1, e, col]

@@ -12,8 +12,8 @@ quadratic outside it) and an optional null-space push ``c_t`` [1/rad] (zero by d
 null-space step descends ``H(q) - c_t . q``, moving the body without changing the task. ``q`` is
 clipped to the joint ranges, and each clip is counted.
 
-The task map ``phi`` and its Jacobian are eq. 1 on the held objects,
-:class:`imitate.motion.taskspace.TaskMap`.
+The task map ``phi`` and its Jacobian are the task's space on the held objects (eq. 1 unless it
+declares another), :class:`imitate.motion.taskspace.TaskMap`.
 """
 
 from __future__ import annotations
@@ -27,7 +27,6 @@ from imitate.errors import ImitateError
 from imitate.motion import _planner
 from imitate.motion.kinematics import Distances, Kinematics
 from imitate.motion.taskspace import TaskFrame, TaskMap
-from imitate.taskspace import ANGLES
 
 __all__ = [
     "SAMPLE_STEP",
@@ -186,7 +185,7 @@ def rollout(
     frames, distances, between = [], [], []
     q[0] = q0
     target = np.ascontiguousarray(target, dtype=float)
-    angle_ref = np.ascontiguousarray(target[:, ANGLES])
+    angle_ref = task.space.angle_ref(target)
     step = _planner._rmr_step
     for t in range(T + 1):
         kin.update(q[t])
@@ -287,7 +286,7 @@ def reach(
     kin = task.kin
     target = np.empty((steps + 1, len(goal)))
     kin.update(q0)
-    x0, _ = task(goal[ANGLES])
+    x0, _ = task(task.space.angle_ref(goal))
     remaining = (1.0 - rate) ** np.arange(steps + 1)
     target[:] = goal + remaining[:, None] * (x0 - goal)
     return rollout(task, target, q0, config, limits).q[-1]

@@ -31,7 +31,6 @@ from imitate.motion.kinematics import Distances
 __all__ = [
     "REGULARIZATION",
     "SIMILARITIES",
-    "TOLERANCE",
     "Collision",
     "JointAcceleration",
     "JointLimits",
@@ -45,10 +44,6 @@ __all__ = [
 # How W_t is made from the learned model (:func:`weighting`): eq. 21, the default, and the
 # alternatives the paper's claim is tested against.
 SIMILARITIES = defaults.SIMILARITIES
-# The task dimensions' tolerances in eq. 1's order (1 cm, 1 cm, 1 cm, 2 deg, 0.05, 2 deg, 0.05):
-# the error that, held for 1 s at zero variance, costs 1 (eq. 21's ``w_max = 1 / tolerance^2``
-# unless set), and the variance floor of the precision weightings.
-TOLERANCE = (0.01, 0.01, 0.01, np.radians(2.0), 0.05, np.radians(2.0), 0.05)
 # lambda of the precision weightings' floor ``Sigma_t + lambda diag(tolerance^2)``: 1 makes a
 # dimension at zero variance as stiff, relative to the others, as eq. 21's ``w_max``; it also
 # keeps the inverse of a covariance of 5 demonstrations in 7 dimensions (rank 4 at most) finite.

@@ -5,43 +5,44 @@ from __future__ import annotations
 
 import numpy as np
 
-from imitate.motion.costs import TOLERANCE
 from imitate.motion.plan import Plan
-from imitate.taskspace import ANGLES
+from imitate.taskspace import TaskSpace
 
 __all__ = ["critical_error", "deviation", "mahalanobis", "task_change"]
 
 
-def critical_error(plan: Plan, critical: np.ndarray) -> tuple[float, float]:
-    """Largest task error of ``plan`` in the steps ``critical`` ``(T,) bool`` (the task's
-    critical phase): relative position [m] and tool or target angle [deg]."""
+def critical_error(plan: Plan, space: TaskSpace, critical: np.ndarray) -> tuple[float, float]:
+    """Largest task error of ``plan`` (in ``space``) in the steps ``critical`` ``(T,) bool``
+    (the task's critical phase): relative position [m] and tool or target angle [deg]."""
     error = plan.task_error()[critical]
     return (
-        float(np.linalg.norm(error[:, :3], axis=1).max()),
-        float(np.degrees(np.abs(error[:, ANGLES]).max())),
+        float(space.distance(error).max()),
+        float(np.degrees(np.abs(error[:, space.angles]).max(initial=0.0))),
     )
 
 
-def task_change(plan: Plan, free: Plan, critical: np.ndarray, phase: str) -> dict[str, float]:
-    """How far ``plan`` moved the task from ``free`` (the unconstrained reproduction of the same
-    model and step): the largest change of the relative position [m] and of the tool or target
-    angle [deg] in the steps ``critical`` ``(T,) bool`` (the task's critical phase, named
-    ``phase`` in the keys ``<phase>_m`` and ``<phase>_deg``), and of the relative position in
-    the steps whose GMR position variance is at or below its median (where the demonstrations
-    agree)."""
+def task_change(
+    plan: Plan, free: Plan, space: TaskSpace, critical: np.ndarray, phase: str
+) -> dict[str, float]:
+    """How far ``plan`` (in ``space``) moved the task from ``free`` (the unconstrained reproduction
+    of the same model and step): the largest change of the relative positions [m] and of the tool or
+    target angle [deg] in the steps ``critical`` ``(T,) bool`` (the task's critical phase, named
+    ``phase`` in the keys ``<phase>_m`` and ``<phase>_deg``), and of the relative position in the
+    steps whose GMR position variance is at or below its median (where the demonstrations agree)."""
     change = plan.x - free.x
-    distance = np.linalg.norm(change[:, :3], axis=1)
-    var = plan.variance[:, :3].sum(axis=1)
+    distance = space.distance(change)
+    var = plan.variance[:, space.position_columns].sum(axis=1)
     return {
         f"{phase}_m": float(distance[critical].max()),
-        f"{phase}_deg": float(np.degrees(np.abs(change[critical][:, ANGLES]).max())),
+        f"{phase}_deg": float(np.degrees(np.abs(change[critical][:, space.angles]).max(
+            initial=0.0))),
         "low_variance_m": float(distance[var <= np.median(var)].max()),
     }
 
 
-def deviation(plan: Plan, first: Plan) -> dict[str, float]:
-    """Where ``plan`` deviates from the GMR mean (paper Fig. 9), against ``first`` (the plan of
-    the sweep's first, smallest collision weight; same model and step).
+def deviation(plan: Plan, first: Plan, space: TaskSpace) -> dict[str, float]:
+    """Where ``plan`` (in ``space``) deviates from the GMR mean (paper Fig. 9), against
+    ``first`` (the plan of the sweep's first, smallest collision weight; same model and step).
 
     Returns:
         ``deviation_m2``: squared deviation of the relative position from the GMR mean, summed
@@ -50,9 +51,10 @@ def deviation(plan: Plan, first: Plan) -> dict[str, float]:
         ``change_high_variance_share``: the same for the change from ``first``'s positions;
         ``max_deviation_m``: the largest distance between the two relative positions [m].
     """
-    dev = np.sum((plan.x[:, :3] - plan.mean[:, :3]) ** 2, axis=1)
-    extra = np.sum((plan.x[:, :3] - first.x[:, :3]) ** 2, axis=1)
-    var = plan.variance[:, :3].sum(axis=1)
+    cols = space.position_columns
+    dev = np.sum((plan.x[:, cols] - plan.mean[:, cols]) ** 2, axis=1)
+    extra = np.sum((plan.x[:, cols] - first.x[:, cols]) ** 2, axis=1)
+    var = plan.variance[:, cols].sum(axis=1)
     high = var > np.median(var)
     return {
         "deviation_m2": float(dev.sum()),
@@ -63,14 +65,14 @@ def deviation(plan: Plan, first: Plan) -> dict[str, float]:
     }
 
 
-def mahalanobis(plan: Plan, covariance: np.ndarray) -> dict[str, float]:
-    """How many of the demonstrations' standard deviations ``plan`` sits from the GMR mean: the
-    Mahalanobis distance ``d_t`` of ``x_t - mu_t`` under the GMR covariance ``(T + 1, m, m)`` at
-    ``plan.times`` plus the tolerances squared (where the demonstrations agree to within a
-    tolerance, an error of one tolerance counts as about one standard deviation; the same
-    floor as the ``precision`` weighting's at its lambda of 1, which that weighting therefore
-    minimizes: not a neutral measure for it). ``rms``: over the movement."""
+def mahalanobis(plan: Plan, space: TaskSpace, covariance: np.ndarray) -> dict[str, float]:
+    """How many of the demonstrations' standard deviations ``plan`` (in ``space``) sits from
+    the GMR mean: the Mahalanobis distance ``d_t`` of ``x_t - mu_t`` under the GMR covariance
+    ``(T + 1, m, m)`` at ``plan.times`` plus the tolerances squared (where the demonstrations
+    agree to within a tolerance, an error of one tolerance counts as about one standard
+    deviation; the same floor as the ``precision`` weighting's at its lambda of 1, which that
+    weighting therefore minimizes: not a neutral measure for it). ``rms``: over the movement."""
     error = plan.task_error()
-    floor = np.diag(np.square(TOLERANCE[: error.shape[1]]))
+    floor = np.diag(np.square(space.tolerance))
     d = np.sqrt(np.einsum("ti,tij,tj->t", error, np.linalg.inv(covariance + floor), error))
     return {"rms": float(np.sqrt(np.mean(d * d)))}

@@ -36,7 +36,6 @@ from imitate.motion.control import (
     segment_fractions,
 )
 from imitate.motion.costs import (
-    TOLERANCE,
     Collision,
     JointAcceleration,
     JointLimits,
@@ -49,7 +48,6 @@ from imitate.motion.minimize import lbfgs, rprop
 from imitate.motion.plan import Plan
 from imitate.motion.plan_config import PlanConfig
 from imitate.motion.taskspace import TaskMap
-from imitate.taskspace import ANGLES
 
 if TYPE_CHECKING:
     from imitate.learning import LearnedModel
@@ -64,7 +62,7 @@ UNREACHED_ERROR = 0.05
 # share, in spacings (a component's time spread is about as wide relative to the components'
 # spacing).
 _SWITCH_WIDTH = 0.4
-# The null-space push's scale [1/rad] for iRprop-'s initial step, as TOLERANCE for the
+# The null-space push's scale [1/rad] for iRprop-'s initial step, as the tolerance for the
 # attractors: a push of 0.1 moves a joint by 0.5 % of its range per step (nullspace_gain 0.05).
 _PUSH_SCALE = 0.1
 # Ranges [m] of _min_distance's queries, the nearer first: a plan's closest pair is almost
@@ -102,7 +100,7 @@ class Problem:
         kin = task.kin
         self.task, self.dynamics, self.q_start, self.config = task, dynamics, q_start, config
         kin.update(q_start)
-        self.x_start, _ = task(mean[0, ANGLES])
+        self.x_start, _ = task(task.space.angle_ref(mean[0]))
         dt = config.dt
         self.limits = JointLimitCost(kin.lower, kin.upper, config.control.free_ratio)
         self.terms: dict[str, tuple[float, CostTerm]] = {
@@ -247,7 +245,7 @@ def setup(
     grid = times[0] + np.arange(n_steps + 1) * c.dt
     mu = np.column_stack([np.interp(grid, times, mean[:, i]) for i in range(task.m)])
     var = np.column_stack([np.interp(grid, times, variance[:, i]) for i in range(task.m)])
-    w_max = np.asarray(c.w_max if c.w_max is not None else 1.0 / np.square(TOLERANCE))
+    w_max = np.asarray(c.w_max if c.w_max is not None else 1.0 / np.square(task.space.tolerance))
     sigma_max = np.asarray(
         c.sigma_max if c.sigma_max is not None else c.sigma_max_scale * var.max(axis=0)
     )
@@ -372,7 +370,7 @@ def plan_from_model(
         notes.append(f"approach bent by up to {np.degrees(np.abs(bend).max()):.1f} deg")
     if min_d < 0:
         notes.append(f"collision: {closest} at {min_d * 1000:.1f} mm")
-    worst = float(np.max(excess[:, :3]))
+    worst = float(np.max(excess[:, task.space.position_columns]))
     if worst > UNREACHED_ERROR:
         notes.append(
             f"target not reached: task position error up to {worst:.3f} m beyond the "
@@ -399,7 +397,7 @@ def _minimize(problem: Problem, v0: np.ndarray, c: PlanConfig, record) -> bool:
     if c.optimizer == "lbfgs":
         return lbfgs(problem.evaluate, v0, max_iter=c.max_iter, tol=c.tol, record=record)
     m = problem.task.m
-    scale = np.concatenate([TOLERANCE[:m], np.full(v0.shape[1] - m, _PUSH_SCALE)])
+    scale = np.concatenate([problem.task.space.tolerance, np.full(v0.shape[1] - m, _PUSH_SCALE)])
     step = c.rprop_step * np.broadcast_to(scale, v0.shape)
     return rprop(
         problem.evaluate, v0, step, max_iter=c.max_iter, tol=c.tol, patience=c.patience,

@@ -28,7 +28,7 @@ from imitate.motion.approach import approach_path
 from imitate.motion.control import ControlConfig
 from imitate.motion.kinematics import Kinematics
 from imitate.motion.taskspace import TaskMap
-from imitate.taskspace import ANGLES, gaze_of_camera, task_space
+from imitate.taskspace import EQ1, TaskSpace, gaze_of_camera
 
 GAZE_CAMERA = humanoid.LEFT_EYE
 MIN_RANGE = 0.05  # [rad] the narrowest range narrowed_limits leaves a joint
@@ -63,7 +63,7 @@ def planning_task(
     if gaze is None:
         gaze = gaze_of_camera(kin.camera_pose(GAZE_CAMERA)[1], mujoco=True)
     tool, target = config.objects
-    return TaskMap(kin, tool, target, gaze, control.fixed_joints)
+    return TaskMap(kin, tool, target, gaze, control.fixed_joints, config.space)
 
 
 def narrowed_limits(
@@ -189,12 +189,13 @@ def replay(
     options: dict | None = None,
     on_step: Callable[[BimanualEnv], None] | None = None,
     gaze: np.ndarray | None = None,
+    space: TaskSpace = EQ1,
 ) -> ReplayResult:
     """Drives ``env`` along ``plan`` in physics (its :func:`actions` after a reset from
     ``seed`` with ``options``) and measures the clearance and the task error.
     ``on_step(env)``, if given, is called after the reset and after every step (to record
-    states for a video, say). The task error is measured in ``gaze``, which should be the
-    plan's (``None``: :func:`planning_task`'s default).
+    states for a video, say). The task error is measured in the plan's task ``space`` and
+    ``gaze``, which should be the plan's (``None``: :func:`planning_task`'s default).
 
     Where the physics diverges (``info["diverged"]`` of a step), the replay stops and says when
     (``diverged_at``), with the clearance measured so far.
@@ -224,10 +225,12 @@ def replay(
         if n_approach <= k < n_approach + len(t_play):
             poses.append(np.array((tool.xpos, tool.xmat[2::3], target.xpos, target.xmat[2::3])))
     ref = _resample(plan.times - plan.times[0], plan.x, t_play)
+    places = {name: env.data.body(name).xpos.copy() for name in space.places}
+    states = _task_states(space, np.reshape(poses, (-1, 4, 3)), places, ref, gaze)
     return ReplayResult(
         info=dict(info),
         min_distance=float(min_distance),
-        task_error=_task_states(np.reshape(poses, (-1, 4, 3)), ref, gaze) - ref[: len(poses)],
+        task_error=states - ref[: len(poses)],
         diverged_at=diverged_at,
     )
 
@@ -258,7 +261,8 @@ def measure(
             on_step(env)
 
     result = replay(plan, env, seed=seed, approach=approach,
-                    options=task.reset_options(options), on_step=step, gaze=gaze)
+                    options=task.reset_options(options), on_step=step, gaze=gaze,
+                    space=task.space)
     env.close()
     record = {**task.record(result.info), "min_distance_m": result.min_distance,
               "diverged": result.diverged_at is not None}
@@ -275,15 +279,22 @@ def _resample(times: np.ndarray, values: np.ndarray, at: np.ndarray) -> np.ndarr
     return np.column_stack([np.interp(at, times, values[:, i]) for i in range(values.shape[1])])
 
 
-def _task_states(poses: np.ndarray, ref: np.ndarray, gaze: np.ndarray) -> np.ndarray:
-    """Eq. 1 of the objects' physical poses (not the hands'): ``poses`` ``(n, 4, 3)`` the tool's
-    position and long axis, then the target's, per step [m]; each angle taken within half a
-    turn of the plan's ``ref`` ``(>= n, m)`` at the same step."""
+def _task_states(
+    space: TaskSpace, poses: np.ndarray, places: Mapping[str, np.ndarray], ref: np.ndarray,
+    gaze: np.ndarray,
+) -> np.ndarray:
+    """``space`` of the objects' physical poses (not the hands'): ``poses`` ``(n, 4, 3)`` the
+    tool's position and long axis, then the target's, per step [m], ``places`` the places'
+    positions ``(3,)`` [m]; each angle taken within half a turn of the plan's ``ref`` ``(>= n,
+    m)`` at the same step."""
     if len(poses) == 0:
         return np.zeros((0, ref.shape[1]))
     p_tool, a_tool, p_target, a_target = poses.transpose(1, 0, 2)
-    x = task_space(p_tool, a_tool, p_target, a_target, gaze)
-    x[:, ANGLES] += 2 * np.pi * np.round((ref[: len(x), ANGLES] - x[:, ANGLES]) / (2 * np.pi))
+    tracks = {"tool": (p_tool, a_tool), "target": (p_target, a_target),
+              **{name: (np.broadcast_to(p, p_tool.shape), None) for name, p in places.items()}}
+    x = space(tracks, gaze)
+    cols = space.angles
+    x[:, cols] += 2 * np.pi * np.round((ref[: len(x), cols] - x[:, cols]) / (2 * np.pi))
     return x
 
 

@@ -1,8 +1,10 @@
-r"""Eq. 1 on the robot: :class:`TaskMap` maps the joint angles ``q`` through the held objects.
+r"""A task space on the robot: :class:`TaskMap` maps the joint angles ``q`` through the held
+objects (and the places, which the joints do not move).
 
-The task space, its columns and the gaze frame are :mod:`imitate.taskspace`'s; the map here gives
-``x`` with ``J = dx/dq`` and its derivatives for the planner. At any posture its value is
-:func:`imitate.taskspace.task_space` of the held objects' frames (origin, ``z`` axis). Where an
+The task spaces, their columns and the gaze frame are :mod:`imitate.taskspace`'s; the map here
+gives ``x`` with ``J = dx/dq`` and its derivatives for the planner. At any posture its value is
+the space's map (:class:`imitate.taskspace.TaskSpace`) of the held objects' frames (origin,
+``z`` axis) and the places' bodies. Where an
 object's axis is along the gaze (below :data:`imitate.taskspace.SINGULAR_TOL`) its angle is
 ``angle_ref`` with a zero Jacobian row; the ``a . f`` component keeps its exact Jacobian.
 
@@ -22,7 +24,7 @@ from numpy.typing import ArrayLike
 
 from imitate.errors import ImitateError
 from imitate.motion import _planner
-from imitate.taskspace import SINGULAR_TOL, check_gaze
+from imitate.taskspace import EQ1, OBJECTS, SINGULAR_TOL, Relative, TaskSpace, check_gaze
 
 if TYPE_CHECKING:
     from imitate.motion.kinematics import Kinematics
@@ -33,7 +35,7 @@ _SINGULAR_RHO2 = SINGULAR_TOL**2
 
 
 class TaskMap:
-    r"""Eq. 1 on the robot: ``x = (p_tool - p_target, phi_tool, phi_target)``, ``J = dx/dq``.
+    r"""A task space on the robot (eq. 1 unless another is given): ``x (m,)``, ``J = dx/dq``.
 
     An object's angle and gaze-forward component depend on its long axis ``a`` only:
     ``d(angle, forward) = C R_gaze^T da`` with ``C = [[-p_d, p_r, 0] / rho^2, [0, 0, 1]]``
@@ -54,12 +56,12 @@ class TaskMap:
         gaze: ``R_gaze`` ``(3, 3)``, right-handed, columns right, down, forward, fixed in the
             world (see :mod:`imitate.taskspace`).
         fixed_joints: Joints whose Jacobian columns are zeroed.
+        space: The task space; its places are bodies of the model fixed to the world.
 
     Raises:
-        ImitateError: On a bad gaze frame or an unknown joint.
+        ImitateError: On a bad gaze frame, an unknown joint, or a place that is no body fixed to
+            the world.
     """
-
-    m = 7
 
     def __init__(
         self,
@@ -68,15 +70,24 @@ class TaskMap:
         target: str,
         gaze: ArrayLike,
         fixed_joints: Sequence[str] = (),
+        space: TaskSpace = EQ1,
     ):
-        self.kin = kin
+        self.kin, self.space, self.m = kin, space, space.m
         self.tool, self.target = kin.model.body(tool).id, kin.model.body(target).id
         self.gaze = check_gaze(gaze)
         unknown = sorted(set(fixed_joints) - set(kin.joints))
         if unknown:
             raise ImitateError(f"fixed_joints {unknown} unknown; accepted: {list(kin.joints)}")
         self.driven = np.array([j not in fixed_joints for j in kin.joints])
-        self._bodies = np.array([self.tool, self.target])
+        places = [_place(kin.model, name) for name in space.places]
+        self._bodies = np.array([self.tool, self.target, *places])
+        anchors = {**{role: k for k, role in enumerate(OBJECTS)},
+                   **{name: 2 + k for k, name in enumerate(space.places)}}
+        self._terms = np.array([
+            (_planner.RELATIVE, anchors[t.of], anchors[t.to], start) if isinstance(t, Relative)
+            else (_planner.ANGLES, anchors[t.of], -1, start)
+            for t, start in zip(space.terms, space.starts, strict=True)
+        ], dtype=np.intp)
         self._points_of = (self.tool, self.target, self.tool, self.target)
         self._gaze = np.ascontiguousarray(self.gaze)
         self._gaze_t = np.ascontiguousarray(self.gaze.T)
@@ -90,8 +101,9 @@ class TaskMap:
         self._rates = np.empty((2, 2, 2, 3, nv))
 
     def __call__(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(x (7,), J (7, n))`` at the kinematics' last update; angles on the branch nearest to
-        ``angle_ref`` ``(2,)`` [rad] (and equal to it where undefined)."""
+        """``(x (m,), J (m, n))`` at the kinematics' last update; angles on the branch nearest to
+        ``angle_ref`` ``(2,)`` [rad] (the tool's, the target's; :meth:`TaskSpace.angle_ref`),
+        and equal to it where undefined."""
         x, J, _ = self.evaluate(angle_ref)
         return x, J
 
@@ -102,7 +114,7 @@ class TaskMap:
             np.empty((2, 3)),
         )
         _planner._task_state(
-            self._xpos, self._xmat, self._bodies, self._gaze,
+            self._xpos, self._xmat, self._bodies, self._terms, self._gaze,
             np.ascontiguousarray(angle_ref, dtype=float), _SINGULAR_RHO2,
             points, proj, inv, x, rows, axes,
         )
@@ -110,23 +122,28 @@ class TaskMap:
         n = self.kin.n
         J, axis_jac, rot_jac = np.empty((self.m, n)), np.empty((2, 3, n)), np.empty((2, 3, n))
         _planner._task_jacobian(
-            jac, self._dof, axes, rows, self._gaze, self._mask, J, axis_jac, rot_jac
+            jac, self._dof, self._terms, axes, rows, self._gaze, self._mask, J, axis_jac, rot_jac
         )
         return x, J, TaskFrame(points, proj, inv, rows, axis_jac, axes, rot_jac)
 
     def _mix(self, frame: TaskFrame) -> np.ndarray:
-        """``(7, 12)``: ``J`` as a linear map of the stacked point Jacobians ``(4 * 3, n)``."""
-        mix = np.zeros((7, 12))
-        mix[:3, :3], mix[:3, 3:6] = np.eye(3), -np.eye(3)
+        """``(m, 12)``: ``J`` as a linear map of the stacked point Jacobians ``(4 * 3, n)``
+        (a place's Jacobian is 0)."""
+        mix = np.zeros((self.m, 12))
         forward = self.gaze[:, 2]
-        for o in range(2):
-            for row, weights in ((3 + 2 * o, frame.rows[o]), (4 + 2 * o, forward)):
-                mix[row, 6 + 3 * o : 9 + 3 * o] = weights
-                mix[row, 3 * o : 3 + 3 * o] = -weights
+        for kind, first, second, row in self._terms:
+            if kind == _planner.RELATIVE:
+                for anchor, sign in ((first, 1.0), (second, -1.0)):
+                    if anchor < 2:
+                        mix[row : row + 3, 3 * anchor : 3 * anchor + 3] = sign * np.eye(3)
+                continue
+            for r, weights in ((row, frame.rows[first]), (row + 1, forward)):
+                mix[r, 6 + 3 * first : 9 + 3 * first] = weights
+                mix[r, 3 * first : 3 + 3 * first] = -weights
         return mix
 
     def rates(self, qdot: np.ndarray, frame: TaskFrame) -> np.ndarray:
-        """``D_b J`` ``(k, 7, n)``: derivatives of ``J`` along each joint direction ``b`` in
+        """``D_b J`` ``(k, m, n)``: derivatives of ``J`` along each joint direction ``b`` in
         ``qdot`` ``(k, n)`` [rad], at the posture of ``frame`` (from :meth:`evaluate`), which the
         kinematics must be updated to (held objects may be left out)."""
         n = self.kin.n
@@ -141,14 +158,16 @@ class TaskMap:
         coef_r, coef_d = -dproj[:, 1] * s - pd * ds, dproj[:, 0] * s + pr * ds  # (2, k)
         row_dot = coef_r[..., None] * r + coef_d[..., None] * d  # (2, k, 3)
         out = self._mix(frame) @ rate
-        out[:, 3::2] += (row_dot @ frame.axis_jac).transpose(1, 0, 2)
+        for kind, first, _, row in self._terms:
+            if kind == _planner.ANGLES:
+                out[:, row] += row_dot[first] @ frame.axis_jac[first]
         out *= self._mask
         return out
 
     def curvature(
         self, a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray, frame: TaskFrame
     ) -> np.ndarray:
-        """``a^T D_b J + c^T D_d J`` ``(n,)`` for task vectors ``a, c`` ``(7,)`` and joint
+        """``a^T D_b J + c^T D_d J`` ``(n,)`` for task vectors ``a, c`` ``(m,)`` and joint
         directions ``b, d`` ``(n,)`` [rad]: two contractions of :meth:`rates` without forming
         ``D J`` (``mj_jacDot`` of the objects' origins along ``b`` and ``d``, translational
         and rotational, then one compiled pass). Same preconditions as :meth:`rates`."""
@@ -156,10 +175,25 @@ class TaskMap:
         kin.frame_jacobian_rates(self._objects, frame.points, (b, d), rates)
         out = np.empty(kin.n)
         _planner._curvature(
-            a, b, c, d, rates, self._dof, frame.axes, frame.rows, frame.proj, frame.inv,
-            frame.axis_jac, frame.rot_jac, self._gaze, self._mask, out,
+            a, b, c, d, rates, self._dof, self._terms, frame.axes, frame.rows, frame.proj,
+            frame.inv, frame.axis_jac, frame.rot_jac, self._gaze, self._mask, out,
         )
         return out
+
+
+def _place(model, name: str) -> int:
+    """The body id of place ``name``.
+
+    Raises:
+        ImitateError: No such body, or one that is not fixed to the world.
+    """
+    try:
+        body = model.body(name)
+    except KeyError:
+        raise ImitateError(f"place {name!r} is no body of the scene") from None
+    if model.body_weldid[body.id] != 0:
+        raise ImitateError(f"place {name!r} must be fixed to the world; it moves with a joint")
+    return body.id
 
 
 class TaskFrame(NamedTuple):

@@ -55,19 +55,25 @@ def run(run_dir: Path, config: RunConfig) -> dict:
     _check_states(replayed, config, run_dir / layout.REPLAY)
     sweep = dict(zip(weights, planned.sweep.x, strict=True))
     clearance = dict(zip(weights, planned.sweep.clearance, strict=True))
-    labels = get_task(config.task).dims
+    task = get_task(config.task)
+    labels, units = task.dims, task.space.units
+    angle = int(task.space.angles[0]) if task.space.angles.size else 0  # Fig. 4's dimension
     # name: (plots' function, its arguments); Fig. 8's snapshots rendered below
     drawings: dict[str, tuple[Any, ...]] = {
         "observation": (plots.plot_observation, observations, boundaries),
         "fig4_gmm_dtw": (
-            partial(plots.plot_gmm_with_and_without_dtw, labels=labels), learning.raw, model,
+            partial(plots.plot_gmm_with_and_without_dtw, dim=angle, labels=labels, units=units),
+            learning.raw, model,
         ),
         "fig5_bic": (plots.plot_bic_curves, {
             "fast (K-means only)": learning.bic_fast, "full (EM)": learning.bic_full,
         }),
-        "gmr": (partial(plots.plot_gmr, labels=labels), model, list(learning.aligned)),
+        "gmr": (partial(plots.plot_gmr, labels=labels, units=units), model,
+                list(learning.aligned)),
         "fig9_collision_sweep": (
-            partial(plots.plot_collision_sweep, labels=labels), plan.times, plan.mean,
+            partial(plots.plot_collision_sweep, labels=labels, units=units,
+                    position=task.space.positions[0]),
+            plan.times, plan.mean,
             plan.variance, sweep, clearance, plan.weights,
         ),
         "costs": (plots.plot_costs, dict(zip(weights, planned.sweep.cost_total, strict=True))),

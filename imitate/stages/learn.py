@@ -10,6 +10,7 @@ import numpy as np
 
 from imitate.demos.oracle import true_demos
 from imitate.demos.segment import task_demos
+from imitate.envs.task import get_task
 from imitate.envs.teacher_motion import script_demonstrations
 from imitate.learning import LearningConfig, learn
 from imitate.learning.bic import bic_sweep
@@ -19,16 +20,19 @@ from imitate.stages.files import DemosFile, Learned, ModelFile, ObservationsFile
 
 def run(run_dir: Path, config: RunConfig) -> dict:
     """Task space, DTW, GMM (components by BIC), GMR; the other BIC method for comparison."""
+    space = get_task(config.task).space
     if config.oracle:
         tracks = ObservationsFile.load(run_dir).observations.tracks
         motion = script_demonstrations(config.teacher())
-        demos, gaze, rate = true_demos(motion, tracks.gaze, tracks.times), tracks.gaze, config.fps
+        demos = true_demos(motion, tracks.gaze, tracks.times, space)
+        gaze, rate = tracks.gaze, config.fps
         bridged = 0
     else:
         cut = DemosFile.load(run_dir)
         gaze = cut.gaze
         bridged = sum(int(np.isnan(d.position).any(axis=-1).sum()) for d in cut.segments)
-        demos, rate = task_demos(cut.segments, cut.objects, gaze, smoothing=config.smoothing)
+        demos, rate = task_demos(cut.segments, cut.objects, gaze, space,
+                                 smoothing=config.smoothing)
     k_max = min(config.k_max, *(len(d) for d in demos))
     settings = LearningConfig(k_max=k_max, bic_method=config.bic, seed=config.seed)
     start = time.perf_counter()

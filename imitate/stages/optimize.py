@@ -47,7 +47,7 @@ def run(run_dir: Path, config: RunConfig) -> dict:
         clearance=np.array([_clearance(task, plans[w].q) for w in weights]),
         cost_total=tuple(plans[w].costs["total"] for w in weights),
     )).save(run_dir)
-    error_m, error_deg = critical_error(main, job.critical(main.mean))
+    error_m, error_deg = critical_error(main, job.space, job.critical(main.mean))
     first = plans[weights[0]]
     return {
         "optimization": {
@@ -63,7 +63,7 @@ def run(run_dir: Path, config: RunConfig) -> dict:
             "message": main.message,
             "sweep": [
                 {"weight": w, "min_distance_m": plans[w].min_distance,
-                 **deviation(plans[w], first)}
+                 **deviation(plans[w], first, job.space)}
                 for w in weights
             ],
         }

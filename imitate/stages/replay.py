@@ -60,9 +60,7 @@ def run(run_dir: Path, config: RunConfig) -> dict:
         "replay": {
             **task.report(records, watched),
             "min_distance_m": record["min_distance_m"],
-            "task_err_m_max": float(
-                np.linalg.norm(result.task_error[:, :3], axis=1).max(initial=0.0)
-            ),
+            "task_err_m_max": float(task.space.distance(result.task_error).max(initial=0.0)),
             "outcome": verdict,
             "success": verdict == "success",
         }

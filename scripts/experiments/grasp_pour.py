@@ -61,7 +61,7 @@ def main() -> None:
             plan = plan_variation(learned, gaze, planned, task)
             scores = [replay_once(plan, actual, task, s, gaze)[task.score.measure]
                       for s in actual.replay_seeds]
-            error_m, _ = critical_error(plan, task.critical(plan.mean))
+            error_m, _ = critical_error(plan, task.space, task.critical(plan.mean))
             row += (f" | {plan.min_distance * 1000:6.1f} {error_m * 1000:6.1f} "
                     f"{np.mean(scores):7.3f} {np.min(scores):6.3f}")
         print(row, flush=True)

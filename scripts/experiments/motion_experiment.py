@@ -69,7 +69,7 @@ def main() -> None:
     for weight in args.weights:
         p, seconds = run_plan(planning, learned, weight, args.max_iter, task.critical)
         plans[weight] = p
-        pos, ang = critical_error(p, task.critical(p.mean))
+        pos, ang = critical_error(p, task.space, task.critical(p.mean))
         print(
             f"w_coll={weight:7.1f}: min distance {p.min_distance * 1000:6.1f} mm {p.closest}, "
             f"{task.phase}-phase error {pos * 1000:5.1f} mm / {ang:4.2f} deg, {p.n_iter} "
@@ -77,7 +77,7 @@ def main() -> None:
         )
     base = plans[args.weights[0]]
     for weight in args.weights[1:]:
-        d = deviation(plans[weight], base)
+        d = deviation(plans[weight], base, task.space)
         print(
             f"w_coll={weight:7.1f}: squared deviation from the GMR mean {d['deviation_m2']:.4f} "
             f"m^2 ({d['deviation_high_variance_share']:.0%} above the median variance); change "

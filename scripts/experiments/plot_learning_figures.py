@@ -24,7 +24,7 @@ from imitate.learning import LearningConfig, learn
 from imitate.learning.bic import bic_sweep
 from imitate.learning.gmr import gmr
 from imitate.rundir.artifacts import save_bytes
-from imitate.taskspace import TASK_DIMS
+from imitate.taskspace import EQ1
 
 
 def main() -> None:
@@ -58,7 +58,7 @@ def main() -> None:
             for m in (raw, aligned)
         ]
         ratio = var[0].mean(axis=0) / var[1].mean(axis=0)
-        text = ", ".join(f"{n} {r:.2f}" for n, r in zip(TASK_DIMS, ratio, strict=True))
+        text = ", ".join(f"{n} {r:.2f}" for n, r in zip(EQ1.labels(), ratio, strict=True))
         print(f"pouring-phase variance without/with DTW ({covariance}): {text}")
     print(f"figures written to {args.out}")
 

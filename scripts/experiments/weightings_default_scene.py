@@ -54,10 +54,10 @@ def main() -> None:
         }
         for w in args.weights:
             p = plans[w]
-            d = deviation(p, plans[0.0])
+            d = deviation(p, plans[0.0], task.space)
             change = np.linalg.norm(p.x[:, :3] - plans[0.0].x[:, :3], axis=1)
             at = p.times[change.argmax()] - p.times[0]
-            error_m, error_deg = critical_error(p, task.critical(p.mean))
+            error_m, error_deg = critical_error(p, task.space, task.critical(p.mean))
             print(f"{similarity:<10} {w:7g} {p.min_distance * 1000:7.1f} "
                   f"{d['max_deviation_m'] * 1000:7.1f} {at:5.2f} "
                   f"{d['change_high_variance_share']:6.3f} {error_m * 1000:9.1f} {error_deg:5.2f}")

@@ -48,7 +48,7 @@ class ModelFile:
         bic_fast: ``(k_max,)`` BIC of each number of components, by the fast K-means heuristic
             (Fig. 5).
         bic_full: ``(k_max,)`` the same by the full BIC (EM for every K).
-        aligned: ``(n_demos, T, 7)`` the demonstrations after DTW, in the task space.
+        aligned: ``(n_demos, T, m)`` the demonstrations after DTW, in the task space.
     """
 
     learned: Learned

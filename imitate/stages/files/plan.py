@@ -24,7 +24,7 @@ class Sweep:
 
     Attributes:
         weights: ``(W,)`` collision weights, ascending.
-        x: ``(W, T + 1, 7)`` task state of each plan.
+        x: ``(W, T + 1, m)`` task state of each plan.
         q: ``(W, T + 1, n)`` joint positions of each plan [rad].
         clearance: ``(W, T + 1)`` smallest signed distance between the robot, the objects and
             the scene at each step of each plan [m], negative when penetrating.

@@ -29,7 +29,7 @@ class Recording:
         mocap_quat: ``(n, n_mocap, 4)`` their orientations, wxyz.
         state_dt: Time between recorded states [s].
         plan_start: When the plan starts, after the approach from the reset pose [s].
-        task_error: ``(T, 7)`` task state reached in physics minus the plan's, every env step of
+        task_error: ``(T, m)`` task state reached in physics minus the plan's, every env step of
             the plan's part.
         min_distance: Smallest signed distance [m] between geoms that must not touch.
         measures: The task's numbers of the replay by name (a fraction, a count...); each is
