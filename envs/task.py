@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
@@ -24,7 +24,13 @@ __all__ = ["Score", "Task", "Watcher", "get_task", "shared_outcome"]
 
 
 class Watcher(Protocol):
-    """Watches a replay: called with the env after its reset and after every step."""
+    """Watches a replay: called with the env after its reset and after every step.
+
+    Attributes:
+        KEYS: What :meth:`summary` returns: each key with its unit and meaning.
+    """
+
+    KEYS: ClassVar[Mapping[str, tuple[str, str]]]
 
     def __call__(self, env: Any) -> None: ...
 
@@ -76,13 +82,12 @@ class Task:
         phase: The name of its critical phase (report keys ``<phase>_phase_err_m``).
         outcomes: The outcomes of a reproduction, ``"success"`` first.
         measures: The keys of a replay's record that the task adds (from the env's ``info`` at
-            the end), with unit and meaning.
-        keys: The report keys it adds (``replay.*``), with unit and meaning.
+            the end), with unit (``"-"``: a count) and meaning.
         outcome: ``outcome(plan_min_distance [m], records, options) -> str``, one of
             ``outcomes``.
         critical: ``critical(mean (T, m)) -> (T,) bool``: the steps of a learned mean in the
             task's critical phase (where its success is decided).
-        watcher: Makes the :class:`Watcher` of a replay.
+        watcher: The :class:`Watcher` of a replay (a class: its ``KEYS`` are read).
         suites: Folder of its evaluation suites (``*.toml``).
         score: The replay measure its success is judged by (:class:`Score`).
         verbs: The run page's verdict on a run that succeeds and on one that does not
@@ -92,8 +97,6 @@ class Task:
             into the glass"``).
         headline: ``headline(replay) -> [(label, text)]``: the run page's headline rows of the
             task's numbers, from the report's replay section.
-        kinds: The kind (a type or a tuple of types) of each of its report keys (``keys``)
-            whose value is no number: unit ``-``, or a list.
         exported: ``exported(record, info) -> dict``: the task's part of the metadata of an
             exported episode of an evaluated variation, from the evaluation's record of the
             variation and the env's ``info`` after the episode's last step.
@@ -109,17 +112,15 @@ class Task:
     phase: str
     outcomes: tuple[str, ...]
     measures: Mapping[str, tuple[str, str]]
-    keys: Mapping[str, tuple[str, str]]
     outcome: Callable[[float, Sequence[Mapping[str, Any]], Mapping[str, Any]], str]
     critical: Callable[[np.ndarray], np.ndarray]
-    watcher: Callable[[], Watcher]
+    watcher: type[Watcher]
     suites: Path
     score: Score
     verbs: tuple[str, str]
     noun: str
     instruction: str
     headline: Callable[[Mapping[str, Any]], list[tuple[str, str]]]
-    kinds: Mapping[str, type | tuple[type, ...]]
     exported: Callable[[Mapping[str, Any], Mapping[str, Any]], dict[str, Any]]
     replays: int = 3
     space: TaskSpace = EQ1
@@ -134,6 +135,30 @@ class Task:
         """Labels of its task space's columns in figures and exports, in its objects' names
         (``bottle_angle``)."""
         return self.space.labels(dict(zip(OBJECTS, self.objects, strict=True)))
+
+    @property
+    def keys(self) -> dict[str, tuple[str, str]]:
+        """The report keys it adds (``replay.*``, :meth:`report`'s), with unit and meaning: its
+        measures, the score's over the replays and its watcher's."""
+        measure, score, n = self.score.measure, self.score, self.replays
+        unit = self.measures[measure][0]
+        least = score.show(score.threshold) + (f" {score.unit}" if score.unit else "")
+        return {
+            **{f"replay.{key}": value for key, value in self.measures.items()},
+            f"replay.{measure}_mean": (unit, f"its mean over {n} replays from seeds `seed` to "
+                                             f"`seed + {n - 1}` of the initial-state noise"),
+            f"replay.{measure}_min": (unit, f"the smallest of them ({least} or more: success)"),
+            f"replay.{measure}s": (unit, f"the {n}"),
+            **{f"replay.{self.phase}_geometry.{key}": value
+               for key, value in self.watcher.KEYS.items()},
+        }
+
+    @property
+    def kinds(self) -> dict[str, type | tuple[type, ...]]:
+        """The kind of each of its report keys (:attr:`keys`) whose value is no number: a
+        count's (unit ``-``) ``int``, the score's list over the replays."""
+        counts = {f"replay.{key}": int for key, (unit, _) in self.measures.items() if unit == "-"}
+        return {**counts, f"replay.{self.score.measure}s": list}
 
     @property
     def error_keys(self) -> tuple[str, str]:

@@ -10,7 +10,8 @@ that height; its depth in the glass is then its depth below the rim, else 0.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, ClassVar
 
 import mujoco
 import numpy as np
@@ -50,6 +51,32 @@ class InsertGeometry:
     """Records, at every call (``watcher(env)``), the stick's lower end relative to the glass
     (:func:`stick_end`)."""
 
+    # What :meth:`summary` returns, each key with its unit and meaning (the report's
+    # ``replay.insert_geometry.*``; ``None`` where not seen).
+    KEYS: ClassVar[Mapping[str, tuple[str, str]]] = {
+        "depth_m": (
+            "m",
+            "in the first replay, at the deepest point in the glass: the lower end's depth below "
+            "the rim, in the glass's frame",
+        ),
+        "offset_m": (
+            "m",
+            "its distance from the glass's axis (the inner radius is 34 mm at the bottom, 40 mm at "
+            "the rim)",
+        ),
+        "tilt_deg": ("deg", "the angle between the stick's and glass's axes"),
+        "entry_offset_m": (
+            "m",
+            "the lower end's distance from the glass's axis as it went below the rim",
+        ),
+        "offset_max_m": ("m", "its largest distance from the axis in the glass"),
+        "seconds_inside": ("s", "time the lower end was in the glass"),
+        "lowest_below_rim_m": (
+            "m",
+            "the lowest the lower end came, below the rim's plane, in the glass or not",
+        ),
+    }
+
     def __init__(self) -> None:
         self._rows: list[tuple[float, float, float, float]] = []
         self._dt = 0.0
@@ -66,12 +93,10 @@ class InsertGeometry:
         never was in the glass."""
         rows = np.array(self._rows).reshape(-1, 4)
         depth, offset, inside, tilt = rows.T
-        keys = ("depth_m", "offset_m", "tilt_deg", "entry_offset_m", "offset_max_m",
-                "seconds_inside")
         lowest = {"lowest_below_rim_m": float(depth.max()) if len(depth) else None}
         steps = np.flatnonzero(inside > 0)
         if len(steps) == 0:
-            return {**dict.fromkeys(keys), **lowest}
+            return {**dict.fromkeys(self.KEYS), **lowest}
         deepest = int(np.argmax(inside))
         return {
             "depth_m": float(inside[deepest]),

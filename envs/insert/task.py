@@ -53,44 +53,6 @@ def exported(record: Mapping[str, Any], info: Mapping[str, Any]) -> dict[str, An
     }
 
 
-# The report keys the inserting task adds to the replay section: unit and meaning.
-KEYS = {
-    "replay.insert_depth": (
-        "m",
-        "the deepest the stick's lower end went into the glass in the replay, below the rim "
-        "(0: never in it)",
-    ),
-    "replay.insert_offset": ("m", "its distance from the glass's axis there"),
-    "replay.insert_depth_mean": (
-        "m",
-        "mean insertion depth over three replays from seeds `seed`, `seed + 1`, `seed + 2` of "
-        "the initial-state noise",
-    ),
-    "replay.insert_depth_min": ("m", "the smallest of them (30 mm or more: success)"),
-    "replay.insert_depths": ("m", "the three"),
-    "replay.insert_geometry.depth_m": (
-        "m",
-        "in the first replay, at the deepest point in the glass: the lower end's depth below "
-        "the rim, in the glass's frame",
-    ),
-    "replay.insert_geometry.offset_m": (
-        "m",
-        "its distance from the glass's axis (the inner radius is 34 mm at the bottom, 40 mm at "
-        "the rim)",
-    ),
-    "replay.insert_geometry.tilt_deg": ("deg", "the angle between the stick's and glass's axes"),
-    "replay.insert_geometry.entry_offset_m": (
-        "m",
-        "the lower end's distance from the glass's axis as it went below the rim",
-    ),
-    "replay.insert_geometry.offset_max_m": ("m", "its largest distance from the axis in the glass"),
-    "replay.insert_geometry.seconds_inside": ("s", "time the lower end was in the glass"),
-    "replay.insert_geometry.lowest_below_rim_m": (
-        "m",
-        "the lowest the lower end came, below the rim's plane, in the glass or not",
-    ),
-}
-
 TASK = Task(
     name="insert",
     env=InsertingEnv,
@@ -99,11 +61,11 @@ TASK = Task(
     outcomes=OUTCOMES,
     measures={
         "insert_depth": (
-            "m", "the deepest the stick's lower end went into the glass, below its rim",
+            "m", "the deepest the stick's lower end went into the glass, below its rim (0: never "
+            "in it)",
         ),
         "insert_offset": ("m", "its distance from the glass's axis there"),
     },
-    keys=KEYS,
     outcome=outcome,
     critical=insert_phase,
     watcher=InsertGeometry,
@@ -113,6 +75,5 @@ TASK = Task(
     noun="the insertion",
     instruction="put the stick into the glass",
     headline=headline,
-    kinds={"replay.insert_depths": list},
     exported=exported,
 )

@@ -13,6 +13,9 @@ Particles still in the bottle are not counted: the bottle itself may pass throug
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import ClassVar
+
 import numpy as np
 
 from imitate.envs.pour.env import PouringEnv
@@ -25,6 +28,34 @@ class PourGeometry:
     """Records, at every call (``on_step(env)``), the bottle's tilt from upright [deg], the
     mouth's position relative to the rim centre in the glass's frame ``(3,)`` [m] and the share
     of particles in the bottle."""
+
+    # What :meth:`summary` returns, each key with its unit and meaning (the report's
+    # ``replay.pour_geometry.*``; ``None`` where not seen).
+    KEYS: ClassVar[Mapping[str, tuple[str, str]]] = {
+        "mouth_above_rim_min_m": (
+            "m",
+            "in the first replay, while liquid leaves the bottle: the lowest height of the bottle's"
+            " mouth above the glass rim, in the glass's frame",
+        ),
+        "mouth_above_rim_median_m": ("m", "its median"),
+        "mouth_offset_median_m": (
+            "m",
+            "median distance of the mouth from the glass's axis (the inner rim radius is 40 mm)",
+        ),
+        "mouth_offset_max_m": ("m", "its largest"),
+        "tilt_max_deg": ("deg", "the bottle's largest tilt from upright"),
+        "pour_seconds": ("s", "from the first to the last step at which liquid left the bottle"),
+        "stream_offset_median_m": (
+            "m",
+            "median distance from the glass's axis at which the particles first fell through the "
+            "rim's plane",
+        ),
+        "stream_centre_offset_m": ("m", "distance of their mean crossing point from the axis"),
+        "stream_inside_share": (
+            "1",
+            "share of them that fell through within the rim's inner radius",
+        ),
+    }
 
     def __init__(self) -> None:
         self._rows: list[tuple[float, ...]] = []
@@ -64,8 +95,9 @@ class PourGeometry:
         crossings = np.array(list(self._crossed.values())).reshape(-1, 2)
         distance = np.hypot(crossings[:, 0], crossings[:, 1])
         inner = objects.GLASS_SHAPE.profile[-1][0] - objects.GLASS_SHAPE.wall / 2
-        stream = dict.fromkeys(("stream_offset_median_m", "stream_centre_offset_m",
-                                "stream_inside_share"))
+        stream: dict[str, float | None] = {
+            key: None for key in self.KEYS if key.startswith("stream_")
+        }
         if len(crossings):
             stream = {
                 "stream_offset_median_m": float(np.median(distance)),
@@ -73,9 +105,7 @@ class PourGeometry:
                 "stream_inside_share": float(np.mean(distance < inner)),
             }
         if len(left) == 0:
-            keys = ("mouth_above_rim_min_m", "mouth_above_rim_median_m", "mouth_offset_median_m",
-                    "mouth_offset_max_m", "tilt_max_deg", "pour_seconds")
-            return {**dict.fromkeys(keys), **stream}
+            return {**dict.fromkeys(self.KEYS), **stream}
         pour = rows[left[0]: left[-1] + 1]
         height, offset = pour[:, 3], np.hypot(pour[:, 1], pour[:, 2])
         return {

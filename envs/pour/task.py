@@ -46,51 +46,6 @@ def exported(record: Mapping[str, Any], info: Mapping[str, Any]) -> dict[str, An
     }
 
 
-# The report keys the pouring task adds to the replay section: unit and meaning.
-KEYS = {
-    "replay.pour_fraction": (
-        "1",
-        "fraction of the particles in the glass at the end of the replay",
-    ),
-    "replay.spilled": ("-", "particles in neither container at the end"),
-    "replay.pour_fraction_mean": (
-        "1",
-        "mean pour fraction over three replays from seeds `seed`, `seed + 1`, `seed + 2` of the "
-        "initial-state noise",
-    ),
-    "replay.pour_fraction_min": ("1", "the smallest of them"),
-    "replay.pour_fractions": ("1", "the three"),
-    "replay.pour_geometry.mouth_above_rim_min_m": (
-        "m",
-        "in the first replay, while liquid leaves the bottle: the lowest height of the bottle's "
-        "mouth above the glass rim, in the glass's frame",
-    ),
-    "replay.pour_geometry.mouth_above_rim_median_m": ("m", "its median"),
-    "replay.pour_geometry.mouth_offset_median_m": (
-        "m",
-        "median distance of the mouth from the glass's axis (the inner rim radius is 40 mm)",
-    ),
-    "replay.pour_geometry.mouth_offset_max_m": ("m", "its largest"),
-    "replay.pour_geometry.tilt_max_deg": ("deg", "the bottle's largest tilt from upright"),
-    "replay.pour_geometry.pour_seconds": (
-        "s",
-        "from the first to the last step at which liquid left the bottle",
-    ),
-    "replay.pour_geometry.stream_offset_median_m": (
-        "m",
-        "median distance from the glass's axis at which the particles first fell through the rim's"
-        " plane",
-    ),
-    "replay.pour_geometry.stream_centre_offset_m": (
-        "m",
-        "distance of their mean crossing point from the axis",
-    ),
-    "replay.pour_geometry.stream_inside_share": (
-        "1",
-        "share of them that fell through within the rim's inner radius",
-    ),
-}
-
 TASK = Task(
     name="pour",
     env=PouringEnv,
@@ -101,7 +56,6 @@ TASK = Task(
         "pour_fraction": ("1", "fraction of the particles in the glass at the end"),
         "spilled": ("-", "particles in neither container at the end"),
     },
-    keys=KEYS,
     outcome=outcome,
     critical=pour_phase,
     watcher=PourGeometry,
@@ -111,6 +65,5 @@ TASK = Task(
     noun="the pour",
     instruction="pour from the bottle into the glass",
     headline=headline,
-    kinds={"replay.spilled": int, "replay.pour_fractions": list},
     exported=exported,
 )
