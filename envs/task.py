@@ -18,6 +18,7 @@ import numpy as np
 from imitate.envs import tasks
 from imitate.envs.assembly import Obstacle, SceneConfig
 from imitate.envs.bimanual import BimanualEnv
+from imitate.rundir.page import Words, error_keys
 from imitate.taskspace import EQ1, OBJECTS, TaskSpace
 
 __all__ = ["Score", "Task", "Watcher", "get_task", "shared_outcome"]
@@ -76,8 +77,8 @@ class Task:
     """A bimanual task (see the module docstring).
 
     Attributes:
-        name: Its name, one of ``imitate.envs.tasks.NAMES``.
-        env: Its env class; its ``objects`` are the tool (right hand) and the target (left).
+        env: Its env class; its ``objects`` are the tool (right hand) and the target (left),
+            its ``task`` the task's name (one of ``imitate.envs.tasks.NAMES``).
         env_id: Its Gymnasium id.
         phase: The name of its critical phase (report keys ``<phase>_phase_err_m``).
         outcomes: The outcomes of a reproduction, ``"success"`` first.
@@ -90,13 +91,7 @@ class Task:
         watcher: The :class:`Watcher` of a replay (a class: its ``KEYS`` are read).
         suites: Folder of its evaluation suites (``*.toml``).
         score: The replay measure its success is judged by (:class:`Score`).
-        verbs: The run page's verdict on a run that succeeds and on one that does not
-            (``("pours", "does not pour")``).
-        noun: The reproduction as a noun, in captions (``"the pour"``).
-        instruction: What the robot is asked to do, a dataset's task (``"pour from the bottle
-            into the glass"``).
-        headline: ``headline(replay) -> [(label, text)]``: the run page's headline rows of the
-            task's numbers, from the report's replay section.
+        words: What its pages and datasets say of it (:class:`~imitate.rundir.page.Words`).
         exported: ``exported(record, info) -> dict``: the task's part of the metadata of an
             exported episode of an evaluated variation, from the evaluation's record of the
             variation and the env's ``info`` after the episode's last step.
@@ -106,7 +101,6 @@ class Task:
             and places in its scene; eq. 1 unless declared.
     """
 
-    name: str
     env: type[BimanualEnv]
     env_id: str
     phase: str
@@ -117,13 +111,15 @@ class Task:
     watcher: type[Watcher]
     suites: Path
     score: Score
-    verbs: tuple[str, str]
-    noun: str
-    instruction: str
-    headline: Callable[[Mapping[str, Any]], list[tuple[str, str]]]
+    words: Words
     exported: Callable[[Mapping[str, Any], Mapping[str, Any]], dict[str, Any]]
     replays: int = 3
     space: TaskSpace = EQ1
+
+    @property
+    def name(self) -> str:
+        """Its name (its env's ``task``)."""
+        return self.env.task
 
     @property
     def objects(self) -> tuple[str, str]:
@@ -164,7 +160,7 @@ class Task:
     def error_keys(self) -> tuple[str, str]:
         """The report's (and a plan record's) keys of a plan's largest position [m] and angle
         [deg] error in the critical phase: ``<phase>_phase_err_m``, ``<phase>_phase_err_deg``."""
-        return f"{self.phase}_phase_err_m", f"{self.phase}_phase_err_deg"
+        return error_keys(self.phase)
 
     @property
     def options(self) -> dict[str, tasks.Option]:

@@ -38,7 +38,7 @@ from imitate.perception.colour import object_models
 from imitate.run import load_run
 
 POUR = get_task("pour")  # the quick run's task
-OBJECTS, TASK = POUR.objects, POUR.instruction
+OBJECTS, TASK = POUR.objects, POUR.words.instruction
 ROBOT_ID, TEACHER_ID = to_minari.dataset_ids(POUR.env_id)
 
 

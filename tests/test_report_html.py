@@ -16,6 +16,7 @@ from imitate.stages.config import RunConfig
 from imitate.stages.runner import run_keys
 
 POUR = get_task("pour")
+WORDS = (POUR.words, POUR.objects[0], POUR.phase)  # what a run page takes of its task
 
 
 class References(HTMLParser):
@@ -72,7 +73,7 @@ def test_partial_run_has_a_page_of_what_exists(tmp_path):
     }
     for name in report["artifacts"].values():
         (tmp_path / name).write_text("")
-    found = references(save_run_page(tmp_path, report, RunConfig.quick().to_json(), POUR))
+    found = references(save_run_page(tmp_path, report, RunConfig.quick().to_json(), *WORDS))
     text = " ".join(found.text)
     assert "5 of 5" in text and "4.2 mm median" in text and "seed 4" in text
     assert not any(path.endswith((".png", ".mp4")) for path in found.paths)
@@ -95,7 +96,7 @@ def test_numbers_not_measured_show_as_a_dash(quick_run, tmp_path):
     report = _nulled(report, {"collision_weight", "sigma_max_scale", "weight"})
     report["optimization"]["closest_pair"] = [1, 2]
     check_values(report, quick_run / layout.REPORT, *run_keys(POUR))  # as a stage reads it
-    page = save_run_page(tmp_path, report, RunConfig.quick().to_json(), POUR)
+    page = save_run_page(tmp_path, report, RunConfig.quick().to_json(), *WORDS)
     text = " ".join(References(page.read_text()).text)
     assert "— mm median, — mm p95" in text and "(1 / 2)" in text and "— mm, —°" in text
     assert "— (mean —, min — over the replays)" in text
@@ -105,7 +106,7 @@ def test_numbers_not_measured_show_as_a_dash(quick_run, tmp_path):
 def test_a_task_headline_shows_a_dash_where_not_measured(task):
     task = get_task(task)
     keys = [key.partition(".")[2] for key in task.keys if key.startswith("replay.")]
-    ((label, text),) = task.headline(dict.fromkeys(keys))
+    ((label, text),) = task.words.headline(dict.fromkeys(keys))
     assert "None" not in text and text.count("—") >= 3
 
 
@@ -116,7 +117,7 @@ def test_strings_of_a_crafted_report_are_escaped(tmp_path):
         "learning": {"n_components": "<img src=x onerror=alert(1)>", "bic": "full",
                      "n_components_fast_bic": 3, "n_components_full_bic": 4},
     }
-    page = (save_run_page(tmp_path, report, RunConfig.quick().to_json(), POUR)).read_text()
+    page = (save_run_page(tmp_path, report, RunConfig.quick().to_json(), *WORDS)).read_text()
     assert "<script>" not in page and "<img src=x" not in page
     assert "&lt;script&gt;" in page and "&lt;img src=x" in page
 
@@ -157,7 +158,7 @@ def test_run_page_explains_its_numbers(quick_run):
     report = json.loads((quick_run / layout.REPORT).read_text())
     config = json.loads((quick_run / "config.json").read_text())
     opt = report["optimization"]
-    page = run_page(report, config, str(quick_run), POUR)
+    page = run_page(report, config, str(quick_run), *WORDS)
     text = " ".join("".join(References(page).text).split())
     assert "fractions of collision_weight" in text
     for entry, fraction in zip(opt["sweep"], config["sweep"], strict=True):

@@ -14,7 +14,7 @@ from imitate.envs.insert.options import ENV_ID
 from imitate.envs.insert.outcome import OUTCOMES, SUCCESS_DEPTH, outcome
 from imitate.envs.task import Score, Task
 from imitate.models import objects
-from imitate.rundir.page import shown
+from imitate.rundir.page import Words, shown
 
 __all__ = ["TASK", "insert_phase"]
 
@@ -54,7 +54,6 @@ def exported(record: Mapping[str, Any], info: Mapping[str, Any]) -> dict[str, An
 
 
 TASK = Task(
-    name="insert",
     env=InsertingEnv,
     env_id=ENV_ID,
     phase="insert",
@@ -71,9 +70,7 @@ TASK = Task(
     watcher=InsertGeometry,
     suites=Path(__file__).parent / "suites",
     score=Score("insert_depth", SUCCESS_DEPTH, "insert", unit="mm", scale=1000.0),
-    verbs=("inserts", "does not insert"),
-    noun="the insertion",
-    instruction="put the stick into the glass",
-    headline=headline,
+    words=Words(verbs=("inserts", "does not insert"), noun="the insertion",
+                instruction="put the stick into the glass", headline=headline),
     exported=exported,
 )

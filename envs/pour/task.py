@@ -13,7 +13,7 @@ from imitate.envs.pour.geometry import PourGeometry
 from imitate.envs.pour.options import ENV_ID
 from imitate.envs.pour.outcome import OUTCOMES, SUCCESS_FRACTION, outcome
 from imitate.envs.task import Score, Task
-from imitate.rundir.page import shown
+from imitate.rundir.page import Words, shown
 
 __all__ = ["TASK", "pour_phase"]
 
@@ -47,7 +47,6 @@ def exported(record: Mapping[str, Any], info: Mapping[str, Any]) -> dict[str, An
 
 
 TASK = Task(
-    name="pour",
     env=PouringEnv,
     env_id=ENV_ID,
     phase="pour",
@@ -61,9 +60,7 @@ TASK = Task(
     watcher=PourGeometry,
     suites=Path(__file__).parent / "suites",
     score=Score("pour_fraction", SUCCESS_FRACTION, "pour"),
-    verbs=("pours", "does not pour"),
-    noun="the pour",
-    instruction="pour from the bottle into the glass",
-    headline=headline,
+    words=Words(verbs=("pours", "does not pour"), noun="the pour",
+                instruction="pour from the bottle into the glass", headline=headline),
     exported=exported,
 )

@@ -224,7 +224,7 @@ def recorded(
         observations=observations, actions=np.array(recorder.actions), rewards=rewards,
         terminations=terminated, truncations=truncated, infos=_stacked(recorder.infos),
         names=names, dt=recorder.dt, env=spec, seed=recorder.seed, options=recorder.options,
-        states=np.array(recorder.states), instruction=task.instruction,
+        states=np.array(recorder.states), instruction=task.words.instruction,
         environment=task.objects,
     )
 
@@ -273,7 +273,7 @@ def teacher_episodes(run: Run, images: bool = False) -> Iterator[Episode]:
             actions=np.hstack([true[obj] for obj in objects])[1:],
             rewards=np.zeros(n), terminations=np.arange(n) == n - 1,
             truncations=np.zeros(n, dtype=bool), infos={"time": demo.times}, names=names,
-            dt=1.0 / config.fps, instruction=task.instruction, environment=objects,
+            dt=1.0 / config.fps, instruction=task.words.instruction, environment=objects,
         )
 
 

@@ -3,57 +3,50 @@
 its summary). Self-contained: inline CSS, no script, no external resource; every figure, video
 and artifact is referenced by a path relative to the page. A section whose numbers are not in
 the report (a run stopped before ``replay``) is left out. The page names no task: the run's
-task gives its words (:class:`Words`).
+task gives its words (:class:`Words`), its tool and its critical phase.
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from html import escape
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 from imitate.rundir.artifacts import write_atomic
 from imitate.rundir.layout import PAGE
 
 __all__ = [
-    "CAPTIONS", "Words", "eval_page", "run_page", "save_eval_page", "save_run_page", "shown",
+    "CAPTIONS", "Words", "error_keys", "eval_page", "run_page", "save_eval_page", "save_run_page",
+    "shown",
 ]
 
 
-class Words(Protocol):
-    """What the run's page says of its task (an :class:`imitate.envs.task.Task` is one)."""
+@dataclass(frozen=True)
+class Words:
+    """What the pages and the datasets say of a task, declared with it.
 
-    @property
-    def objects(self) -> tuple[str, str]:
-        """The tool and the target (Fig. 4 shows the tool's angle)."""
-        ...
+    Attributes:
+        verbs: The run page's verdict on a run that succeeds and on one that does not (a
+            present-tense verb and its negation).
+        noun: The reproduction as a noun, in the video's caption.
+        instruction: What the robot is asked to do, a dataset's task (an imperative).
+        headline: ``headline(replay) -> [(label, text)]``: the run page's headline rows of the
+            task's numbers, from the report's replay section.
+    """
 
-    @property
-    def phase(self) -> str:
-        """The name of its critical phase."""
-        ...
+    verbs: tuple[str, str]
+    noun: str
+    instruction: str
+    headline: Callable[[Mapping[str, Any]], list[tuple[str, str]]]
 
-    @property
-    def error_keys(self) -> tuple[str, str]:
-        """The optimization's keys of the plan's error in the critical phase, [m] and [deg]."""
-        ...
 
-    @property
-    def verbs(self) -> tuple[str, str]:
-        """The title's verdict on a run that succeeds and on one that does not."""
-        ...
-
-    @property
-    def noun(self) -> str:
-        """The reproduction as a noun, in the video's caption."""
-        ...
-
-    @property
-    def headline(self) -> Callable[[Mapping[str, Any]], list[tuple[str, str]]]:
-        """``headline(replay) -> [(label, text)]``: the task's rows of the headline."""
-        ...
+def error_keys(phase: str) -> tuple[str, str]:
+    """The optimization's (and a plan record's) keys of a plan's largest position [m] and angle
+    [deg] error in the critical phase ``phase``."""
+    return f"{phase}_phase_err_m", f"{phase}_phase_err_deg"
 
 
 CAPTIONS = {  # figures/<name>.png: what it shows ({tool}: the tool's name)
@@ -107,26 +100,27 @@ STYLE = "".join((
 
 
 def run_page(
-    report: dict, config: dict, run_dir: str, task: Words,
+    report: dict, config: dict, run_dir: str, words: Words, tool: str, phase: str,
     outdated: Mapping[str, tuple[str, str]] | None = None,
 ) -> str:
     """The page of a run: ``report`` (``report.json``), ``config`` (``config.json``), ``run_dir``
-    for the title, ``task`` its task's words; links from ``report["artifacts"]``, relative to the
+    for the title; its task's ``words``, ``tool`` (Fig. 4 shows its angle) and critical
+    ``phase``; links from ``report["artifacts"]``, relative to the
     run directory. ``outdated``: the stages whose files no longer follow from the run, by name:
     their files in words and why; the page says so at its top, with the command that makes them
     again."""
     artifacts, replay = report.get("artifacts", {}), report.get("replay", {})
-    verdict = f" — {_yes_no(replay['success'], *map(escape, task.verbs))}" if replay else ""
+    verdict = f" — {_yes_no(replay['success'], *map(escape, words.verbs))}" if replay else ""
     body = [
         f"<h1>imitate run{verdict}</h1>",
         f"<p class=sub><code>{escape(run_dir)}</code> · seed {report.get('seed', '?')}</p>",
         *(_outdated(outdated or {}, run_dir)),
         f"<p>{CLAIM}</p>",
-        "<div class=row>" + _section("Headline", _table(_headline(report, task)))
+        "<div class=row>" + _section("Headline", _table(_headline(report, words, phase)))
         + _section("Stage timings", _timings(report.get("timings", {}))) + "</div>",
     ]
     if "video" in artifacts:
-        caption = VIDEO_CAPTION.format(noun=task.noun)
+        caption = VIDEO_CAPTION.format(noun=words.noun)
         body.append(_section("Video", _media("video", artifacts["video"], caption)))
     if "optimization" in report:
         body.append(_section("Collision-weight sweep", _sweep(report["optimization"])))
@@ -137,7 +131,7 @@ def run_page(
     )
     if figures:
         body.append(_section("Figures", "".join(
-            _media("img", path, CAPTIONS.get(name, name).format(tool=task.objects[0]))
+            _media("img", path, CAPTIONS.get(name, name).format(tool=tool))
             for name, path in figures
         )))
     settings = _table((escape(k), _value(v)) for k, v in config.items())
@@ -205,13 +199,14 @@ def eval_page(
 
 
 def save_run_page(
-    run_dir: Path, report: dict, config: dict, task: Words,
+    run_dir: Path, report: dict, config: dict, words: Words, tool: str, phase: str,
     outdated: Mapping[str, tuple[str, str]] | None = None,
 ) -> Path:
-    """Write ``run_dir/report.html`` from the run's report, settings and task (and the stages
+    """Write ``run_dir/report.html`` from the run's report, settings and task's words, tool and
+    phase (and the stages
     whose files are ``outdated``, see :func:`run_page`), atomically (inside
     :func:`imitate.rundir.artifacts.staged`: with the stage's commit)."""
-    page = run_page(report, config, str(run_dir), task, outdated)
+    page = run_page(report, config, str(run_dir), words, tool, phase, outdated)
     return write_atomic(Path(run_dir) / PAGE, lambda tmp: tmp.write_text(page))
 
 
@@ -243,25 +238,25 @@ def _outdated(outdated: Mapping[str, tuple[str, str]], run_dir: str) -> list[str
     ]
 
 
-def _headline(report: dict, task: Words) -> list[tuple[str, str]]:
-    """(label, value HTML) of the key numbers present in ``report``, the task's from
-    ``task``."""
+def _headline(report: dict, words: Words, phase: str) -> list[tuple[str, str]]:
+    """(label, value HTML) of the key numbers present in ``report``, the task's from its
+    ``words`` and its critical ``phase``."""
     demos, perception = report.get("demos", {}), report.get("perception", {})
     learning, opt, replay = (report.get(k, {}) for k in ("learning", "optimization", "replay"))
     rows = []
     if replay:
         rows += [
             ("success", _yes_no(replay["success"], "yes", "no")),
-            *((escape(label), escape(text)) for label, text in task.headline(replay)),
+            *((escape(label), escape(text)) for label, text in words.headline(replay)),
             ("min distance, physics", _mm(replay["min_distance_m"])),
         ]
     if opt:
         pair = " / ".join(map(str, opt["closest_pair"])) or "none within 0.2 m"
         rows += [
             ("min distance, plan", f"{_mm(opt['min_distance_m'])} ({escape(pair)})"),
-            (f"{escape(task.phase)} phase error",
-             f"{shown(opt[task.error_keys[0]], '.1f', 1e3)} mm, "
-             f"{shown(opt[task.error_keys[1]], '.2f')}°"),
+            (f"{escape(phase)} phase error",
+             f"{shown(opt[error_keys(phase)[0]], '.1f', 1e3)} mm, "
+             f"{shown(opt[error_keys(phase)[1]], '.2f')}°"),
         ]
         rows.append(("optimizer", "converged" if opt["converged"] else (
             f"not converged: stopped at its limit of {opt['iterations']} iterations with the "

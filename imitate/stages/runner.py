@@ -72,7 +72,8 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
         for name, (files, why) in later.items():
             log.info("out of date: %s (%s); `imitate %s %s` makes it again",
                         files, why, name, shell_word(run_dir))
-        page.save_run_page(run_dir, report, config.to_json(), task, later)
+        page.save_run_page(run_dir, report, config.to_json(), task.words, task.objects[0],
+                           task.phase, later)
     log.debug("%s wrote %s in %.1f s", stage, ", ".join(sorted(outputs)), seconds)
     return report
 
