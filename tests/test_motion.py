@@ -191,7 +191,7 @@ def test_gradient_through_joints_clipped_to_their_ranges(task, learned):
 def test_gradient_with_the_nullspace_push(problem):
     """The variables extended by a push per attractor: the push's gradient is exact too."""
     p, a = problem
-    push = np.random.default_rng(1).normal(size=(len(a), p.task.kin.n)) * _PUSH_SCALE
+    push = np.random.default_rng(1).normal(size=(len(a), p.task_map.kin.n)) * _PUSH_SCALE
     extended = (p, np.hstack([a, push]))
     _check_gradient(extended, _differences(extended))
 

@@ -59,11 +59,11 @@ def approach_path(qa: np.ndarray, qb: np.ndarray, bend: np.ndarray, s: np.ndarra
 
 
 def approach_clearance(
-    task: TaskMap, qa: np.ndarray, qb: np.ndarray, bend: np.ndarray
+    task_map: TaskMap, qa: np.ndarray, qb: np.ndarray, bend: np.ndarray
 ) -> tuple[float, tuple[str, str] | None]:
     """Smallest signed distance [m] along the approach and its pair (``None`` if none is
     within 0.2 m)."""
-    kin = task.kin
+    kin = task_map.kin
     best, pair = np.inf, None
     for q in approach_path(qa, qb, bend, _fractions(qa, qb)):
         kin.update(q)
@@ -74,11 +74,11 @@ def approach_clearance(
 
 
 def approach_cost(
-    task: TaskMap, qa: np.ndarray, qb: np.ndarray, bend: np.ndarray, margin: float,
+    task_map: TaskMap, qa: np.ndarray, qb: np.ndarray, bend: np.ndarray, margin: float,
     epsilon: float,
 ) -> tuple[float, np.ndarray]:
     """The cost :func:`bend_approach` minimises (see the module) and its gradient ``(n,)``."""
-    kin = task.kin
+    kin = task_map.kin
     s = _fractions(qa, qb)
     total, grad = 0.5 * float(bend @ bend), bend.copy()
     for q, shape in zip(approach_path(qa, qb, bend, s), np.sin(np.pi * s), strict=True):
@@ -88,34 +88,34 @@ def approach_cost(
             value, slope = potential(near.dist - margin, epsilon)
             total += _WEIGHT * float(value.sum())
             grad += _WEIGHT * shape * (slope @ near.jac)
-    return total, grad * task.driven
+    return total, grad * task_map.driven
 
 
 def bend_approach(
-    task: TaskMap, qa: np.ndarray, qb: np.ndarray, margin: float, epsilon: float
+    task_map: TaskMap, qa: np.ndarray, qb: np.ndarray, margin: float, epsilon: float
 ) -> np.ndarray:
     """The smallest bend ``(n,)`` [rad] (see the module) that keeps the approach from ``qa`` to
     ``qb`` ``margin`` [m] clear of everything where it can; zeros where the straight line
     already keeps ``margin + epsilon``."""
-    zero = np.zeros(task.kin.n)
-    if approach_cost(task, qa, qb, zero, margin, epsilon)[0] == 0.0:
+    zero = np.zeros(task_map.kin.n)
+    if approach_cost(task_map, qa, qb, zero, margin, epsilon)[0] == 0.0:
         return zero
     result = minimize(
-        lambda bend: approach_cost(task, qa, qb, bend, margin, epsilon), zero, jac=True,
+        lambda bend: approach_cost(task_map, qa, qb, bend, margin, epsilon), zero, jac=True,
         method="L-BFGS-B",
     )
-    return result.x * task.driven
+    return result.x * task_map.driven
 
 
 def clear_start(
-    task: TaskMap, q: np.ndarray, goal: np.ndarray, config: ControlConfig,
+    task_map: TaskMap, q: np.ndarray, goal: np.ndarray, config: ControlConfig,
     limits: JointLimitCost, margin: float,
 ) -> np.ndarray:
     """The start posture ``q`` ``(n,)`` [rad] moved clear of the fixed geoms (see the module):
     RMR steps onto the task state ``goal`` ``(m,)`` with the null-space push ``-g dP/dq``, ``P``
     the collision cost's potential over the pairs with a fixed geom closer than ``margin +
     START_ZONE`` [m]; at most ``_START_STEPS`` of them. ``q`` itself where none is closer."""
-    kin = task.kin
+    kin = task_map.kin
     if kin.pairs is None:
         raise ImitateError("clear_start needs the Kinematics to be built with geoms")
     fixed = kin.pairs.fixed(kin.model)
@@ -128,5 +128,5 @@ def clear_start(
             break
         _, slope = potential(near.dist[keep] - margin, START_ZONE)
         push = -_START_GAIN * (slope @ near.jac[keep])
-        q = rollout(task, target, q, config, limits, push=push[None]).q[-1]
+        q = rollout(task_map, target, q, config, limits, push=push[None]).q[-1]
     return q

@@ -144,13 +144,13 @@ class Rollout:
         return int(np.count_nonzero(np.any(self.clipped_at, axis=1)))
 
 
-def _metric(kin: Kinematics, task: TaskMap) -> np.ndarray:
+def _metric(kin: Kinematics, task_map: TaskMap) -> np.ndarray:
     """The joint metric: each driven joint's full range (not its narrowed one) [rad]."""
-    return kin.span * task.driven
+    return kin.span * task_map.driven
 
 
 def rollout(
-    task: TaskMap,
+    task_map: TaskMap,
     target: np.ndarray,
     q0: np.ndarray,
     config: ControlConfig,
@@ -161,7 +161,7 @@ def rollout(
     """Tracks ``target`` ``(T + 1, m)`` (``target[0]`` unused) by RMR from ``q0`` ``(n,)``.
 
     Args:
-        task: The task map ``phi`` and its Jacobian, on the robot's kinematics.
+        task_map: The task map ``phi`` and its Jacobian, on the robot's kinematics.
         target: ``(T + 1, m)`` task states to track; ``target[0]`` is unused.
         q0: ``(n,)`` start joint angles [rad].
         config: Damping and null-space gain of the steps.
@@ -170,10 +170,10 @@ def rollout(
             [m] at every step and midway between steps; 0 for none.
         push: ``(T, n)`` null-space push ``c_t`` [1/rad] of the steps; ``None`` for none.
     """
-    kin = task.kin
+    kin = task_map.kin
     T = len(target) - 1
     n, m = kin.n, target.shape[1]
-    winv = _metric(kin, task)
+    winv = _metric(kin, task_map)
     q = np.empty((T + 1, n))
     x = np.empty((T + 1, m))
     jac = np.empty((T, m, n))
@@ -185,11 +185,11 @@ def rollout(
     frames, distances, between = [], [], []
     q[0] = q0
     target = np.ascontiguousarray(target, dtype=float)
-    angle_ref = task.space.angle_ref(target)
+    angle_ref = task_map.space.angle_ref(target)
     step = _planner._rmr_step
     for t in range(T + 1):
         kin.update(q[t])
-        x[t], J, frame = task.evaluate(angle_ref[t])
+        x[t], J, frame = task_map.evaluate(angle_ref[t])
         if distmax > 0:
             distances.append(kin.distances(distmax, jacobian=True))
         if t == T:
@@ -214,7 +214,7 @@ def rollout(
 
 def backward(
     result: Rollout,
-    task: TaskMap,
+    task_map: TaskMap,
     config: ControlConfig,
     gq: np.ndarray,
     gx: np.ndarray,
@@ -242,7 +242,7 @@ def backward(
 
     Args:
         result: The rollout to differentiate (:func:`rollout`).
-        task: The task map the rollout used; its kinematics are updated here.
+        task_map: The task map the rollout used; its kinematics are updated here.
         config: The control parameters the rollout used.
         gq: ``(T + 1, n)`` explicit gradients of the cost w.r.t. ``q_t``.
         gx: ``(T + 1, m)`` explicit gradients w.r.t. the target ``x_t``.
@@ -252,8 +252,8 @@ def backward(
         ``(T + 1, m)`` gradient w.r.t. the target trajectory (row 0 is ``gx[0]``).
     """
     T = len(result.jac)
-    kin = task.kin
-    winv = _metric(kin, task)
+    kin = task_map.kin
+    winv = _metric(kin, task_map)
     alpha = config.nullspace_gain
     dx = gx.copy()
     lam = gq[T].copy()
@@ -267,13 +267,13 @@ def backward(
         if push_gradient is not None:
             push_gradient[t] = alpha * b
         kin.update(result.q[t], held=False)
-        curvature = task.curvature(result.solved[t], b, -p, d, result.frames[t])
+        curvature = task_map.curvature(result.solved[t], b, -p, d, result.frames[t])
         update(t, gq, ln, alpha, winv, result.limit_hessian, curvature, lam)
     return dx
 
 
 def reach(
-    task: TaskMap,
+    task_map: TaskMap,
     goal: np.ndarray,
     q0: np.ndarray,
     config: ControlConfig,
@@ -283,10 +283,10 @@ def reach(
 ) -> np.ndarray:
     """Joint angles ``(n,)`` whose task state approaches ``goal`` ``(m,)``, by ``steps`` RMR
     steps from ``q0`` that each close ``rate`` of the remaining task error."""
-    kin = task.kin
+    kin = task_map.kin
     target = np.empty((steps + 1, len(goal)))
     kin.update(q0)
-    x0, _ = task(task.space.angle_ref(goal))
+    x0, _ = task_map(task_map.space.angle_ref(goal))
     remaining = (1.0 - rate) ** np.arange(steps + 1)
     target[:] = goal + remaining[:, None] * (x0 - goal)
-    return rollout(task, target, q0, config, limits).q[-1]
+    return rollout(task_map, target, q0, config, limits).q[-1]

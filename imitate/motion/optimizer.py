@@ -80,7 +80,7 @@ class Problem:
     null-space push appended ``(K, m + n)``: the push of step ``t`` is ``blend_t @ v[:, m:]``.
 
     Args:
-        task: Task map (with the kinematics).
+        task_map: Task map (with the kinematics).
         dynamics: Attractor dynamics.
         q_start: ``(n,)`` start posture.
         mean: ``(T + 1, m)`` GMR mean at the planning steps.
@@ -90,17 +90,18 @@ class Problem:
 
     def __init__(
         self,
-        task: TaskMap,
+        task_map: TaskMap,
         dynamics: AttractorDynamics,
         q_start: np.ndarray,
         mean: np.ndarray,
         weights: np.ndarray,
         config: PlanConfig,
     ):
-        kin = task.kin
-        self.task, self.dynamics, self.q_start, self.config = task, dynamics, q_start, config
+        kin = task_map.kin
+        self.task_map, self.dynamics = task_map, dynamics
+        self.q_start, self.config = q_start, config
         kin.update(q_start)
-        self.x_start, _ = task(task.space.angle_ref(mean[0]))
+        self.x_start, _ = task_map(task_map.space.angle_ref(mean[0]))
         dt = config.dt
         self.limits = JointLimitCost(kin.lower, kin.upper, config.control.free_ratio)
         self.terms: dict[str, tuple[float, CostTerm]] = {
@@ -118,14 +119,14 @@ class Problem:
 
     def rollout(self, v: np.ndarray) -> tuple[np.ndarray, Rollout]:
         """Target trajectory ``(T + 1, m)`` and RMR rollout of the variables ``v``."""
-        m = self.task.m
+        m = self.task_map.m
         target = self.dynamics.trajectory(v[:, :m], self.x_start)
         push = self.dynamics.blend @ v[:, m:] if v.shape[1] > m else None
         with_distances = self.config.collision_weight > 0
         distmax = cast(Collision, self.terms["collision"][1]).distmax if with_distances else 0.0
         self.n_evaluations += 1
         result = rollout(
-            self.task, target, self.q_start, self.config.control, self.limits, distmax, push
+            self.task_map, target, self.q_start, self.config.control, self.limits, distmax, push
         )
         return target, result
 
@@ -162,9 +163,9 @@ class Problem:
         total = float(sum(values.values()))
         if not gradient:
             return total, values, None
-        m = self.task.m
+        m = self.task_map.m
         dpush = np.empty_like(result.nullspace_gradient) if v.shape[1] > m else None
-        dx = backward(result, self.task, self.config.control, gq, gx, dpush)
+        dx = backward(result, self.task_map, self.config.control, gq, gx, dpush)
         da = self.dynamics.gradient(dx)
         if dpush is None:
             return total, values, da
@@ -194,7 +195,7 @@ class Setup:
 
 
 def setup(
-    task: TaskMap,
+    task_map: TaskMap,
     model: LearnedModel,
     *,
     q0: np.ndarray,
@@ -208,7 +209,7 @@ def setup(
     least-squares attractors.
 
     Args:
-        task: Task map of the robot (kinematics, objects, gaze).
+        task_map: Task map of the robot (kinematics, objects, gaze).
         model: The learned model: GMR ``times`` ``(T_g,)`` [s] (increasing, from 0), ``mean``
             and ``covariance`` over ``m`` task dimensions, GMM over ``(t, x)``.
         q0: ``(n,)`` current posture [rad].
@@ -226,16 +227,16 @@ def setup(
         np.asarray(v, dtype=float) for v in (model.times, model.mean, model.variance)
     )
     q0 = np.asarray(q0, dtype=float)
-    kin = task.kin
+    kin = task_map.kin
     if (
         times.ndim != 1
         or len(times) < 2
-        or mean.shape != (len(times), task.m)
+        or mean.shape != (len(times), task_map.m)
         or variance.shape != mean.shape
         or q0.shape != (kin.n,)
     ):
         raise ImitateError(
-            f"plan needs times (T,), mean and variance (T, {task.m}) with T >= 2 and q0 "
+            f"plan needs times (T,), mean and variance (T, {task_map.m}) with T >= 2 and q0 "
             f"({kin.n},); got {times.shape}, {mean.shape}, {variance.shape}, {q0.shape}"
         )
     if not all(np.all(np.isfinite(v)) for v in (times, mean, variance, q0)):
@@ -243,9 +244,10 @@ def setup(
     c = config
     n_steps = max(1, int(round((times[-1] - times[0]) / c.dt)))
     grid = times[0] + np.arange(n_steps + 1) * c.dt
-    mu = np.column_stack([np.interp(grid, times, mean[:, i]) for i in range(task.m)])
-    var = np.column_stack([np.interp(grid, times, variance[:, i]) for i in range(task.m)])
-    w_max = np.asarray(c.w_max if c.w_max is not None else 1.0 / np.square(task.space.tolerance))
+    mu = np.column_stack([np.interp(grid, times, mean[:, i]) for i in range(task_map.m)])
+    var = np.column_stack([np.interp(grid, times, variance[:, i]) for i in range(task_map.m)])
+    tolerance = task_map.space.tolerance
+    w_max = np.asarray(c.w_max if c.w_max is not None else 1.0 / np.square(tolerance))
     sigma_max = np.asarray(
         c.sigma_max if c.sigma_max is not None else c.sigma_max_scale * var.max(axis=0)
     )
@@ -253,7 +255,7 @@ def setup(
     if c.similarity == "precision":  # element by element: a mean of covariances is one
         flat = np.asarray(model.covariance, dtype=float).reshape(len(times), -1)
         cov = np.column_stack([np.interp(grid, times, f) for f in flat.T])
-        cov = cov.reshape(len(grid), task.m, task.m)
+        cov = cov.reshape(len(grid), task_map.m, task_map.m)
     steps = None  # the oracle's and importance's: the task's critical phase
     if c.similarity in ("oracle", "importance"):
         if critical is None:
@@ -279,10 +281,10 @@ def setup(
         n_steps, c.dt, centres, c.omega_per_interval / interval, widths, priors
     )
     limits = JointLimitCost(kin.lower, kin.upper, c.control.free_ratio)
-    q_start = reach(task, mu[0], q0, c.control, limits)
+    q_start = reach(task_map, mu[0], q0, c.control, limits)
     if c.collision_weight > 0:
-        q_start = clear_start(task, q_start, mu[0], c.control, limits, c.margin)
-    problem = Problem(task, dynamics, q_start, mu, weights, c)
+        q_start = clear_start(task_map, q_start, mu[0], c.control, limits, c.margin)
+    problem = Problem(task_map, dynamics, q_start, mu, weights, c)
     a0 = dynamics.fit(mu, problem.x_start, weights)
     return Setup(grid, mu, var, weights, problem, a0)
 
@@ -296,7 +298,7 @@ class _Best(TypedDict):
 
 
 def plan_from_model(
-    task: TaskMap,
+    task_map: TaskMap,
     model: LearnedModel,
     *,
     q0: np.ndarray,
@@ -307,7 +309,7 @@ def plan_from_model(
     """Optimizes a whole-body movement that reproduces the learned task (paper section V).
 
     Args:
-        task: Task map of the robot (kinematics, objects, gaze).
+        task_map: Task map of the robot (kinematics, objects, gaze).
         model: The learned model (see :func:`setup`).
         q0: ``(n,)`` current posture [rad]; the plan starts where RMR brings it onto the GMR
             mean's start.
@@ -325,7 +327,7 @@ def plan_from_model(
         ImitateError: On inconsistent shapes or non-finite inputs.
     """
     c = config
-    start = setup(task, model, q0=q0, config=c, critical=critical, importance=importance)
+    start = setup(task_map, model, q0=q0, config=c, critical=critical, importance=importance)
     problem, a0, mu = start.problem, start.a0, start.mean
 
     history: list[tuple[float, dict[str, float]]] = []
@@ -338,26 +340,26 @@ def plan_from_model(
 
     converged = _minimize(problem, a0, c, record)
     target, final = best["rollout"] or problem.rollout(best["v"])
-    min_d, closest = _min_distance(task.kin, final.q)
+    min_d, closest = _min_distance(task_map.kin, final.q)
     pushed = c.nullspace_push and c.collision_weight > 0 and min_d < c.margin
     alone = min_d
     if pushed:  # from the least-squares fit and from the best attractors, the better wins
         for a in (a0, best["v"]):
-            v0 = np.hstack([a, np.zeros((len(a), task.kin.n))])
+            v0 = np.hstack([a, np.zeros((len(a), task_map.kin.n))])
             converged = _minimize(problem, v0, c, record)
         target, final = best["rollout"] or problem.rollout(best["v"])
-        min_d, closest = _min_distance(task.kin, final.q)
+        min_d, closest = _min_distance(task_map.kin, final.q)
 
     q0 = np.asarray(q0, dtype=float)
-    bend = np.zeros(task.kin.n)
+    bend = np.zeros(task_map.kin.n)
     if c.collision_weight > 0:
-        bend = bend_approach(task, q0, problem.q_start, c.margin, c.epsilon)
-    approach_d, approach_pair = approach_clearance(task, q0, problem.q_start, bend)
+        bend = bend_approach(task_map, q0, problem.q_start, c.margin, c.epsilon)
+    approach_d, approach_pair = approach_clearance(task_map, q0, problem.q_start, bend)
     if approach_d < min_d:
         min_d, closest = approach_d, approach_pair
 
-    v, m = best["v"], task.m
-    push = v[:, m:] if v.shape[1] > m else np.zeros((len(v), task.kin.n))
+    v, m = best["v"], task_map.m
+    push = v[:, m:] if v.shape[1] > m else np.zeros((len(v), task_map.kin.n))
     names = tuple(problem.terms) + ("total",)
     costs = {
         name: np.array([h[0] if name == "total" else h[1][name] for h in history]) for name in names
@@ -370,7 +372,7 @@ def plan_from_model(
         notes.append(f"approach bent by up to {np.degrees(np.abs(bend).max()):.1f} deg")
     if min_d < 0:
         notes.append(f"collision: {closest} at {min_d * 1000:.1f} mm")
-    worst = float(np.max(excess[:, task.space.position_columns]))
+    worst = float(np.max(excess[:, task_map.space.position_columns]))
     if worst > UNREACHED_ERROR:
         notes.append(
             f"target not reached: task position error up to {worst:.3f} m beyond the "
@@ -396,8 +398,9 @@ def _minimize(problem: Problem, v0: np.ndarray, c: PlanConfig, record) -> bool:
     converged."""
     if c.optimizer == "lbfgs":
         return lbfgs(problem.evaluate, v0, max_iter=c.max_iter, tol=c.tol, record=record)
-    m = problem.task.m
-    scale = np.concatenate([problem.task.space.tolerance, np.full(v0.shape[1] - m, _PUSH_SCALE)])
+    m = problem.task_map.m
+    tolerance = problem.task_map.space.tolerance
+    scale = np.concatenate([tolerance, np.full(v0.shape[1] - m, _PUSH_SCALE)])
     step = c.rprop_step * np.broadcast_to(scale, v0.shape)
     return rprop(
         problem.evaluate, v0, step, max_iter=c.max_iter, tol=c.tol, patience=c.patience,
