@@ -110,6 +110,42 @@ class Obstacle:
 
 
 @dataclass(frozen=True)
+class Place:
+    """An object that stands still, upright, on the table: a landmark a task space may be
+    relative to (a :class:`~imitate.taskspace.Relative` term names it). Its body and shape are
+    those of its name; the planner keeps clear of its hulls, as of an obstacle.
+
+    Attributes:
+        name: Its shape, one of :data:`imitate.models.shapes.SHAPES`; its body's name.
+        x, y: Where its bottom's centre stands on the table top [m].
+    """
+
+    name: str
+    x: float
+    y: float
+
+    def __post_init__(self):
+        if self.name not in shapes.SHAPES:
+            raise ImitateError(f"place {self.name!r} unknown; accepted: {list(shapes.SHAPES)}")
+        xy = _finite((self.x, self.y))
+        radius = max(r for r, _ in shapes.SHAPES[self.name].profile)
+        (x0, x1), (y0, y1) = scene.TABLE_X, scene.TABLE_Y
+        if xy is None or not (x0 + radius <= xy[0] <= x1 - radius
+                              and y0 + radius <= xy[1] <= y1 - radius):
+            raise ImitateError(
+                f"place {self.name} at x={self.x!r}, y={self.y!r} not accepted: its footprint "
+                f"(radius {radius} m) must lie within the table top x {x0}..{x1}, y {y0}..{y1}"
+            )
+        object.__setattr__(self, "x", xy[0])
+        object.__setattr__(self, "y", xy[1])
+
+    @property
+    def pos(self) -> tuple[float, float, float]:
+        """Its bottom's centre [m]."""
+        return self.x, self.y, scene.TABLE_HEIGHT
+
+
+@dataclass(frozen=True)
 class Fixture(Obstacle):
     """A static box or upright cylinder that need not stand on the table: a shelf over the
     pour, a plate under the glass. Built, seen by the planner's collision cost and by the
@@ -146,8 +182,9 @@ class SceneConfig:
         tool_inside: the tool goes into the target (a stick into the glass): the clearance
             keeps the tool clear of the target's walls instead of its solid hulls
             (:func:`clearance_geoms`).
-        space: the task space the planner maps the scene through (its places are bodies of
-            the scene).
+        places: objects standing still on the table (:class:`Place`), neither of ``objects``.
+        space: the task space the planner maps the scene through (its places are among
+            ``places``).
     """
 
     teacher: bool = True
@@ -157,6 +194,7 @@ class SceneConfig:
     objects: tuple[str, ...] = (shapes.BOTTLE, shapes.GLASS)
     grasps: tuple[float, ...] = (shapes.GRASP[shapes.BOTTLE], shapes.GRASP[shapes.GLASS])
     tool_inside: bool = False
+    places: tuple[Place, ...] = ()
     space: TaskSpace = EQ1
 
     def __post_init__(self):
@@ -173,10 +211,10 @@ class SceneConfig:
                 f"holder={self.holder!r} not accepted: one of {HOLDERS} ('teacher' needs "
                 f"teacher=True)"
             )
-        if len(self.objects) != 2 or not set(self.objects) <= set(shapes.SHAPES):
+        if len(self.objects) != 2 or not set(self.objects) <= set(GRASP_RANGE):
             raise ImitateError(
                 f"objects={self.objects!r} not accepted: a tool and a target of "
-                f"{list(shapes.SHAPES)}"
+                f"{list(GRASP_RANGE)}"
             )
         if len(self.grasps) != 2:
             raise ImitateError(f"grasps={self.grasps!r} not accepted: two heights [m]")
@@ -187,6 +225,16 @@ class SceneConfig:
                 raise ImitateError(
                     f"obstacles must be Obstacle or Fixture instances, got {obstacle!r}"
                 )
+        names = [p.name for p in self.places if isinstance(p, Place)]
+        if len(names) < len(self.places) or len(set(names)) < len(names) or set(names) & set(
+                self.objects):
+            raise ImitateError(
+                f"places={self.places!r} not accepted: Place instances of distinct objects, "
+                f"none of {self.objects}"
+            )
+        missing = sorted(set(self.space.places) - set(names))
+        if missing:
+            raise ImitateError(f"the task space is relative to {missing}, not in places {names}")
 
 
 def check_grasp(obj: str, height: float) -> None:
@@ -200,11 +248,11 @@ def check_grasp(obj: str, height: float) -> None:
 
 
 def check_clearance(config: SceneConfig, clearance: float = 0.0) -> None:
-    """Raise ``ImitateError`` if an obstacle or fixture of ``config`` comes closer than
+    """Raise ``ImitateError`` if an obstacle, fixture or place of ``config`` comes closer than
     ``clearance`` [m] (overlaps, for 0) to the robot or an object it holds at the start: the
     rest pose, the objects at their grasps. The message names the obstacle, the geom and the
     distance. Obstacles may touch the table and each other."""
-    if not config.obstacles:
+    if not config.obstacles and not config.places:
         return
     model = build_model(dataclasses.replace(config, teacher=False, particles=0, holder="robot"))
     data = mujoco.MjData(model)
@@ -213,7 +261,21 @@ def check_clearance(config: SceneConfig, clearance: float = 0.0) -> None:
     geoms = clearance_geoms(model)
     names = {g: model.geom(g).name for g in geoms}
     obstacle_geoms = [g for g in geoms if names[g].startswith(scene.OBSTACLE_PREFIX)]
-    others = [g for g in geoms if g not in obstacle_geoms and names[g] != scene.TABLE_TOP]
+    place_geoms = {p: [g for g in geoms if names[g].startswith(f"{p.name}_hull_")]
+                   for p in config.places}
+    others = [g for g in geoms if g not in obstacle_geoms and names[g] != scene.TABLE_TOP
+              and not any(g in found for found in place_geoms.values())]
+    for place, found in place_geoms.items():
+        for o in found:
+            for g in others:
+                distance = mujoco.mj_geomDistance(model, data, o, g, clearance + 0.01, None)
+                if distance < clearance:
+                    raise ImitateError(
+                        f"place {place.name} at x={place.x}, y={place.y} comes "
+                        f"{distance * 1000:.1f} mm to {names[g]!r} at the start (rest pose, "
+                        "objects at their grasps): it must stand clear of the robot and the "
+                        "objects it holds"
+                    )
     for obstacle, o in zip(config.obstacles, obstacle_geoms, strict=True):
         for g in others:
             distance = mujoco.mj_geomDistance(model, data, o, g, clearance + 0.01, None)
@@ -236,6 +298,11 @@ def build_spec(config: SceneConfig = SceneConfig()) -> mujoco.MjSpec:
     spec = mujoco.MjSpec.from_string(f'<mujoco model="{config.objects[0]}">{includes}</mujoco>')
     for obj in config.objects:
         objects.add_container(spec, spec.worldbody, obj, shapes.SHAPES[obj])
+    for place in config.places:
+        body = objects.add_container(
+            spec, spec.worldbody, place.name, shapes.SHAPES[place.name], fixed=True
+        )
+        body.pos = place.pos
     if config.tool_inside:
         spec.add_text(name=INSIDE, data=" ".join(config.objects))
     objects.add_particles(spec, config.particles)

@@ -48,10 +48,15 @@ def container_mesh(shape: ContainerShape) -> trimesh.Trimesh:
     return trimesh.creation.revolve(np.asarray(outline), sections=48)
 
 
-def add_container(spec: mujoco.MjSpec, parent: mujoco.MjsBody, name: str, shape: ContainerShape):
-    """Add a free-floating container body ``name`` under ``parent``; returns the body."""
+def add_container(
+    spec: mujoco.MjSpec, parent: mujoco.MjsBody, name: str, shape: ContainerShape,
+    fixed: bool = False,
+):
+    """Add a container body ``name`` under ``parent``, free-floating unless ``fixed``; returns
+    the body."""
     body = parent.add_body(name=name)
-    body.add_freejoint(name=name)
+    if not fixed:
+        body.add_freejoint(name=name)
     mesh = container_mesh(shape)
     spec.add_mesh(
         name=name,

@@ -2,15 +2,16 @@
 MuJoCo, no trimesh; :mod:`imitate.models.objects` builds them).
 
 Each object is a container whose frame sits at the centre of its bottom, ``z`` along its long
-axis: the bottle and the glass of the pouring task, and the stick (a narrow tube, open at the
-top) that the insertion task puts into the glass.
+axis: the bottle and the glass of the pouring task, the stick (a narrow tube, open at the top)
+that the insertion task puts into the glass, and the marker, a peg that stands on the table to
+mark a place (it is never held).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-BOTTLE, GLASS, STICK = "bottle", "glass", "stick"
+BOTTLE, GLASS, STICK, MARKER = "bottle", "glass", "stick", "marker"
 PARTICLE_PREFIX = "particle_"
 
 @dataclass(frozen=True)
@@ -58,8 +59,20 @@ STICK_SHAPE = ContainerShape(
     segments=10,
     rgba=(0.78, 0.12, 0.74, 1.0),
 )
-SHAPES = {BOTTLE: BOTTLE_SHAPE, GLASS: GLASS_SHAPE, STICK: STICK_SHAPE}  # the objects by name
-# Where a hand may hold each object, height above its bottom [m], and where it does by default.
+# A lime peg that marks a place on the table: taller than wide, so that its silhouette has an
+# axis for the tracker, as the stick's; its hue (about 74 deg) lies between the teacher's hair
+# (about 24 deg) and the bottle's green (about 132 deg), far from both.
+MARKER_SHAPE = ContainerShape(
+    profile=((0.015, 0.0), (0.015, 0.12)),
+    wall=0.004,
+    segments=10,
+    rgba=(0.70, 0.90, 0.05, 1.0),
+)
+SHAPES = {  # the objects by name
+    BOTTLE: BOTTLE_SHAPE, GLASS: GLASS_SHAPE, STICK: STICK_SHAPE, MARKER: MARKER_SHAPE,
+}
+# Where a hand may hold each object, height above its bottom [m], and where it does by default
+# (the held ones).
 GRASP_RANGE = {BOTTLE: (0.05, 0.13), GLASS: (0.03, 0.08), STICK: (0.14, 0.22)}
 GRASP = {BOTTLE: 0.09, GLASS: 0.05, STICK: 0.18}
 MAX_PARTICLES = 120  # what fits in the bottle below its shoulder

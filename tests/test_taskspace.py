@@ -367,3 +367,38 @@ def test_the_contract_loads_neither_the_planner_nor_mujoco():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True)
     assert done.stdout.strip() == "[]"
+
+
+def test_a_place_stands_on_the_table_and_the_robot_maps_a_space_relative_to_it():
+    """A marker placed in the pouring scene: fixed where it was put, an obstacle to the planner,
+    refused off the table, too near the robot or missing from a space that names it; the
+    robot's map of the glass relative to it matches finite differences."""
+    import dataclasses
+
+    from imitate.envs.assembly import Place, build_model, check_clearance
+    from imitate.models import humanoid
+    from imitate.motion.replay import planning_task
+
+    space = TaskSpace((Relative("tool", "target"), Relative("target", "marker"), Angles("tool"),
+                       Angles("target")))
+    scene = dataclasses.replace(get_task("pour").scene(), places=(Place("marker", 0.6, 0.1),),
+                                space=space)
+    model = build_model(scene)
+    marker = model.body("marker")
+    assert model.body_weldid[marker.id] == 0 and marker.pos[2] == pytest.approx(0.61)
+    task_map = planning_task(scene)
+    pairs = task_map.kin.pairs
+    assert any("marker_hull_0" in pairs.names(task_map.kin.model, i) for i in range(len(pairs)))
+    q = humanoid.rest_pose() + np.random.default_rng(0).uniform(-0.1, 0.1, task_map.kin.n)
+    task_map.kin.update(q)
+    glass = task_map.kin.data.body("glass").xpos
+    x, J = task_map(np.zeros(2))
+    np.testing.assert_allclose(x[3:6], glass - (0.6, 0.1, 0.61), atol=1e-12)
+    fd = _fd_jacobian(task_map, q, space.angle_ref(x))
+    np.testing.assert_allclose(J, fd, atol=1e-6)
+    with pytest.raises(ImitateError, match="within the table top"):
+        Place("marker", 1.3, 0.0)
+    with pytest.raises(ImitateError, match="clear of the robot"):
+        check_clearance(dataclasses.replace(scene, places=(Place("marker", 0.42, -0.18),)), 0.05)
+    with pytest.raises(ImitateError, match=r"relative to \['marker'\], not in places"):
+        dataclasses.replace(scene, places=())
