@@ -16,7 +16,7 @@ from typing import Any, ClassVar, Protocol
 import numpy as np
 
 from imitate.envs import tasks
-from imitate.envs.assembly import Obstacle, SceneConfig
+from imitate.envs.assembly import Obstacle, Place, SceneConfig
 from imitate.envs.bimanual import BimanualEnv
 from imitate.rundir.page import Words, error_keys
 from imitate.taskspace import EQ1, OBJECTS, TaskSpace
@@ -209,6 +209,11 @@ class Task:
             "obstacles": [asdict(o) for o in scene.obstacles],
         }
 
+    def places(self, values: Mapping[str, Any]) -> tuple[Place, ...]:
+        """The places its space names, each where its settings ``values`` put it (its own
+        settings ``<place>_x``, ``<place>_y`` [m])."""
+        return tuple(Place(p, values[f"{p}_x"], values[f"{p}_y"]) for p in self.space.places)
+
     def scene(
         self,
         options: Mapping[str, Any] | None = None,
@@ -219,9 +224,9 @@ class Task:
         values = self.settings(options)
         grasps = tuple(float(values[f"{obj}_grasp"]) for obj in self.objects)
         return SceneConfig(
-            **self._scene_values(values), objects=self.objects, grasps=grasps,
+            **self._scene_values(values, fields=True), objects=self.objects, grasps=grasps,
             obstacles=tuple(obstacles), teacher=teacher, tool_inside=self.env.tool_inside,
-            space=self.space,
+            places=self.places(values), space=self.space,
         )
 
     def make_env(self, scene: SceneConfig, **kwargs: Any) -> BimanualEnv:
@@ -235,11 +240,17 @@ class Task:
         """The task's measures of a replay, from the env's ``info`` at its end."""
         return {key: info[key] for key in self.measures}
 
-    def _scene_values(self, values: Any) -> dict[str, Any]:
-        """The scene values (beyond the grasps) of settings or of a scene: the particles."""
-        names = [n for n in self.options if not n.endswith("_grasp")]
-        get = values.get if isinstance(values, Mapping) else lambda n: getattr(values, n)
-        return {name: get(name) for name in names}
+    def _scene_values(self, values: Any, fields: bool = False) -> dict[str, Any]:
+        """The scene values (beyond the grasps) of settings or of a scene, as its env takes
+        them: the particles, each place's ``<place>_x`` and ``<place>_y``; with ``fields``, those
+        a ``SceneConfig`` holds as its own fields (not the places')."""
+        placed = {f"{p}_{c}" for p in self.space.places for c in "xy"}
+        names = [n for n in self.options if not n.endswith("_grasp")
+                 and not (fields and n in placed)]
+        if isinstance(values, Mapping):
+            return {name: values[name] for name in names}
+        where = {f"{p.name}_{c}": getattr(p, c) for p in values.places for c in "xy"}
+        return {name: where[name] if name in placed else getattr(values, name) for name in names}
 
 
 def shared_outcome(plan_min_distance: float, replays: Sequence[Mapping[str, Any]]) -> str | None:

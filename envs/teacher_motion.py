@@ -29,6 +29,7 @@ from scipy.spatial.transform import Rotation
 
 from imitate import defaults
 from imitate.envs import tasks
+from imitate.envs.assembly import Place
 from imitate.errors import ImitateError
 from imitate.models import shapes
 
@@ -61,6 +62,10 @@ class Script:
             demonstrations are offset in the critical phase, and the half range [m or deg, as
             the column] their offsets spread evenly over; ``None`` where the task declares
             none.
+        places: objects standing still on the table in the teacher's scene, watched by the
+            robot as the held ones are (the places a task space may be relative to).
+        head_tilt: the robot's head tilt while watching [rad] (> 0 looks down): the tilt that
+            keeps the demonstrations (and the places) in its eyes' images.
     """
 
     objects: tuple[str, str]
@@ -69,6 +74,8 @@ class Script:
     agree_rows: tuple[int, int]
     offset_axis: int
     mislead: tuple[int, float] | None = None
+    places: tuple[Place, ...] = ()
+    head_tilt: float = 0.08
 
 
 @dataclass(frozen=True)
@@ -164,6 +171,7 @@ class TeacherMotion:
         tilt_planes: ``(n_demos,)`` azimuth of the tool's tilt plane [rad].
         tremor: ``(2, 4, _TREMOR_WAVES, 3)`` per object, per channel (x, y, z, tilt), the
             sinusoids' amplitude, frequency [Hz] and phase [rad].
+        places: the script's places, standing still throughout.
     """
 
     config: TeacherConfig
@@ -174,6 +182,19 @@ class TeacherMotion:
     warps: np.ndarray
     tilt_planes: np.ndarray
     tremor: np.ndarray
+    places: tuple[Place, ...] = ()
+
+    @property
+    def watched(self) -> tuple[str, ...]:
+        """What the robot tracks: the tool, the target, then the places."""
+        return (*self.objects, *(p.name for p in self.places))
+
+    def place_poses(self, times: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """The places' frames at ``times`` ``(n,)`` [s], as :meth:`poses` gives the objects'
+        (bottom centre, upright)."""
+        n = len(np.atleast_1d(times))
+        return {p.name: (np.tile(p.pos, (n, 1)), np.tile((1.0, 0.0, 0.0, 0.0), (n, 1)))
+                for p in self.places}
 
     def phase(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Which demonstration is under way and how far, at ``times``.
@@ -343,6 +364,7 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
         warps=np.array(warps),
         tilt_planes=config.tilt_plane_spread * rng.standard_normal(config.n_demos),
         tremor=tremor,
+        places=script.places,
     )
 
 

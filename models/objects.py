@@ -20,6 +20,8 @@ from imitate.models.shapes import (  # noqa: F401  (the objects' data, re-export
     GLASS,
     GLASS_SHAPE,
     GRASP_RANGE,
+    MARKER,
+    MARKER_SHAPE,
     PARTICLE_DENSITY,
     PARTICLE_PREFIX,
     PARTICLE_RADIUS,

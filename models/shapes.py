@@ -63,7 +63,7 @@ STICK_SHAPE = ContainerShape(
 # axis for the tracker, as the stick's; its hue (about 74 deg) lies between the teacher's hair
 # (about 24 deg) and the bottle's green (about 132 deg), far from both.
 MARKER_SHAPE = ContainerShape(
-    profile=((0.015, 0.0), (0.015, 0.12)),
+    profile=((0.015, 0.0), (0.015, 0.08)),
     wall=0.004,
     segments=10,
     rgba=(0.70, 0.90, 0.05, 1.0),

@@ -70,11 +70,12 @@ def test_a_task_is_a_folder_found_by_its_modules_not_a_list(tmp_path):
         for part in ("__init__", *parts):
             (tmp_path / name / f"{part}.py").write_text("")
     assert tasks.found(tmp_path) == ("pour", "stack")  # the default first; no half a task
-    assert tasks.found() == tasks.NAMES and set(tasks.NAMES) == {"pour", "insert"}
+    assert tasks.found() == tasks.NAMES and {"pour", "insert"} <= set(tasks.NAMES)
 
 
 def test_an_unknown_task_is_refused_with_the_known_ones():
-    with pytest.raises(ImitateError, match=r"task 'stir' unknown; accepted: \['pour', 'insert'\]"):
+    known = re.escape(f"task 'stir' unknown; accepted: {list(tasks.NAMES)}")
+    with pytest.raises(ImitateError, match=known):
         get_task("stir")
 
 

@@ -18,10 +18,11 @@ from imitate.rundir.page import Words, shown
 __all__ = ["TASK", "pour_phase"]
 
 
-def pour_phase(mean: np.ndarray) -> np.ndarray:
+def pour_phase(mean: np.ndarray, tilt_column: int = 3) -> np.ndarray:
     """Steps ``(T,) bool`` where the bottle is tilted beyond 80 % of its largest tilt from the
-    start, given the GMR mean ``(T, 7)``: the low-variance pouring phase."""
-    tilt = np.abs(mean[:, 3] - mean[0, 3])
+    start, given the GMR mean ``(T, m)`` whose column ``tilt_column`` is the bottle's angle
+    (eq. 1's 3): the low-variance pouring phase."""
+    tilt = np.abs(mean[:, tilt_column] - mean[0, tilt_column])
     return tilt >= 0.8 * tilt.max()
 
 

@@ -22,13 +22,14 @@ def true_demos(
         gaze: ``(3, 3)`` gaze frame the task space is expressed in.
         times: ``(n,)`` session times [s] to sample; each demonstration takes those within its
             start and end.
-        space: The task's space (of the tool and the target alone).
+        space: The task's space (of the tool, the target and the script's places).
 
     Returns:
         Per demonstration, ``(n, m)`` task-space samples.
     """
     return [
-        space({"tool": (position[0], axis[0]), "target": (position[1], axis[1])}, gaze)
+        space({"tool": (position[0], axis[0]), "target": (position[1], axis[1]),
+               **{name: (p, None) for name, (p, _) in motion.place_poses(axis[0]).items()}}, gaze)
         for position, axis in motion.demonstration_frames(times)
     ]
 

@@ -276,7 +276,8 @@ def task_demo(
 
     Args:
         demo: The demonstration; ``objects`` names the first axis of its arrays.
-        objects: Object names, the tool's first, then the target's.
+        objects: Object names, the tool's first, then the target's, then the places' (which
+            stand upright and still: each is where its bottom was seen, by the median).
         gaze: ``(3, 3)`` gaze frame of the observation.
         space: The task's space.
         smoothing: Savitzky-Golay window [s]; 0: none.
@@ -296,8 +297,11 @@ def task_demo(
         position, axis = _savgol(position, frames), _unit(_savgol(axis, frames))
     bottoms = {
         role: (position[k] - axis[k] * SHAPES[name].height / 2, axis[k])
-        for k, (role, name) in enumerate(zip(OBJECTS, objects, strict=True))
+        for k, (role, name) in enumerate(zip(OBJECTS, objects, strict=False))
     }
+    for k, name in enumerate(objects[len(OBJECTS):], start=len(OBJECTS)):
+        bottom = np.median(position[k], axis=0) - (0.0, 0.0, SHAPES[name].height / 2)
+        bottoms[name] = (np.broadcast_to(bottom, position[k].shape), None)
     return space(bottoms, gaze)
 
 

@@ -32,8 +32,9 @@ def cameras(sess: Session) -> tuple[PinholeCamera, PinholeCamera]:
 
 
 def ground_truth(sess: Session, names: tuple[str, ...]) -> GroundTruth:
-    """True tracked points, axes and angles of ``names`` at the session's frame times."""
-    poses = sess.motion.poses(sess.times)
+    """True tracked points, axes and angles of ``names`` (held objects and places) at the
+    session's frame times."""
+    poses = {**sess.motion.poses(sess.times), **sess.motion.place_poses(sess.times)}
     gaze = gaze_of_camera(cameras(sess)[0].rotation)
     points, axes = zip(*(tracked_point(name, *poses[name]) for name in names), strict=True)
     axis = np.array(axes)
@@ -56,7 +57,7 @@ def watch(
     Args:
         config: session and cameras.
         perception: tracker settings; by default :func:`imitate.perception.perception_config`
-            of the session's objects (its task's tool and target).
+            of what the session's teacher shows (its task's tool, target and places).
         timing: if given, receives ``"render"`` and ``"track"`` (tracking and triangulation)
             totals [s] and ``"pairs"``.
         progress: show a progress bar (tqdm's); or tqdm's stand-in that wraps the pairs,
@@ -66,7 +67,7 @@ def watch(
         Tracks, camera matrices and ground truth.
     """
     sess = session(config)
-    perception = perception or perception_config(sess.motion.objects)
+    perception = perception or perception_config(sess.motion.watched)
     left, right = cameras(sess)
     timing = {} if timing is None else timing
     pairs: Iterable = frames(sess, timing)
