@@ -1,0 +1,93 @@
+"""The marked pour, a task eq. 1 cannot express: its env's contract and outcome, its teacher's
+script (over the marker, pouring in physics), its own task space on the robot, the robot's
+eyes tracking the marker, and a quick run end to end."""
+
+from __future__ import annotations
+
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import imitate  # noqa: F401  (registers the envs)
+from imitate.envs.marked.outcome import OUTCOMES, OVER, outcome
+from imitate.envs.marked.task import SPACE
+from imitate.envs.marked.teacher import MARKER_PLACE, SCRIPT
+from imitate.envs.pour.teacher import teacher_pour
+from imitate.envs.task import get_task
+from imitate.envs.teacher_motion import TeacherConfig, script_demonstrations
+from imitate.models import objects
+from imitate.taskspace import EQ1
+
+SMALL = {"width": 96, "height": 72}
+TASK = get_task("marked")
+
+
+def test_check_env_and_the_marker_where_the_settings_put_it():
+    env = gym.make("imitate/MarkedPouring-v0", render_mode="rgb_array", marker_x=0.5,
+                   marker_y=-0.05, particles=10, **SMALL)
+    check_env(env.unwrapped, skip_render_check=False)
+    _, info = env.reset(seed=0)
+    np.testing.assert_allclose(env.unwrapped.data.body(objects.MARKER).xpos, (0.5, -0.05, 0.61))
+    glass = env.unwrapped.data.body(objects.GLASS).xpos
+    assert info["marker_offset"] == pytest.approx(np.hypot(glass[0] - 0.5, glass[1] + 0.05))
+    assert not info["is_success"]  # nothing poured
+    scene = TASK.scene({"marker_x": 0.47, "marker_y": 0.03})
+    assert [(p.name, p.x, p.y) for p in scene.places] == [(objects.MARKER, 0.47, 0.03)]
+    assert TASK.env_kwargs(scene)["marker_x"] == 0.47 and scene.space == SPACE
+
+
+@pytest.mark.parametrize(("offsets", "expected"), [
+    ((0.01, 0.02, 0.03), "success"), ((0.01, OVER + 0.001, 0.0), "off_marker"),
+])
+def test_a_pour_succeeds_only_over_the_marker(offsets, expected):
+    replays = [{"pour_fraction": 1.0, "spilled": 0, "marker_offset": o, "min_distance_m": 0.01,
+                "diverged": False} for o in offsets]
+    assert outcome(0.01, replays, {"particles": 60}) == expected
+    low = [{**r, "pour_fraction": 0.5, "spilled": 30} for r in replays]
+    assert outcome(0.01, low, {"particles": 60}) == "spill"  # the pour's outcomes come first
+    assert set(OUTCOMES) == {*get_task("pour").outcomes, "off_marker"}
+
+
+def test_the_space_is_not_eq_1_but_holds_it():
+    assert SPACE.m == 10 and SPACE.places == (objects.MARKER,)
+    assert SPACE.terms[0] == EQ1.terms[0] and SPACE.terms[2:] == EQ1.terms[1:]
+    assert TASK.dims[3:6] == ("glass_marker_dx", "glass_marker_dy", "glass_marker_dz")
+
+
+def test_the_teacher_pours_over_the_marker():
+    """Every demonstration of seed 0 holds the glass over the marker through the pour; the first
+    one pours in physics (the pour's own check, on this script's motion)."""
+    motion = script_demonstrations(TeacherConfig(task="marked"))
+    assert motion.places == SCRIPT.places == (MARKER_PLACE,)
+    for start, end in motion.boundaries:
+        _, u = motion.phase(np.linspace(start, end, 200))
+        pouring = (u >= SCRIPT.waypoints[4][0]) & (u <= SCRIPT.waypoints[5][0])
+        glass = motion.poses(np.linspace(start, end, 200)[pouring])[objects.GLASS][0]
+        assert np.hypot(*(glass[:, :2] - (MARKER_PLACE.x, MARKER_PLACE.y)).T).max() < OVER
+    assert teacher_pour(motion, 0, particles=30) >= 0.9
+
+
+def test_a_quick_marked_run_end_to_end_tracks_the_marker_and_reports_its_keys(tmp_path):
+    """``imitate run --task marked --quick``: the robot's eyes track the marker beside the
+    objects, the model is learned in the task's own space, and the report holds every key the
+    task declares."""
+    from imitate.cli import main
+    from imitate.rundir import layout
+    from imitate.rundir.schema import check_values
+    from imitate.stages.files import ModelFile, ObservationsFile
+    from imitate.stages.runner import run_keys
+
+    run_dir = tmp_path / "marked"
+    assert main(["run", "--task", "marked", "--quick", "--out", str(run_dir)]) == 0
+    observed = ObservationsFile.load(run_dir).observations
+    assert observed.tracks.objects == (objects.BOTTLE, objects.GLASS, objects.MARKER)
+    error = np.linalg.norm(observed.tracks.position[2] - observed.truth.position[2], axis=-1)
+    assert np.nanmedian(error) < 0.025 and np.isfinite(error).mean() > 0.5  # small images
+    assert ModelFile.load_learned(run_dir).model.mean.shape[1] == SPACE.m
+    report = json.loads((run_dir / layout.REPORT).read_text())
+    check_values(report, run_dir / layout.REPORT, *run_keys(TASK))
+    assert report["replay"]["outcome"] in TASK.outcomes
+    assert np.isfinite(report["replay"]["marker_offset"])
