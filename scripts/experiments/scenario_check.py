@@ -14,8 +14,9 @@ one row is printed from its ``report.json``:
   headed by the phase's name: pour's pour phase),
 - ``frac``: smallest score of the replays (the measure the task's success is judged by: pour's
   pour fraction; shown, not a target here: ``imitate eval`` measures it),
+- ``outcome``: the run's (the task's own: ``success`` or why not; shown, not a target),
 
-and a final line ``k of n seeds meet all targets``.
+and a final line ``k of n seeds meet all targets; s succeed``.
 
 Usage: ``python scripts/experiments/scenario_check.py [--task pour] [--seeds 20 21 ...]
 [--out runs/scenario] [--from-stage optimize]`` (``--from-stage`` re-runs only the later stages on
@@ -67,6 +68,7 @@ def check(seed: int, run_dir: Path, first: str, **settings) -> dict[str, float]:
         "err_mm": opt[error_m] * 1e3,
         "err_deg": opt[error_deg],
         "frac": min(replay[f"{task.score.measure}s"]),
+        "outcome": replay["outcome"],
     }
 
 
@@ -84,22 +86,24 @@ def main(argv: list[str] | None = None) -> int:
     phase = get_task(args.task).phase[:4]
     header = (
         f"{'seed':>4} {'w0 [mm]':>8} {'plan':>6} {'phys':>6} {'dev [mm]':>8} {'share':>6} "
-        f"{phase + ' [mm':>8} {'deg]':>5} {'frac':>5}  verdict"
+        f"{phase + ' [mm':>8} {'deg]':>5} {'frac':>5} {'outcome':>12}  verdict"
     )
     print(header, flush=True)
-    passed = 0
+    passed = successes = 0
     for seed in args.seeds:
         r = check(seed, args.out / f"seed{seed}", args.from_stage, **settings)
+        successes += r["outcome"] == "success"
         failed = [name for name, ok in TARGETS.items() if not ok(r)]
         passed += not failed
         verdict = "ok" if not failed else "FAIL: " + ", ".join(failed)
         print(
             f"{seed:>4} {r['w0']:8.1f} {r['plan']:6.1f} {r['phys']:6.1f} {r['dev']:8.1f} "
-            f"{r['share']:6.2f} {r['err_mm']:8.1f} {r['err_deg']:5.2f} {r['frac']:5.2f}  "
+            f"{r['share']:6.2f} {r['err_mm']:8.1f} {r['err_deg']:5.2f} {r['frac']:5.2f} "
+            f"{r['outcome']:>12}  "
             f"{verdict}",
             flush=True,
         )
-    print(f"{passed} of {len(args.seeds)} seeds meet all targets")
+    print(f"{passed} of {len(args.seeds)} seeds meet all targets; {successes} succeed")
     return 0
 
 
