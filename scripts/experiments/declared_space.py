@@ -1,0 +1,119 @@
+"""Does a task's declared space matter? Its teachers' demonstrations learned in the task's own
+space and in eq. 1's, each reproduced over the same places.
+
+For a task whose space is not eq. 1 (``marked``: the glass relative to the marker is part of
+it), each teacher of ``RUN_DIR`` (seeds as ``imitate eval --teachers N`` takes them, learned
+under ``RUN_DIR/eval/teachers`` where missing) is learned again from its own cut demonstrations
+in :data:`imitate.taskspace.EQ1` (the same learning settings). Both models are reproduced with
+the default planner in the task's default scene and at ``--n`` places of each of the task's
+places drawn uniformly over the built-in suite's ranges (the same draws for both, other settings
+at their defaults), each replayed in physics from seeds 0, 1, 2; the outcome is the task's. The
+table gives, per teacher and space, the outcome at the default place and the successes over
+the drawn ones, then the totals with Wilson intervals.
+
+Usage: ``python scripts/experiments/declared_space.py RUN_DIR [--teachers 3] [--n 10]
+[--seed 0] [--workers 2]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import multiprocessing
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from imitate.demos.segment import task_demos
+from imitate.envs.pour.task import pour_phase
+from imitate.envs.task import Task, get_task
+from imitate.evaluation.report import wilson
+from imitate.evaluation.teachers import run_task, teachers
+from imitate.learning import LearningConfig, learn
+from imitate.models import humanoid
+from imitate.motion import PlanConfig, plan_from_model
+from imitate.motion.replay import measure, planning_task
+from imitate.stages.config import load_config
+from imitate.stages.files import DemosFile
+from imitate.taskspace import EQ1
+
+SPACES = ("declared", "eq1")
+
+
+def eq1_model(run_dir: Path):
+    """The teacher's demonstrations in ``run_dir`` learned again in eq. 1's space."""
+    config, cut = load_config(run_dir), DemosFile.load(run_dir)
+    demos, rate = task_demos(cut.segments, cut.objects, cut.gaze, EQ1, smoothing=config.smoothing)
+    settings = LearningConfig(k_max=min(config.k_max, *(len(d) for d in demos)),
+                              bic_method=config.bic, seed=config.seed)
+    return learn(demos, rate=rate, config=settings)
+
+
+def as_eq1(task: Task) -> Task:
+    """``task`` planned and measured in eq. 1's space (its critical phase from the bottle's
+    angle there)."""
+    return dataclasses.replace(task, space=EQ1, critical=pour_phase)
+
+
+def trial(job) -> tuple[int, int, str, str]:
+    """One teacher's reproduction at one place in one space: its outcome (in a worker)."""
+    seed, index, space, options, model, gaze, name = job
+    task = get_task(name)
+    planned = task if space == "declared" else as_eq1(task)
+    scene = dataclasses.replace(task.scene(options), space=planned.space)
+    plan = plan_from_model(planning_task(scene, gaze), model, q0=humanoid.rest_pose(),
+                           config=PlanConfig(), critical=planned.critical)
+    records = [measure(planned, plan, task.make_env(scene), seed=s, gaze=gaze,
+                       options=options)[1] for s in range(task.replays)]
+    return seed, index, space, task.outcome(plan.min_distance, records, task.settings(options))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("run_dir", type=Path)
+    parser.add_argument("--teachers", type=int, default=3)
+    parser.add_argument("--n", type=int, default=10, help="drawn places per teacher")
+    parser.add_argument("--seed", type=int, default=0, help="of the places' draws")
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args(argv)
+    name = run_task(args.run_dir)
+    task = get_task(name)
+    if task.space == EQ1:
+        parser.error(f"task {name!r} declares eq. 1: nothing to compare")
+    ranges = {f"{p}_{c}": task.options[f"{p}_{c}"].suite for p in task.space.places for c in "xy"}
+    rng = np.random.default_rng(args.seed)
+    places = [{}] + [{k: float(rng.uniform(*r)) for k, r in ranges.items()}
+                     for _ in range(args.n)]
+    jobs = []
+    for t in teachers(args.run_dir, args.run_dir / "eval", args.teachers, (), args.workers):
+        models = {"declared": t.learned.model, "eq1": eq1_model(t.path.parent)}
+        jobs += [(t.seed, i, s, p, models[s], t.learned.gaze, name)
+                 for i, p in enumerate(places) for s in SPACES]
+    with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
+        results = pool.map(trial, jobs)
+    print(f"{name}: {len(places) - 1} places drawn over {ranges} (seed {args.seed}) and the "
+          f"default one; {task.replays} replays each\n")
+    print("| teacher | space | default place | drawn places: success | outcomes |")
+    print("|---|---|---|---|---|")
+    totals = Counter()
+    for seed in sorted({r[0] for r in results}):
+        for space in SPACES:
+            mine = [r for r in results if r[0] == seed and r[2] == space]
+            default = next(r[3] for r in mine if r[1] == 0)
+            drawn = Counter(r[3] for r in mine if r[1] > 0)
+            totals[space, "success"] += drawn["success"]
+            totals[space, "n"] += sum(drawn.values())
+            print(f"| {seed} | {space} | {default} | {drawn['success']} of {sum(drawn.values())}"
+                  f" | {', '.join(f'{o} {k}' for o, k in drawn.most_common())} |")
+    print()
+    for space in SPACES:
+        k, n = totals[space, "success"], totals[space, "n"]
+        low, high = wilson(k, n)
+        print(f"{space}: {k} of {n} drawn places succeed ({k / n:.0%}, 95 % Wilson "
+              f"{low:.2f}..{high:.2f})")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
