@@ -21,7 +21,7 @@ rather than on the later moment the spread test notices it.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -263,9 +263,8 @@ def segment(tracks: Tracks, config: StillnessConfig = StillnessConfig()) -> list
 
 
 def task_demo(
-    demo: Demonstration, objects: tuple[str, ...], gaze: np.ndarray, space: TaskSpace, *,
-    smoothing: float,
-    rate: float,
+    demo: Demonstration, objects: tuple[str, ...], gaze: np.ndarray, space: TaskSpace,
+    places: Mapping[str, np.ndarray], *, smoothing: float, rate: float,
 ) -> np.ndarray:
     """The task-space demonstration (in the task's ``space``) learned from ``demo``.
 
@@ -276,10 +275,10 @@ def task_demo(
 
     Args:
         demo: The demonstration; ``objects`` names the first axis of its arrays.
-        objects: Object names, the tool's first, then the target's, then the places' (which
-            stand upright and still: each is where its bottom was seen, by the median).
+        objects: Object names, the tool's first, then the target's, then the places'.
         gaze: ``(3, 3)`` gaze frame of the observation.
         space: The task's space.
+        places: Where each place stands, ``(3,)`` [m] (:func:`place_positions`).
         smoothing: Savitzky-Golay window [s]; 0: none.
         rate: Frame rate of the tracks [Hz].
 
@@ -287,22 +286,43 @@ def task_demo(
         ``(n, m)`` task-space samples.
 
     Raises:
-        ImitateError: an object was tracked in none of the demonstration's frames.
+        ImitateError: the tool or the target was tracked in none of the demonstration's frames.
     """
-    ok = np.all(np.isfinite(demo.position) & np.isfinite(demo.axis), axis=-1)
-    position, axis = (_bridged(demo.times, v, ok) for v in (demo.position, demo.axis))
+    held = slice(0, len(OBJECTS))
+    ok = np.all(np.isfinite(demo.position[held]) & np.isfinite(demo.axis[held]), axis=-1)
+    position, axis = (_bridged(demo.times, v[held], ok) for v in (demo.position, demo.axis))
     axis = _unit(axis)
     frames = int(round(smoothing * rate)) | 1
     if 5 <= frames <= position.shape[1]:
         position, axis = _savgol(position, frames), _unit(_savgol(axis, frames))
-    bottoms = {
+    tracks: dict[str, tuple[np.ndarray, np.ndarray | None]] = {
         role: (position[k] - axis[k] * SHAPES[name].height / 2, axis[k])
-        for k, (role, name) in enumerate(zip(OBJECTS, objects, strict=False))
+        for k, (role, name) in enumerate(zip(OBJECTS, objects[held], strict=True))
     }
+    tracks.update({name: (np.broadcast_to(p, position[0].shape), None)
+                   for name, p in places.items()})
+    return space(tracks, gaze)
+
+
+def place_positions(
+    segments: Sequence[Demonstration], objects: tuple[str, ...]
+) -> dict[str, np.ndarray]:
+    """Where each place (the ``objects`` after the tool and the target) stands, ``(3,)`` [m]:
+    the median of its bottom over every frame of ``segments`` it was seen in (it stands upright
+    and still).
+
+    Raises:
+        ImitateError: a place seen in none of their frames.
+    """
+    found = {}
     for k, name in enumerate(objects[len(OBJECTS):], start=len(OBJECTS)):
-        bottom = np.median(position[k], axis=0) - (0.0, 0.0, SHAPES[name].height / 2)
-        bottoms[name] = (np.broadcast_to(bottom, position[k].shape), None)
-    return space(bottoms, gaze)
+        seen = np.concatenate([d.position[k] for d in segments])
+        seen = seen[np.all(np.isfinite(seen), axis=-1)]
+        if not len(seen):
+            raise ImitateError(f"place {name} was tracked in none of the demonstrations' frames; "
+                               "see figures/observation.png")
+        found[name] = np.median(seen, axis=0) - (0.0, 0.0, SHAPES[name].height / 2)
+    return found
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -316,5 +336,6 @@ def task_demos(
     """The demonstrations ``segments`` in the task ``space`` (:func:`task_demo` each) and their
     rate [Hz] (the first one's median frame rate): what :func:`imitate.learn` takes."""
     rate = 1.0 / float(np.median(np.diff(segments[0].times)))
-    return [task_demo(d, objects, gaze, space, smoothing=smoothing, rate=rate)
+    places = place_positions(segments, objects)
+    return [task_demo(d, objects, gaze, space, places, smoothing=smoothing, rate=rate)
             for d in segments], rate

@@ -23,7 +23,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
-from imitate.demos.segment import task_demo
+from imitate.demos.segment import place_positions, task_demo
 from imitate.envs.assembly import Obstacle
 from imitate.envs.bimanual import BimanualEnv
 from imitate.envs.observation import EYES, ObservationConfig, frames, session
@@ -254,11 +254,12 @@ def teacher_episodes(run: Run, images: bool = False) -> Iterator[Episode]:
         "task": task.dims, **{obj: POSE for obj in objects},
         "action": tuple(f"{obj}.{c}" for obj in objects for c in POSE),
     }
+    places = place_positions(demos.segments, demos.objects)
     for demo in demos.segments:
         poses = motion.poses(demo.times)
         true = {obj: np.hstack(poses[obj]) for obj in objects}
         states = task_demo(
-            demo, demos.objects, demos.gaze, task.space, smoothing=config.smoothing,
+            demo, demos.objects, demos.gaze, task.space, places, smoothing=config.smoothing,
             rate=config.fps,
         )
         observations = {"task": states, **true}
