@@ -111,38 +111,44 @@ class Obstacle:
 
 @dataclass(frozen=True)
 class Place:
-    """An object that stands still, upright, on the table: a landmark a task space may be
-    relative to (a :class:`~imitate.taskspace.Relative` term names it). Its body and shape are
-    those of its name; the planner keeps clear of its hulls, as of an obstacle.
+    """An object that stands still, upright, on the table or raised above it on a post: a
+    landmark a task space may be relative to (a :class:`~imitate.taskspace.Relative` term names
+    it). Its body and shape are those of its name; the planner keeps clear of its hulls (and its
+    post), as of an obstacle.
 
     Attributes:
         name: Its shape, one of :data:`imitate.models.shapes.SHAPES`; its body's name.
-        x, y: Where its bottom's centre stands on the table top [m].
+        x, y: Where its bottom's centre stands over the table top [m].
+        lift: How far above the table top its bottom is, on a grey post as wide as it [m].
     """
 
     name: str
     x: float
     y: float
+    lift: float = 0.0
 
     def __post_init__(self):
         if self.name not in shapes.SHAPES:
             raise ImitateError(f"place {self.name!r} unknown; accepted: {list(shapes.SHAPES)}")
-        xy = _finite((self.x, self.y))
+        xy = _finite((self.x, self.y, self.lift))
         radius = max(r for r, _ in shapes.SHAPES[self.name].profile)
         (x0, x1), (y0, y1) = scene.TABLE_X, scene.TABLE_Y
         if xy is None or not (x0 + radius <= xy[0] <= x1 - radius
-                              and y0 + radius <= xy[1] <= y1 - radius):
+                              and y0 + radius <= xy[1] <= y1 - radius
+                              and 0 <= xy[2] <= OBSTACLE_MAX_LIFT):
             raise ImitateError(
-                f"place {self.name} at x={self.x!r}, y={self.y!r} not accepted: its footprint "
-                f"(radius {radius} m) must lie within the table top x {x0}..{x1}, y {y0}..{y1}"
+                f"place {self.name} at x={self.x!r}, y={self.y!r}, lift={self.lift!r} not "
+                f"accepted: its footprint (radius {radius} m) must lie within the table top x "
+                f"{x0}..{x1}, y {y0}..{y1}, its bottom 0..{OBSTACLE_MAX_LIFT} m above it"
             )
         object.__setattr__(self, "x", xy[0])
         object.__setattr__(self, "y", xy[1])
+        object.__setattr__(self, "lift", xy[2])
 
     @property
     def pos(self) -> tuple[float, float, float]:
         """Its bottom's centre [m]."""
-        return self.x, self.y, scene.TABLE_HEIGHT
+        return self.x, self.y, scene.TABLE_HEIGHT + self.lift
 
 
 @dataclass(frozen=True)
@@ -299,10 +305,15 @@ def build_spec(config: SceneConfig = SceneConfig()) -> mujoco.MjSpec:
     for obj in config.objects:
         objects.add_container(spec, spec.worldbody, obj, shapes.SHAPES[obj])
     for place in config.places:
-        body = objects.add_container(
-            spec, spec.worldbody, place.name, shapes.SHAPES[place.name], fixed=True
-        )
+        shape = shapes.SHAPES[place.name]
+        body = objects.add_container(spec, spec.worldbody, place.name, shape, fixed=True)
         body.pos = place.pos
+        if place.lift > 0:  # its post, from the table top to its bottom
+            body.add_geom(
+                name=f"{place.name}_hull_post", type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+                size=(shape.profile[0][0], place.lift / 2, 0), pos=(0, 0, -place.lift / 2),
+                rgba=(0.45, 0.42, 0.40, 1),
+            )
     if config.tool_inside:
         spec.add_text(name=INSIDE, data=" ".join(config.objects))
     objects.add_particles(spec, config.particles)

@@ -35,8 +35,8 @@ class ObservationConfig:
         fps: camera rate [Hz].
         width: image width [px].
         height: image height [px].
-        head_tilt: the robot's head tilt while watching [rad] (> 0 looks down); ``None``: the
-            task script's, which keeps the teacher's hands (and the places) in the images.
+        head_tilt: the robot's head tilt while watching [rad] (> 0 looks down); the default
+            centres the teacher's hands in the images.
         fast_render: render the eye cameras without shadows, reflections, multisample
             anti-aliasing, skybox and textures (a black sky, a plain floor): several times
             faster on a CPU (Mesa llvmpipe; the skybox alone is a third of a frame), and the
@@ -48,7 +48,7 @@ class ObservationConfig:
     fps: float = 30.0
     width: int = 640
     height: int = 480
-    head_tilt: float | None = None
+    head_tilt: float = 0.08
     fast_render: bool = True
 
     def __post_init__(self):
@@ -70,7 +70,7 @@ def watching_scene(config: ObservationConfig) -> tuple[mujoco.MjModel, mujoco.Mj
     ))
     data = mujoco.MjData(model)
     pose = dict(zip(humanoid.JOINTS, humanoid.rest_pose(), strict=True))
-    pose["head_tilt"] = script.head_tilt if config.head_tilt is None else config.head_tilt
+    pose["head_tilt"] = config.head_tilt
     for joint, angle in pose.items():
         data.qpos[model.joint(joint).qposadr[0]] = angle
     hold(model, data, "teacher")

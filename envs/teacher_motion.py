@@ -64,8 +64,6 @@ class Script:
             none.
         places: objects standing still on the table in the teacher's scene, watched by the
             robot as the held ones are (the places a task space may be relative to).
-        head_tilt: the robot's head tilt while watching [rad] (> 0 looks down): the tilt that
-            keeps the demonstrations (and the places) in its eyes' images.
     """
 
     objects: tuple[str, str]
@@ -75,7 +73,6 @@ class Script:
     offset_axis: int
     mislead: tuple[int, float] | None = None
     places: tuple[Place, ...] = ()
-    head_tilt: float = 0.08
 
 
 @dataclass(frozen=True)

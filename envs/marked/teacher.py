@@ -1,13 +1,15 @@
 """The marked pour's teacher: the pour's waypoints (:mod:`imitate.envs.pour.teacher`) moved so
-that the glass is held over a marker standing on the teacher's side of the table while the
-bottle pours (:data:`SCRIPT`).
+that the glass is held over a marker while the bottle pours (:data:`SCRIPT`).
 
-The whole demonstration is moved by :data:`SHIFT`: 6 cm towards the robot, so that the marker
-under the pour stands on the table, and 25 cm down, so that the glass pours 4 to 16 cm above
-the marker's top (within the robot's reach when it does the same over its own marker). Around the
-pour the glass keeps within :data:`OVER_SPREAD` of over the marker (the pour's spread is 2 cm):
-where the marker is, the teacher is exact. The bottle relative to the glass, the tilts, the
-time warps and the tremor are the pour's.
+The whole demonstration is moved 6 cm towards the robot (:data:`SHIFT`), so that the marker under
+the pour stands over the table. The teacher's marker stands on a post (:data:`LIFT`), its top 6
+cm under the glass as the pour begins: the teacher pours where the robot watches it best, as the
+pour's teacher does, while the robot's own marker stands on the table, the glass as high above
+it as the teacher's above its own (within the robot's reach). The place varies from scene to
+scene in height too; the task space, relative to the marker, does not. Around the pour the
+glass keeps within :data:`OVER_SPREAD` of over the marker (the pour's spread is 2 cm): where the
+marker is, the teacher is exact. The bottle relative to the glass, the tilts, the time warps and
+the tremor are the pour's.
 """
 
 from __future__ import annotations
@@ -20,9 +22,10 @@ from imitate.envs.assembly import Place
 from imitate.envs.pour.teacher import SCRIPT as POUR
 from imitate.models.shapes import MARKER
 
-__all__ = ["MARKER_PLACE", "SCRIPT", "SHIFT"]
+__all__ = ["LIFT", "MARKER_PLACE", "SCRIPT", "SHIFT"]
 
-SHIFT = np.array((-0.06, 0.0, -0.30))  # [m] the glass's bottom, from the pour's
+SHIFT = np.array((-0.06, 0.0, 0.0))  # [m] the glass's bottom, from the pour's
+LIFT = 0.27  # [m] the teacher's marker's bottom above the table top
 OVER_SPREAD = 0.006  # [m] the glass's spread over demonstrations from the pour's start to its end
 _POUR_ROWS = range(3, 7)  # the tilt up, the pour (the script's agree rows), the tilt back
 
@@ -39,10 +42,9 @@ def _moved(row: tuple, index: int) -> tuple:
 
 _POUR_AT = np.mean([POUR.waypoints[i][1] for i in POUR.agree_rows], axis=0) + SHIFT
 # Under the middle of the pour: the glass's bottom centre there, on the table.
-MARKER_PLACE = Place(MARKER, round(float(_POUR_AT[0]), 6), round(float(_POUR_AT[1]), 6))
+MARKER_PLACE = Place(MARKER, round(float(_POUR_AT[0]), 6), round(float(_POUR_AT[1]), 6), LIFT)
 SCRIPT = dataclasses.replace(
     POUR,
     waypoints=tuple(_moved(row, i) for i, row in enumerate(POUR.waypoints)),
     places=(MARKER_PLACE,),
-    head_tilt=0.30,  # 0.22 rad more than the pour's: the demonstration is 30 cm lower
 )
