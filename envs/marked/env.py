@@ -61,7 +61,7 @@ class MarkedPouringEnv(PouringEnv):
 
     def _task_info(self) -> dict[str, Any]:
         info = super()._task_info()
-        in_bottle = float(np.mean(self.particles_in(objects.BOTTLE)))
+        in_bottle = self._fractions()[1]
         glass = self.data.body(objects.GLASS).xpos
         offset = float(np.hypot(*(glass[:2] - self._marker.xpos[:2])))
         if self._in_bottle is not None and in_bottle < self._in_bottle:  # liquid left it

@@ -41,7 +41,7 @@ def _moved(row: tuple, index: int) -> tuple:
 
 
 _POUR_AT = np.mean([POUR.waypoints[i][1] for i in POUR.agree_rows], axis=0) + SHIFT
-# Under the middle of the pour: the glass's bottom centre there, on the table.
+# Under the middle of the pour: below the glass's bottom centre there, on its post.
 MARKER_PLACE = Place(MARKER, round(float(_POUR_AT[0]), 6), round(float(_POUR_AT[1]), 6), LIFT)
 SCRIPT = dataclasses.replace(
     POUR,
