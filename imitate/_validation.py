@@ -8,8 +8,18 @@ from numpy.typing import ArrayLike
 from imitate.errors import ImitateError
 
 
-def check_samples(X: ArrayLike) -> np.ndarray:
+def check_samples(
+    X: ArrayLike, name: str = "X", row: str = "sample", shape: str = "(n_samples, n_dims)",
+    hint: str = "",
+) -> np.ndarray:
     """Validates samples as a finite float array of shape ``(n_samples, n_dims)``.
+
+    Args:
+        X: The samples.
+        name: How the messages call them.
+        row: How they call one row (``"sample"``, ``"step"``).
+        shape: How they write the shape asked for.
+        hint: What the message about a non-finite value adds (``"; interpolate ..."``).
 
     Returns:
         The samples as a C-contiguous float array (``X`` itself when it already is one).
@@ -17,14 +27,13 @@ def check_samples(X: ArrayLike) -> np.ndarray:
     arr = np.ascontiguousarray(X, dtype=float)
     if arr.ndim != 2 or arr.shape[0] == 0 or arr.shape[1] == 0:
         raise ImitateError(
-            "X must be a non-empty 2-D array of shape (n_samples, n_dims); "
-            f"got shape {np.shape(X)}"
+            f"{name} must be a non-empty array of shape {shape}; got shape {np.shape(X)}"
         )
     if not np.all(np.isfinite(arr)):
         bad = np.argwhere(~np.isfinite(arr))[0]
         raise ImitateError(
-            f"X contains a non-finite value ({arr[tuple(bad)]}) at sample {bad[0]}, "
-            f"dimension {bad[1]}"
+            f"{name} contains a non-finite value ({arr[tuple(bad)]}) at {row} {bad[0]}, "
+            f"dimension {bad[1]}{hint}"
         )
     return arr
 

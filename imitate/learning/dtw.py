@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from imitate._numba import ensure_writable
+from imitate._validation import check_samples
 from imitate.errors import ImitateError
 
 ensure_writable(__file__)  # before the kernels below are declared
@@ -41,22 +42,25 @@ _START, _DIAGONAL, _LEFT, _UP = -1, 0, 1, 2
 
 
 def _as_series(x: ArrayLike, name: str) -> np.ndarray:
-    """Validates one series as a finite float array of shape ``(n_steps, n_dims)``."""
+    """Validates one series as a finite float array of shape ``(n_steps, n_dims)`` (one
+    dimension for a 1-D one)."""
     arr = np.asarray(x, dtype=float)
-    if arr.ndim == 1:
-        arr = arr[:, None]
-    if arr.ndim != 2 or arr.shape[0] == 0 or arr.shape[1] == 0:
+    return check_samples(
+        arr[:, None] if arr.ndim == 1 else arr, name, "step", "(n_steps, n_dims) or (n_steps,)",
+        "; interpolate or drop missing samples first",
+    )
+
+
+def _pair(
+    a: ArrayLike, b: ArrayLike, weights: ArrayLike | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The series ``a`` and ``b`` checked, of as many dimensions, and their weights."""
+    a, b = _as_series(a, "a"), _as_series(b, "b")
+    if a.shape[1] != b.shape[1]:
         raise ImitateError(
-            f"{name} must be a non-empty array of shape (n_steps, n_dims) or (n_steps,); "
-            f"got shape {np.shape(x)}"
+            f"a and b must have the same number of dimensions; got {a.shape[1]} and {b.shape[1]}"
         )
-    if not np.all(np.isfinite(arr)):
-        bad = np.argwhere(~np.isfinite(arr))[0]
-        raise ImitateError(
-            f"{name} contains a non-finite value ({arr[tuple(bad)]}) at step {bad[0]}, "
-            f"dimension {bad[1]}; interpolate or drop missing samples first"
-        )
-    return arr
+    return a, b, _as_weights(weights, a.shape[1])
 
 
 def _as_weights(weights: ArrayLike | None, n_dims: int) -> np.ndarray:
@@ -85,13 +89,7 @@ def local_costs(a: ArrayLike, b: ArrayLike, weights: ArrayLike | None = None) ->
     Raises:
         ImitateError: On non-finite input, mismatched dimensions or bad weights.
     """
-    a = _as_series(a, "a")
-    b = _as_series(b, "b")
-    if a.shape[1] != b.shape[1]:
-        raise ImitateError(
-            f"a and b must have the same number of dimensions; got {a.shape[1]} and {b.shape[1]}"
-        )
-    w = _as_weights(weights, a.shape[1])
+    a, b, w = _pair(a, b, weights)
     bt = np.ascontiguousarray((b * w).T)
     aw = a * w
     v = np.empty((a.shape[0], b.shape[0]))
@@ -209,13 +207,7 @@ def dtw(a: ArrayLike, b: ArrayLike, weights: ArrayLike | None = None) -> tuple[f
         >>> float(d), path.tolist()
         (0.0, [[0, 0], [0, 1], [1, 2], [2, 3]])
     """
-    a = _as_series(a, "a")
-    b = _as_series(b, "b")
-    if a.shape[1] != b.shape[1]:
-        raise ImitateError(
-            f"a and b must have the same number of dimensions; got {a.shape[1]} and {b.shape[1]}"
-        )
-    w = _as_weights(weights, a.shape[1])
+    a, b, w = _pair(a, b, weights)
     distance, steps = _dtw_scaled(a * w, b * w)
     return float(distance), _backtrack(steps)
 
