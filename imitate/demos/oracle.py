@@ -29,7 +29,8 @@ def true_demos(
     """
     return [
         space({"tool": (position[0], axis[0]), "target": (position[1], axis[1]),
-               **{name: (p, None) for name, (p, _) in motion.place_poses(axis[0]).items()}}, gaze)
+               **{p.name: (np.broadcast_to(p.pos, position[0].shape), None)
+                  for p in motion.places}}, gaze)
         for position, axis in motion.demonstration_frames(times)
     ]
 

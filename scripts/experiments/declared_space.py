@@ -1,15 +1,16 @@
 """Does a task's declared space matter? Its teachers' demonstrations learned in the task's own
 space and in eq. 1's, each reproduced over the same places.
 
-For a task whose space is not eq. 1 (``marked``: the glass relative to the marker is part of
-it), each teacher of ``RUN_DIR`` (seeds as ``imitate eval --teachers N`` takes them, learned
-under ``RUN_DIR/eval/teachers`` where missing) is learned again from its own cut demonstrations
-in :data:`imitate.taskspace.EQ1` (the same learning settings). Both models are reproduced with
-the default planner in the task's default scene and at ``--n`` places of each of the task's
-places drawn uniformly over the built-in suite's ranges (the same draws for both, other settings
-at their defaults), each replayed in physics from seeds 0, 1, 2; the outcome is the task's. The
-table gives, per teacher and space, the outcome at the default place and the successes over
-the drawn ones, then the totals with Wilson intervals.
+For a task whose space is not eq. 1 and whose critical phase is the pour's (``marked``: the glass
+relative to the marker is part of its space; in eq. 1's the pour is found from the bottle's angle,
+column 3, by :func:`~imitate.envs.pour.task.pour_phase`), each teacher of ``RUN_DIR`` (seeds as
+``imitate eval --teachers N`` takes them, learned under ``RUN_DIR/eval/teachers`` where missing) is
+learned again from its own cut demonstrations in :data:`imitate.taskspace.EQ1` (the same learning
+settings). Both models are reproduced with the default planner in the task's default scene and at
+``--n`` places of each of the task's places drawn uniformly over the built-in suite's ranges (the
+same draws for both, other settings at their defaults), each replayed in physics from seeds 0, 1, 2;
+the outcome is the task's. The table gives, per teacher and space, the outcome at the default place
+and the successes over the drawn ones, then the totals with Wilson intervals.
 
 Usage: ``python scripts/experiments/declared_space.py RUN_DIR [--teachers 3] [--n 10]
 [--seed 0] [--workers 2]``
@@ -51,8 +52,8 @@ def eq1_model(run_dir: Path):
 
 
 def as_eq1(task: Task) -> Task:
-    """``task`` planned and measured in eq. 1's space (its critical phase from the bottle's
-    angle there)."""
+    """``task`` planned and measured in eq. 1's space (the pour's critical phase, from the
+    bottle's angle there)."""
     return dataclasses.replace(task, space=EQ1, critical=pour_phase)
 
 
