@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from imitate.demos.oracle import oracle_model
+from imitate.envs.task import get_task
 from imitate.learning import LearningConfig
 from imitate.motion import PlanConfig
 from imitate.motion.replay import planning_task
@@ -30,7 +31,8 @@ def _plans(run_dir, **settings) -> dict[bool, tuple[dict, dict]]:
     ``--no-push``."""
     found = {}
     for push in (True, False):
-        report = optimize.run(run_dir, RunConfig(push=push, max_iter=30, **settings))
+        config = RunConfig(push=push, max_iter=30, **settings)
+        report = optimize.run(run_dir, config, get_task(config.task))
         with np.load(run_dir / "plan.npz") as arrays:
             found[push] = report["optimization"], dict(arrays)
     return found

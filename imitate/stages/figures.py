@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from imitate.envs.assembly import build_model
-from imitate.envs.task import get_task
+from imitate.envs.task import Task
 from imitate.envs.teacher_motion import script_demonstrations
 from imitate.envs.video import captioned, penetrations, replay_frames, teacher_frames, write_video
 from imitate.errors import ImitateError
@@ -40,7 +40,7 @@ PAUSE_SPEEDUP = 8.0
 VIDEO_THREADS = 2
 
 
-def run(run_dir: Path, config: RunConfig) -> dict:
+def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
     """The figures (``figures/*.png``) and the video: the teacher, then the robot doing the task.
 
     A worker process (:mod:`imitate.figures.drawing`) draws the figures while this one renders and
@@ -55,7 +55,6 @@ def run(run_dir: Path, config: RunConfig) -> dict:
     _check_states(replayed, config, run_dir / layout.REPLAY)
     sweep = dict(zip(weights, planned.sweep.x, strict=True))
     clearance = dict(zip(weights, planned.sweep.clearance, strict=True))
-    task = get_task(config.task)
     labels, units = task.dims, task.space.units
     angle = int(task.space.angles[0]) if task.space.angles.size else 0  # Fig. 4's dimension
     # name: (plots' function, its arguments); Fig. 8's snapshots rendered below

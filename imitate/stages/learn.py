@@ -10,7 +10,7 @@ import numpy as np
 
 from imitate.demos.oracle import true_demos
 from imitate.demos.segment import task_demos
-from imitate.envs.task import get_task
+from imitate.envs.task import Task
 from imitate.envs.teacher_motion import script_demonstrations
 from imitate.learning import LearningConfig, learn
 from imitate.learning.bic import bic_sweep
@@ -18,9 +18,10 @@ from imitate.stages.config import RunConfig
 from imitate.stages.files import DemosFile, Learned, ModelFile, ObservationsFile
 
 
-def run(run_dir: Path, config: RunConfig) -> dict:
-    """Task space, DTW, GMM (components by BIC), GMR; the other BIC method for comparison."""
-    space = get_task(config.task).space
+def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
+    """``task``'s space, DTW, GMM (components by BIC), GMR; the other BIC method for
+    comparison."""
+    space = task.space
     if config.oracle:
         tracks = ObservationsFile.load(run_dir).observations.tracks
         motion = script_demonstrations(config.teacher())

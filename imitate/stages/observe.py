@@ -10,6 +10,7 @@ import numpy as np
 
 from imitate.demos.segment import StillnessConfig, segment
 from imitate.envs.observation import ObservationConfig
+from imitate.envs.task import Task
 from imitate.perception.accuracy import demo_counts, tracking_errors
 from imitate.perception.watch import watch
 from imitate.stages.config import RunConfig
@@ -19,8 +20,9 @@ from imitate.stages.progress import bar
 log = logging.getLogger(__name__)
 
 
-def run(run_dir: Path, config: RunConfig) -> dict:
-    """The teacher demonstrates, the robot's eyes track the objects, stillness cuts the demos."""
+def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
+    """The teacher demonstrates ``task``, the robot's eyes track what it shows (its objects and
+    places), stillness cuts the demos."""
     watching = ObservationConfig(
         teacher=config.teacher(),
         fps=config.fps, width=config.width, height=config.height,

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate.envs.task import get_task
+from imitate.envs.task import Task
 from imitate.models import humanoid
 from imitate.motion import plan_from_model
 from imitate.motion.metrics import critical_error, deviation
@@ -19,11 +19,10 @@ from imitate.stages.files import ModelFile, PlanFile, Sweep
 from imitate.stages.progress import bar
 
 
-def run(run_dir: Path, config: RunConfig) -> dict:
+def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
     """Whole-body attractor optimization at ``collision_weight``, and the Fig. 9 sweep."""
     learned = ModelFile.load_learned(run_dir)
     model = learned.model
-    task = get_task(config.task)
     task_map = planning_task(config.scene(), learned.gaze)
     chosen = config.collision_weight
     weights = sorted({chosen * s for s in config.sweep} | {chosen})

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate.envs.task import Task, get_task
+from imitate.envs.task import Task
 from imitate.envs.video import StateRecorder
 from imitate.motion import Plan
 from imitate.motion.replay import measure
@@ -24,7 +24,7 @@ log = logging.getLogger(__name__)
 APPROACH_S = 1.0  # [s] from the reset pose to the plan's start in the replay
 
 
-def run(run_dir: Path, config: RunConfig) -> dict:
+def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
     """The plan drives the robot's actuators in full physics; again from ``task.replays - 1``
     more seeds of the initial-state noise (the physics may be chaotic: the outcome asks every
     replay to succeed). The plan of the sweep's smallest collision weight (Fig. 8's top row)
@@ -33,7 +33,6 @@ def run(run_dir: Path, config: RunConfig) -> dict:
     The replays are independent: they run in threads, one per core at most (MuJoCo's
     ``mj_step`` releases the GIL), each in its own env, so their results are those of a serial
     run."""
-    task = get_task(config.task)
     jobs, gaze = _replay_jobs(run_dir, config, task.replays)
     with (
         ThreadPoolExecutor(min(len(jobs), os.cpu_count() or 1)) as pool,

@@ -56,7 +56,7 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
         refuse_link(run_dir / name)  # now, not after the stage's work, at its commit
     with staged(run_dir, last=provenance.MANIFEST) as staging:
         start = time.perf_counter()
-        sections = current.body()(run_dir, config)
+        sections = current.body()(run_dir, config, task)
         seconds = time.perf_counter() - start
         outputs = staging.files()
         manifest = provenance.recorded(manifest, run_dir, current, config, outputs)
