@@ -308,6 +308,7 @@ def build_spec(config: SceneConfig = SceneConfig()) -> mujoco.MjSpec:
         shape = shapes.SHAPES[place.name]
         body = objects.add_container(spec, spec.worldbody, place.name, shape, fixed=True)
         body.pos = place.pos
+        body.mocap = config.holder == "teacher"  # the teacher moves its places between demos
         if place.lift > 0:  # its post, from the table top to its bottom
             body.add_geom(
                 name=f"{place.name}_hull_post", type=mujoco.mjtGeom.mjGEOM_CYLINDER,

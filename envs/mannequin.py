@@ -118,9 +118,13 @@ def show(model: mujoco.MjModel, data: mujoco.MjData, poses: dict[str, tuple]) ->
         model: a scene built with the teacher.
         data: its data; object free joints and the teacher's mocap bodies are written, then
             kinematics are updated for rendering.
-        poses: ``{object: (pos (3,) [m], quat (4,) wxyz)}`` of the object frames.
+        poses: ``{object: (pos (3,) [m], quat (4,) wxyz)}`` of the object frames; a place
+            (a mocap body of the teacher's scene) is moved there, no arm drawn.
     """
     for obj, (pos, quat) in poses.items():
+        if model.body(obj).mocapid[0] >= 0:
+            _set_mocap(model, data, obj, pos, quat)
+            continue
         joint = model.joint(obj)
         data.qpos[joint.qposadr[0] : joint.qposadr[0] + 7] = (*pos, *quat)
         hand_pos, hand_quat = hand_pose_for_object(model, obj, pos, quat)

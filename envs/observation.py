@@ -203,7 +203,7 @@ RENDER_AHEAD = 8
 def _rendered(sess: Session, timing: dict | None) -> Iterator[np.ndarray]:
     """The session's pairs ``(2, height, width, 3)`` uint8, rendered in the calling thread."""
     eyes = _eye_renderer(sess)
-    poses = sess.motion.poses(sess.times)
+    poses = {**sess.motion.poses(sess.times), **sess.motion.place_poses(sess.times)}
     try:
         for i in range(len(sess.times)):
             start = time.perf_counter()

@@ -21,7 +21,7 @@ The mannequin's arms are drawn by :mod:`imitate.envs.mannequin`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
@@ -64,6 +64,11 @@ class Script:
             none.
         places: objects standing still on the table in the teacher's scene, watched by the
             robot as the held ones are (the places a task space may be relative to).
+        place_spread: half the ranges ``(x, y)`` [m] over which the places stand, from one
+            demonstration to the next (they are moved in the stillness between two); zeros:
+            where ``places`` puts them, throughout.
+        placed_rows: the rows in which the target is placed relative to the places: its bottom
+            moves with them (and the tool, relative to it, too).
     """
 
     objects: tuple[str, str]
@@ -73,6 +78,8 @@ class Script:
     offset_axis: int
     mislead: tuple[int, float] | None = None
     places: tuple[Place, ...] = ()
+    place_spread: tuple[float, float] = (0.0, 0.0)
+    placed_rows: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -86,7 +93,7 @@ class TeacherConfig:
             stillness before the first and after the last demonstration is drawn from it.
         task: the task demonstrated (its :class:`Script`), one of ``imitate.envs.tasks.NAMES``.
         spread: scale of the spatial variation between demonstrations: 1 gives the spreads of
-            the script's waypoints.
+            the script's waypoints and its places' ``place_spread``.
         tilt_plane_spread: standard deviation of the azimuth of the plane the tool tilts in
             [rad] (0: it tilts straight across the robot's view).
         speed_variation: amplitude of the time warp: the local speed is
@@ -168,7 +175,9 @@ class TeacherMotion:
         tilt_planes: ``(n_demos,)`` azimuth of the tool's tilt plane [rad].
         tremor: ``(2, 4, _TREMOR_WAVES, 3)`` per object, per channel (x, y, z, tilt), the
             sinusoids' amplitude, frequency [Hz] and phase [rad].
-        places: the script's places, standing still throughout.
+        places: where the script's places stand through each demonstration: ``places[i]`` for
+            demonstration ``i`` (from the middle of the stillness before it to the middle of
+            the one after it); one tuple for all when the script does not move them.
     """
 
     config: TeacherConfig
@@ -179,19 +188,27 @@ class TeacherMotion:
     warps: np.ndarray
     tilt_planes: np.ndarray
     tremor: np.ndarray
-    places: tuple[Place, ...] = ()
+    places: tuple[tuple[Place, ...], ...] = ((),)
 
     @property
     def watched(self) -> tuple[str, ...]:
         """What the robot tracks: the tool, the target, then the places."""
-        return (*self.objects, *(p.name for p in self.places))
+        return (*self.objects, *(p.name for p in self.places[0]))
+
+    def places_of(self, demo: int) -> tuple[Place, ...]:
+        """Where the places stand through demonstration ``demo``."""
+        return self.places[demo % len(self.places)]
 
     def place_poses(self, times: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """The places' frames at ``times`` ``(n,)`` [s], as :meth:`poses` gives the objects'
-        (bottom centre, upright)."""
-        n = len(np.atleast_1d(times))
-        return {p.name: (np.tile(p.pos, (n, 1)), np.tile((1.0, 0.0, 0.0, 0.0), (n, 1)))
-                for p in self.places}
+        (bottom centre, upright): each moves in the middle of the stillness between two
+        demonstrations."""
+        times = np.atleast_1d(np.asarray(times, dtype=float))
+        moves = (self.boundaries[1:, 0] + self.boundaries[:-1, 1]) / 2  # mid-stillness [s]
+        demo = np.searchsorted(moves, times, side="right")
+        return {p.name: (np.array([self.places_of(d)[k].pos for d in demo]).reshape(-1, 3),
+                         np.tile((1.0, 0.0, 0.0, 0.0), (len(times), 1)))
+                for k, p in enumerate(self.places[0])}
 
     def phase(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Which demonstration is under way and how far, at ``times``.
@@ -330,6 +347,7 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
     if config.n_demos > 1:
         even = np.linspace(-1.0, 1.0, config.n_demos) * half * config.spread
         offsets = even[np.random.default_rng([config.seed, 1]).permutation(config.n_demos)]
+    moves = _place_moves(config, script)
     paths = []
     for i, noise in enumerate(noises):
         values = nominal + spread * noise
@@ -338,6 +356,7 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
         # In the critical phase the target moves as scripted (nominal), off by its offset at
         # the phase's start.
         values[critical[1], :3] += values[critical[0], :3] - nominal[critical[0], :3]
+        values[list(script.placed_rows), :2] += moves[i]
         # Shape-preserving (no overshoot between waypoints), starting and ending at rest.
         slopes = PchipInterpolator(u, values).derivative()(u)
         slopes[[0, -1]] = 0.0
@@ -361,8 +380,20 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
         warps=np.array(warps),
         tilt_planes=config.tilt_plane_spread * rng.standard_normal(config.n_demos),
         tremor=tremor,
-        places=script.places,
+        places=tuple(tuple(replace(p, x=round(p.x + dx, 6), y=round(p.y + dy, 6))
+                           for p in script.places) for dx, dy in moves)
+        if any(script.place_spread) else (script.places,),
     )
+
+
+def _place_moves(config: TeacherConfig, script: Script) -> np.ndarray:
+    """Each demonstration's move of the script's places ``(n_demos, 2)`` [m]: evenly over
+    ``+-place_spread`` (times ``spread``) in x and in y, each shuffled on its own (from a stream of
+    their own: the rest of the session is drawn as without them)."""
+    rng = np.random.default_rng([config.seed, 2])
+    even = np.linspace(-1.0, 1.0, config.n_demos) if config.n_demos > 1 else np.zeros(1)
+    half = np.multiply(script.place_spread, config.spread)
+    return np.stack([rng.permutation(even) * half[0], rng.permutation(even) * half[1]], axis=1)
 
 
 def _mislead_in_values(mislead: tuple[int, float] | None) -> tuple[int, float]:

@@ -104,7 +104,8 @@ def teacher_frames(
         eye = frame_renderer(model, inset_size[1], inset_size[0], quick=quick)
         try:
             for i in range(len(times))[every]:
-                poses = motion.poses(times[i : i + 1])
+                at = times[i : i + 1]
+                poses = {**motion.poses(at), **motion.place_poses(at)}
                 mannequin.show(
                     model, data, {obj: (p[0], q[0]) for obj, (p, q) in poses.items()}
                 )

@@ -14,7 +14,7 @@ from gymnasium.utils.env_checker import check_env
 import imitate  # noqa: F401  (registers the envs)
 from imitate.envs.marked.outcome import OUTCOMES, OVER, outcome
 from imitate.envs.marked.task import SPACE
-from imitate.envs.marked.teacher import MARKER_PLACE, SCRIPT
+from imitate.envs.marked.teacher import MARKER_PLACE, PLACE_SPREAD, SCRIPT
 from imitate.envs.pour.teacher import teacher_pour
 from imitate.envs.task import get_task
 from imitate.envs.teacher_motion import TeacherConfig, script_demonstrations
@@ -58,15 +58,22 @@ def test_the_space_is_not_eq_1_but_holds_it():
 
 
 def test_the_teacher_pours_over_the_marker():
-    """Every demonstration of seed 0 holds the glass over the marker through the pour; the first
-    one pours in physics (the pour's own check, on this script's motion)."""
+    """Every demonstration of seed 0 holds the glass over the marker through the pour, the
+    marker moved between demonstrations (each place seen where it stands, from the middle of
+    the stillness before to the one after); the first one pours in physics (the pour's own
+    check, on this script's motion)."""
     motion = script_demonstrations(TeacherConfig(task="marked"))
-    assert motion.places == SCRIPT.places == (MARKER_PLACE,)
-    for start, end in motion.boundaries:
-        _, u = motion.phase(np.linspace(start, end, 200))
+    spots = np.array([(p.x, p.y) for (p,) in motion.places])
+    assert len(spots) == len(motion.boundaries) and len({tuple(s) for s in spots}) == len(spots)
+    assert np.all(np.abs(spots - (MARKER_PLACE.x, MARKER_PLACE.y)) <= np.add(PLACE_SPREAD, 1e-9))
+    for spot, (start, end) in zip(spots, motion.boundaries, strict=True):
+        times = np.linspace(start, end, 200)
+        _, u = motion.phase(times)
         pouring = (u >= SCRIPT.waypoints[4][0]) & (u <= SCRIPT.waypoints[5][0])
-        glass = motion.poses(np.linspace(start, end, 200)[pouring])[objects.GLASS][0]
-        assert np.hypot(*(glass[:, :2] - (MARKER_PLACE.x, MARKER_PLACE.y)).T).max() < OVER
+        glass = motion.poses(times[pouring])[objects.GLASS][0]
+        assert np.hypot(*(glass[:, :2] - spot).T).max() < OVER
+        np.testing.assert_array_equal(motion.place_poses(times)[objects.MARKER][0][:, :2],
+                                      np.broadcast_to(spot, (len(times), 2)))
     assert teacher_pour(motion, 0, particles=30) >= 0.9
 
 
@@ -91,3 +98,23 @@ def test_a_quick_marked_run_end_to_end_tracks_the_marker_and_reports_its_keys(tm
     check_values(report, run_dir / layout.REPORT, *run_keys(TASK))
     assert report["replay"]["outcome"] in TASK.outcomes
     assert np.isfinite(report["replay"]["marker_offset"])
+
+
+
+def test_no_obstacle_stands_over_the_marker():
+    """Drawn in a path through the column over the marker and beside it, an obstacle keeps out
+    of the column (as wide as the glass): it stands beside, in the path there."""
+    from imitate.evaluation.suite import Suite
+    from imitate.evaluation.variation import draw
+
+    suite = Suite.default("marked").replace(in_path_share=1.0, obstacle_share=1.0,
+                                            marker_x=[0.45, 0.45], marker_y=[0.0, 0.0])
+    path = np.array([[0.45, 0.0, 0.72], [0.45, -0.22, 0.72]])  # over the marker, beside it
+    reach = max(r for r, _ in objects.SHAPES[objects.GLASS].profile)
+    drawn = [draw(suite, 0, i, path).obstacle for i in range(12)]
+    assert all(o is not None for o in drawn)
+    for o in drawn:
+        apart = np.abs(np.subtract((0.45, 0.0), o.pos[:2]))
+        gap = (np.hypot(*np.maximum(apart - o.size[:2], 0)) if o.shape == "box"
+               else np.hypot(*apart) - o.size[0])
+        assert gap >= reach

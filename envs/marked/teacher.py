@@ -8,8 +8,10 @@ pour's teacher does, while the robot's own marker stands on the table, the glass
 it as the teacher's above its own (within the robot's reach). The place varies from scene to
 scene in height too; the task space, relative to the marker, does not. Around the pour the
 glass keeps within :data:`OVER_SPREAD` of over the marker (the pour's spread is 2 cm): where the
-marker is, the teacher is exact. The bottle relative to the glass, the tilts, the time warps and
-the tremor are the pour's.
+marker is, the teacher is exact. Between two demonstrations the teacher moves the marker (within
+:data:`PLACE_SPREAD`) and pours over it where it stands, so that the demonstrations agree on the
+glass relative to the marker around the pour, not on its way there and back. The bottle
+relative to the glass, the tilts, the time warps and the tremor are the pour's.
 """
 
 from __future__ import annotations
@@ -22,11 +24,13 @@ from imitate.envs.assembly import Place
 from imitate.envs.pour.teacher import SCRIPT as POUR
 from imitate.models.shapes import MARKER
 
-__all__ = ["LIFT", "MARKER_PLACE", "SCRIPT", "SHIFT"]
+__all__ = ["LIFT", "MARKER_PLACE", "PLACE_SPREAD", "SCRIPT", "SHIFT"]
 
 SHIFT = np.array((-0.06, 0.0, 0.0))  # [m] the glass's bottom, from the pour's
 LIFT = 0.27  # [m] the teacher's marker's bottom above the table top
 OVER_SPREAD = 0.006  # [m] the glass's spread over demonstrations from the pour's start to its end
+# [m] the marker stands within +-2.5 cm (x: the table's edge) and +-4 cm (y) of MARKER_PLACE
+PLACE_SPREAD = (0.025, 0.04)
 _POUR_ROWS = range(3, 7)  # the tilt up, the pour (the script's agree rows), the tilt back
 
 
@@ -47,4 +51,6 @@ SCRIPT = dataclasses.replace(
     POUR,
     waypoints=tuple(_moved(row, i) for i, row in enumerate(POUR.waypoints)),
     places=(MARKER_PLACE,),
+    place_spread=PLACE_SPREAD,
+    placed_rows=tuple(_POUR_ROWS),
 )

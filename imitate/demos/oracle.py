@@ -30,8 +30,8 @@ def true_demos(
     return [
         space({"tool": (position[0], axis[0]), "target": (position[1], axis[1]),
                **{p.name: (np.broadcast_to(p.pos, position[0].shape), None)
-                  for p in motion.places}}, gaze)
-        for position, axis in motion.demonstration_frames(times)
+                  for p in motion.places_of(i)}}, gaze)
+        for i, (position, axis) in enumerate(motion.demonstration_frames(times))
     ]
 
 

@@ -3,8 +3,9 @@
 "If the observed objects are held still for a defined duration, the current demonstration is
 finished and the next one starts when the objects are moving again." Held still means neither
 moved nor turned: a frame is still when it lies in a window of ``min_still`` seconds over which
-every object's (smoothed) tracked point stays within a box of ``still_range`` and its angle
-around the gaze vector within ``still_turn``. Spread over a window separates a slow movement
+every held object's (smoothed) tracked point stays within a box of ``still_range`` and its angle
+around the gaze vector within ``still_turn`` (a place stands still through a demonstration; the
+teacher may move it between two). Spread over a window separates a slow movement
 (an object turning slowly while the task is done, a slow return) from tracking noise much
 better than an instantaneous speed does. A demonstration is a stretch between still frames
 lasting at least ``min_moving``.
@@ -21,6 +22,7 @@ rather than on the later moment the spread test notices it.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -239,7 +241,8 @@ def segment(tracks: Tracks, config: StillnessConfig = StillnessConfig()) -> list
         ImitateError: fewer than 2 demonstrations found; the message names the settings.
     """
     position, angle = smoothed(tracks, config.smoothing)
-    bounds = find_demonstrations(tracks.times, position, angle, config)
+    held = slice(0, len(OBJECTS))  # what the teacher moves (its places move between demos)
+    bounds = find_demonstrations(tracks.times, position[held], angle[held], config)
     if len(bounds) < 2:
         raise ImitateError(
             f"found {len(bounds)} demonstration(s) in {tracks.times[-1] - tracks.times[0]:.1f} s "
@@ -306,22 +309,28 @@ def task_demo(
 
 def place_positions(
     segments: Sequence[Demonstration], objects: tuple[str, ...]
-) -> dict[str, np.ndarray]:
-    """Where each place (the ``objects`` after the tool and the target) stands, ``(3,)`` [m]:
-    the median of its bottom over every frame of ``segments`` it was seen in (it stands upright
-    and still).
+) -> list[dict[str, np.ndarray]]:
+    """Where each place (the ``objects`` after the tool and the target) stands through each of
+    ``segments``, ``(3,)`` [m]: the median of its bottom over the segment's frames it was seen
+    in (it stands upright and still while the teacher demonstrates); over every segment's frames
+    for a segment it was hidden through, with a warning.
 
     Raises:
         ImitateError: a place seen in none of their frames.
     """
-    found = {}
+    found: list[dict[str, np.ndarray]] = [{} for _ in segments]
     for k, name in enumerate(objects[len(OBJECTS):], start=len(OBJECTS)):
-        seen = np.concatenate([d.position[k] for d in segments])
-        seen = seen[np.all(np.isfinite(seen), axis=-1)]
-        if not len(seen):
+        seen = [d.position[k][np.all(np.isfinite(d.position[k]), axis=-1)] for d in segments]
+        if not sum(map(len, seen)):
             raise ImitateError(f"place {name} was tracked in none of the demonstrations' frames; "
                                "see figures/observation.png")
-        found[name] = np.median(seen, axis=0) - (0.0, 0.0, SHAPES[name].height / 2)
+        bottom = (0.0, 0.0, SHAPES[name].height / 2)
+        overall = np.median(np.concatenate(seen), axis=0) - bottom
+        for i, points in enumerate(seen):
+            if not len(points):
+                warnings.warn(f"place {name} was hidden through demonstration {i}: where it "
+                              "stood over all the demonstrations taken", stacklevel=2)
+            found[i][name] = np.median(points, axis=0) - bottom if len(points) else overall
     return found
 
 
@@ -337,5 +346,5 @@ def task_demos(
     rate [Hz] (the first one's median frame rate): what :func:`imitate.learn` takes."""
     rate = 1.0 / float(np.median(np.diff(segments[0].times)))
     places = place_positions(segments, objects)
-    return [task_demo(d, objects, gaze, space, places, smoothing=smoothing, rate=rate)
-            for d in segments], rate
+    return [task_demo(d, objects, gaze, space, p, smoothing=smoothing, rate=rate)
+            for d, p in zip(segments, places, strict=True)], rate

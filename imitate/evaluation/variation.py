@@ -6,7 +6,7 @@ path" stands under a point that the bottom of a held object passes through when 
 model is reproduced without the collision cost (:func:`path_points`): its footprint holds the
 point and its top rises ``path_overlap`` above it, so that reproduction would run into it. The
 other obstacles are placed at random over the suite's part of the table (some of them in the
-path too).
+path too). No obstacle stands over a place of the task's scene (:func:`_off_places`).
 
 The fixtures stand off the table where the same reproduction is in the task's critical phase
 (:func:`free_places`): a shelf over the tool, its underside ``shelf_gap`` below the tool's
@@ -31,6 +31,7 @@ from imitate.evaluation.suite import Suite
 from imitate.learning import LearnedModel
 from imitate.models import humanoid
 from imitate.models.scene import TABLE_HEIGHT, TABLE_X, TABLE_Y
+from imitate.models.shapes import SHAPES
 from imitate.motion import Plan, PlanConfig, plan_from_model
 from imitate.motion.kinematics import Kinematics
 from imitate.motion.replay import planning_task
@@ -296,7 +297,7 @@ def draw(
     if rng.random() < suite["obstacle_share"]:
         for _ in range(_OBSTACLE_DRAWS):
             obstacle, in_path = _obstacle(suite, rng, uniform, path)
-            if clear(obstacle):
+            if _off_places(obstacle, task.scene(options)) and clear(obstacle):
                 break
             obstacle, in_path = None, False
     options.update({name: option(name) for name in declared if name not in planned})
@@ -335,6 +336,21 @@ def draw(
         plate=fixtures["plate"][0],
         plate_gap=fixtures["plate"][1],
     )
+
+
+def _off_places(obstacle: Obstacle, scene: SceneConfig) -> bool:
+    """Whether ``obstacle``'s footprint keeps out of the column over each of ``scene``'s places
+    as wide as the widest object held: a task puts an object over its place, and an obstacle
+    standing there leaves no task to do (one beside the column is the task's to go round)."""
+    reach = max(r for obj in scene.objects for r, _ in SHAPES[obj].profile)
+    half = np.array(obstacle.size[:2] if obstacle.shape == "box" else obstacle.size[:1])
+    for place in scene.places:
+        apart = np.abs(np.subtract((place.x, place.y), obstacle.pos[:2]))
+        gap = (np.hypot(*np.maximum(apart - half, 0.0)) if obstacle.shape == "box"
+               else np.hypot(*apart) - half[0])
+        if gap < reach:
+            return False
+    return True
 
 
 def _fixture(name: str, place: CriticalPlace, gap: float) -> Fixture:

@@ -255,11 +255,11 @@ def teacher_episodes(run: Run, images: bool = False) -> Iterator[Episode]:
         "action": tuple(f"{obj}.{c}" for obj in objects for c in POSE),
     }
     places = place_positions(demos.segments, demos.objects)
-    for demo in demos.segments:
+    for demo, placed in zip(demos.segments, places, strict=True):
         poses = motion.poses(demo.times)
         true = {obj: np.hstack(poses[obj]) for obj in objects}
         states = task_demo(
-            demo, demos.objects, demos.gaze, task.space, places, smoothing=config.smoothing,
+            demo, demos.objects, demos.gaze, task.space, placed, smoothing=config.smoothing,
             rate=config.fps,
         )
         observations = {"task": states, **true}
