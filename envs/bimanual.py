@@ -14,7 +14,7 @@ import dataclasses
 import warnings
 from collections.abc import Mapping
 from numbers import Real
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import mujoco
@@ -58,11 +58,14 @@ class BimanualEnv(gym.Env):
         task: The task's name (its default grasps), set by the task's env.
         objects: The tool and the target, set by the task's env.
         tool_inside: Whether the tool goes into the target (``SceneConfig.tool_inside``).
+        measures: What the task measures of an episode: keys of ``info`` at its last step, with
+            unit (``"-"``: a count) and meaning; set by the task's env.
     """
 
     task: str
     objects: tuple[str, str]
     tool_inside: bool = False
+    measures: ClassVar[Mapping[str, tuple[str, str]]] = {}
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 50}  # 1 / dt at the default frame_skip
 

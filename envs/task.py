@@ -78,18 +78,15 @@ class Task:
 
     Attributes:
         env: Its env class; its ``objects`` are the tool (right hand) and the target (left),
-            its ``task`` the task's name (one of ``imitate.envs.tasks.NAMES``).
-        env_id: Its Gymnasium id.
+            its ``task`` the task's name (one of ``imitate.envs.tasks.NAMES``), its
+            ``measures`` what a replay's record adds (from ``info`` at the end).
         phase: The name of its critical phase (report keys ``<phase>_phase_err_m``).
         outcomes: The outcomes of a reproduction, ``"success"`` first.
-        measures: The keys of a replay's record that the task adds (from the env's ``info`` at
-            the end), with unit (``"-"``: a count) and meaning.
         outcome: ``outcome(plan_min_distance [m], records, options) -> str``, one of
             ``outcomes``.
         critical: ``critical(mean (T, m)) -> (T,) bool``: the steps of a learned mean in the
             task's critical phase (where its success is decided).
         watcher: The :class:`Watcher` of a replay (a class: its ``KEYS`` are read).
-        suites: Folder of its evaluation suites (``*.toml``).
         score: The replay measure its success is judged by (:class:`Score`).
         words: What its pages and datasets say of it (:class:`~imitate.rundir.page.Words`).
         exported: ``exported(record, info) -> dict``: the task's part of the metadata of an
@@ -102,14 +99,11 @@ class Task:
     """
 
     env: type[BimanualEnv]
-    env_id: str
     phase: str
     outcomes: tuple[str, ...]
-    measures: Mapping[str, tuple[str, str]]
     outcome: Callable[[float, Sequence[Mapping[str, Any]], Mapping[str, Any]], str]
     critical: Callable[[np.ndarray], np.ndarray]
     watcher: type[Watcher]
-    suites: Path
     score: Score
     words: Words
     exported: Callable[[Mapping[str, Any], Mapping[str, Any]], dict[str, Any]]
@@ -120,6 +114,21 @@ class Task:
     def name(self) -> str:
         """Its name (its env's ``task``)."""
         return self.env.task
+
+    @property
+    def env_id(self) -> str:
+        """Its Gymnasium id (its ``options`` module's ``ENV_ID``)."""
+        return str(tasks.module(self.name, "options").ENV_ID)
+
+    @property
+    def measures(self) -> Mapping[str, tuple[str, str]]:
+        """The keys of a replay's record that it adds, with unit and meaning (its env's)."""
+        return self.env.measures
+
+    @property
+    def suites(self) -> Path:
+        """The folder of its evaluation suites (``*.toml``): ``suites`` in its package."""
+        return tasks.folder(self.name) / "suites"
 
     @property
     def objects(self) -> tuple[str, str]:

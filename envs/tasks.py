@@ -19,8 +19,8 @@ from typing import Any
 
 from imitate.errors import ImitateError, quoted
 
-__all__ = ["DEFAULT", "NAMES", "PARTS", "Option", "check", "found", "module", "options",
-           "settings"]
+__all__ = ["DEFAULT", "NAMES", "PARTS", "Option", "check", "folder", "found", "module",
+           "options", "settings"]
 
 PARTS = ("options", "teacher", "task")  # the modules that make a package of envs a task
 DEFAULT = "pour"
@@ -85,6 +85,12 @@ def check(name: str) -> None:
     """Raise ``ImitateError`` unless ``name`` is a task's."""
     if name not in NAMES:
         raise ImitateError(f"task {quoted(name)} unknown; accepted: {list(NAMES)}")
+
+
+def folder(name: str) -> Path:
+    """The folder of task ``name``'s package."""
+    check(name)
+    return Path(__file__).parent / name
 
 
 def module(name: str, part: str):

@@ -70,7 +70,8 @@ applied: a refused reset leaves the env as it was.
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Mapping
+from typing import Any, ClassVar
 
 from imitate.envs.bimanual import BimanualEnv, check_weight
 from imitate.envs.insert.geometry import stick_end
@@ -85,6 +86,13 @@ class InsertingEnv(BimanualEnv):
 
     task = "insert"
     objects = (objects.STICK, objects.GLASS)
+    measures: ClassVar[Mapping[str, tuple[str, str]]] = {
+        "insert_depth": (
+            "m", "the deepest the stick's lower end went into the glass, below its rim (0: never "
+            "in it)",
+        ),
+        "insert_offset": ("m", "its distance from the glass's axis there"),
+    }
     _insert_weight: float
     _deepest: tuple[float, float]
     _progress: float

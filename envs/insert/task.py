@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from imitate.envs.insert.env import InsertingEnv
 from imitate.envs.insert.geometry import InsertGeometry
-from imitate.envs.insert.options import ENV_ID
 from imitate.envs.insert.outcome import OUTCOMES, SUCCESS_DEPTH, outcome
 from imitate.envs.task import Score, Task
 from imitate.models import objects
@@ -55,20 +53,11 @@ def exported(record: Mapping[str, Any], info: Mapping[str, Any]) -> dict[str, An
 
 TASK = Task(
     env=InsertingEnv,
-    env_id=ENV_ID,
     phase="insert",
     outcomes=OUTCOMES,
-    measures={
-        "insert_depth": (
-            "m", "the deepest the stick's lower end went into the glass, below its rim (0: never "
-            "in it)",
-        ),
-        "insert_offset": ("m", "its distance from the glass's axis there"),
-    },
     outcome=outcome,
     critical=insert_phase,
     watcher=InsertGeometry,
-    suites=Path(__file__).parent / "suites",
     score=Score("insert_depth", SUCCESS_DEPTH, "insert", unit="mm", scale=1000.0),
     words=Words(verbs=("inserts", "does not insert"), noun="the insertion",
                 instruction="put the stick into the glass", headline=headline),

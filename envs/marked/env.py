@@ -16,7 +16,8 @@ in :data:`imitate.envs.marked.options.OPTIONS`).
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from collections.abc import Mapping
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -33,6 +34,11 @@ class MarkedPouringEnv(PouringEnv):
     """The marked pour in full physics (see the module docstring)."""
 
     task = "marked"
+    measures: ClassVar[Mapping[str, tuple[str, str]]] = {
+        **PouringEnv.measures,
+        "marker_offset": ("m", "the glass's largest distance from the marker's axis while "
+                               "liquid left the bottle, horizontally"),
+    }
     _in_bottle: float | None
     _offset: float | None
 

@@ -4,12 +4,10 @@ words, its own space (the glass relative to the marker is part of it) and outcom
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 
 from imitate.envs.marked.env import MarkedPouringEnv
-from imitate.envs.marked.options import ENV_ID
 from imitate.envs.marked.outcome import OUTCOMES, outcome
 from imitate.envs.pour.task import TASK as POUR
 from imitate.envs.pour.task import pour_phase
@@ -33,18 +31,11 @@ def marked_pour_phase(mean: np.ndarray) -> np.ndarray:
 
 TASK = Task(
     env=MarkedPouringEnv,
-    env_id=ENV_ID,
     phase="pour",
     outcomes=OUTCOMES,
-    measures={
-        **POUR.measures,
-        "marker_offset": ("m", "the glass's largest distance from the marker's axis while "
-                               "liquid left the bottle, horizontally"),
-    },
     outcome=outcome,
     critical=marked_pour_phase,
     watcher=POUR.watcher,
-    suites=Path(__file__).parent / "suites",
     score=POUR.score,
     words=dataclasses.replace(POUR.words, instruction="pour from the bottle into the glass held "
                                                        "over the marker"),

@@ -69,7 +69,8 @@ refused reset leaves the env as it was.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from collections.abc import Mapping
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -86,6 +87,10 @@ class PouringEnv(BimanualEnv):
 
     task = "pour"
     objects = (objects.BOTTLE, objects.GLASS)
+    measures: ClassVar[Mapping[str, tuple[str, str]]] = {
+        "pour_fraction": ("1", "fraction of the particles in the glass at the end"),
+        "spilled": ("-", "particles in neither container at the end"),
+    }
     _pour_weight: float
     _pour_fraction: float
     _particle_bodies: np.ndarray

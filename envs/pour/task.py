@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from imitate.envs.pour.env import PouringEnv
 from imitate.envs.pour.geometry import PourGeometry
-from imitate.envs.pour.options import ENV_ID
 from imitate.envs.pour.outcome import OUTCOMES, SUCCESS_FRACTION, outcome
 from imitate.envs.task import Score, Task
 from imitate.rundir.page import Words, shown
@@ -49,17 +47,11 @@ def exported(record: Mapping[str, Any], info: Mapping[str, Any]) -> dict[str, An
 
 TASK = Task(
     env=PouringEnv,
-    env_id=ENV_ID,
     phase="pour",
     outcomes=OUTCOMES,
-    measures={
-        "pour_fraction": ("1", "fraction of the particles in the glass at the end"),
-        "spilled": ("-", "particles in neither container at the end"),
-    },
     outcome=outcome,
     critical=pour_phase,
     watcher=PourGeometry,
-    suites=Path(__file__).parent / "suites",
     score=Score("pour_fraction", SUCCESS_FRACTION, "pour"),
     words=Words(verbs=("pours", "does not pour"), noun="the pour",
                 instruction="pour from the bottle into the glass", headline=headline),
