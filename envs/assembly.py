@@ -1,5 +1,5 @@
-"""Scene assembly with ``mujoco.MjSpec``: room, robot, teacher, a task's two objects, liquid,
-obstacles and fixtures.
+"""Scene assembly with ``mujoco.MjSpec``: room, robot, teacher, a task's two objects, its places
+and contents (:class:`Content`), obstacles and fixtures.
 
 One model serves both halves of the experiment. The task's objects, the tool and the target, are
 free bodies held by weld constraints, either in the robot's hands (tool right, target left) or
@@ -13,6 +13,7 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 from numbers import Real
+from typing import Any, Protocol
 
 import mujoco
 import numpy as np
@@ -24,8 +25,10 @@ from imitate.models import humanoid, model_path, objects, scene, shapes, teacher
 from imitate.taskspace import EQ1, TaskSpace
 
 HOLDERS = ("robot", "teacher")
+# How the tool meets the target: never (each keeps clear of the other's hulls), or it goes into
+# it (the tool keeps clear of the target's walls and floor instead: :func:`clearance_geoms`).
+CONTACTS = ("apart", "inside")
 OBSTACLE_SHAPES = defaults.OBSTACLE_SHAPES
-MAX_PARTICLES = shapes.MAX_PARTICLES
 # Highest an obstacle's bottom may float above the table top [m]: up to the robot's shoulders.
 OBSTACLE_MAX_LIFT = defaults.OBSTACLE_MAX_LIFT
 GRASP_RANGE = shapes.GRASP_RANGE  # [m] above each object's bottom, by object name
@@ -172,46 +175,66 @@ class Fixture(Obstacle):
             )
 
 
+class Content(Protocol):
+    """What a task adds to its scene beyond its objects and places (the pour's liquid): built
+    into the model, placed at every reset of its env, and changed for drawing."""
+
+    @property
+    def settings(self) -> dict[str, Any]:
+        """The task env's arguments it is made from (``{"particles": 60}``)."""
+        ...
+
+    def add(self, spec: mujoco.MjSpec) -> None:
+        """Add its bodies to ``spec``."""
+        ...
+
+    def reset(
+        self, model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator | None
+    ) -> None:
+        """Put its bodies where an episode starts (the objects held, before kinematics)."""
+        ...
+
+    def show(self, model: mujoco.MjModel) -> None:
+        """Change ``model`` (a copy for drawing) so that people see it."""
+        ...
+
+
 @dataclass(frozen=True)
 class SceneConfig:
     """What the scene contains.
 
     Attributes:
         teacher: include the teacher mannequin across the table.
-        particles: number of liquid spheres in the tool, 0..``MAX_PARTICLES``.
+        contents: what the task adds to the scene (:class:`Content`).
         obstacles: obstacles on the table and fixtures (:class:`Fixture`) off it.
         holder: who holds the objects at the start, ``"robot"`` or ``"teacher"``.
         objects: the tool (held in the robot's right hand) and the target (left), names of
             :data:`imitate.models.shapes.SHAPES`.
         grasps: height along the tool and along the target at which each is held [m], see
             ``GRASP_RANGE``.
-        tool_inside: the tool goes into the target (a stick into the glass): the clearance
-            keeps the tool clear of the target's walls instead of its solid hulls
-            (:func:`clearance_geoms`).
+        contact: how the tool meets the target, one of :data:`CONTACTS`: ``"inside"``, it
+            goes into it (a stick into the glass), the clearance keeping the tool clear of the
+            target's walls instead of its solid hulls (:func:`clearance_geoms`).
         places: objects standing still on the table (:class:`Place`), neither of ``objects``.
         space: the task space the planner maps the scene through (its places are among
             ``places``).
     """
 
     teacher: bool = True
-    particles: int = 0
+    contents: tuple[Content, ...] = ()
     obstacles: tuple[Obstacle, ...] = field(default_factory=tuple)
     holder: str = "robot"
     objects: tuple[str, ...] = (shapes.BOTTLE, shapes.GLASS)
     grasps: tuple[float, ...] = (shapes.GRASP[shapes.BOTTLE], shapes.GRASP[shapes.GLASS])
-    tool_inside: bool = False
+    contact: str = "apart"
     places: tuple[Place, ...] = ()
     space: TaskSpace = EQ1
 
     def __post_init__(self):
         if not isinstance(self.teacher, bool | np.bool_):
             raise ImitateError(f"teacher={self.teacher!r} not accepted: True or False")
-        if not isinstance(self.particles, int | np.integer) or not (
-            0 <= self.particles <= MAX_PARTICLES
-        ):
-            raise ImitateError(
-                f"particles={self.particles!r} not accepted: an integer in 0..{MAX_PARTICLES}"
-            )
+        if self.contact not in CONTACTS:
+            raise ImitateError(f"contact={self.contact!r} not accepted: one of {CONTACTS}")
         if self.holder not in HOLDERS or (self.holder == "teacher" and not self.teacher):
             raise ImitateError(
                 f"holder={self.holder!r} not accepted: one of {HOLDERS} ('teacher' needs "
@@ -260,7 +283,7 @@ def check_clearance(config: SceneConfig, clearance: float = 0.0) -> None:
     distance. Obstacles may touch the table and each other."""
     if not config.obstacles and not config.places:
         return
-    model = build_model(dataclasses.replace(config, teacher=False, particles=0, holder="robot"))
+    model = build_model(dataclasses.replace(config, teacher=False, contents=(), holder="robot"))
     data = mujoco.MjData(model)
     data.qpos[[model.joint(j).qposadr[0] for j in humanoid.JOINTS]] = humanoid.rest_pose()
     hold(model, data, "robot")
@@ -315,9 +338,10 @@ def build_spec(config: SceneConfig = SceneConfig()) -> mujoco.MjSpec:
                 size=(shape.profile[0][0], place.lift / 2, 0), pos=(0, 0, -place.lift / 2),
                 rgba=(0.45, 0.42, 0.40, 1),
             )
-    if config.tool_inside:
+    if config.contact == "inside":
         spec.add_text(name=INSIDE, data=" ".join(config.objects))
-    objects.add_particles(spec, config.particles)
+    for content in config.contents:
+        content.add(spec)
     for i, obstacle in enumerate(config.obstacles):
         body = spec.worldbody.add_body(name=f"{scene.OBSTACLE_PREFIX}{i}", pos=obstacle.pos)
         kind = (
@@ -355,7 +379,7 @@ def planning_model(config: SceneConfig = SceneConfig()) -> mujoco.MjModel:
     drawn-only or container-wall geoms for ``mj_kinematics`` to place). Every body keeps
     the whole scene's mass and inertia, so poses, Jacobians and distances are the whole scene's
     bit for bit."""
-    config = dataclasses.replace(config, teacher=False, particles=0, holder="robot")
+    config = dataclasses.replace(config, teacher=False, contents=(), holder="robot")
     spec = build_spec(config)
     whole = spec.compile()
     keep = {whole.geom(g).name for g in clearance_geoms(whole)}
@@ -446,38 +470,13 @@ def hold(model: mujoco.MjModel, data: mujoco.MjData, holder: str) -> None:
     mujoco.mj_kinematics(model, data)
 
 
-def fill_tool(model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator | None = None):
-    """Place every particle at rest inside the tool (at its current pose), with a small jitter."""
-    n = particle_count(model)
-    if n == 0:
-        return
-    tool = objects_in(model)[0]
-    slots = objects.particle_slots(shapes.SHAPES[tool], n)
-    if rng is not None:
-        slots[:, :2] += rng.uniform(-0.2, 0.2, (n, 2)) * objects.PARTICLE_RADIUS
-    mujoco.mj_kinematics(model, data)
-    body = data.body(tool)
-    world = body.xpos + slots @ body.xmat.reshape(3, 3).T
-    for i in range(n):
-        joint = model.joint(f"{objects.PARTICLE_PREFIX}{i}")
-        qadr, dadr = model.jnt_qposadr[joint.id], model.jnt_dofadr[joint.id]
-        data.qpos[qadr : qadr + 7] = (*world[i], 1.0, 0.0, 0.0, 0.0)
-        data.qvel[dadr : dadr + 6] = 0.0
-
-
-def particle_count(model: mujoco.MjModel) -> int:
-    """Number of liquid particles in ``model``."""
-    prefix = objects.PARTICLE_PREFIX
-    return sum(model.body(i).name.startswith(prefix) for i in range(model.nbody))
-
-
 def clearance_geoms(model: mujoco.MjModel) -> list[int]:
     """Ids of the geoms that must keep clear of each other.
 
     The robot's collision capsules, the objects' hulls, the table top and the obstacles; in a
-    scene whose tool goes into its target (``SceneConfig.tool_inside``), the target's walls and
-    floor too, which the tool keeps clear of instead of the target's hulls. Pairs among them are
-    filtered by ``imitate.envs.collision.CollisionPairs.between``.
+    scene whose tool goes into its target (``SceneConfig.contact == "inside"``), the target's
+    walls and floor too, which the tool keeps clear of instead of the target's hulls. Pairs
+    among them are filtered by ``imitate.envs.collision.CollisionPairs.between``.
     """
     root = model.body(humanoid.ROOT_BODY).id
     robot = {b for b in range(model.nbody) if model.body_rootid[b] == root}

@@ -3,9 +3,9 @@ left, at a table; each task's env (``PouringEnv``, ``InsertingEnv``) adds what i
 
 The robot, the objects' welds, the obstacles, the observation spaces (state and the head
 cameras' pixels), the divergence check and the clearance are the same for every task, and
-documented on each task env's page. A task env sets ``objects`` (tool, target), may add scene
-contents (:meth:`_scene_config`) and fills in :meth:`_task_reset`, :meth:`_task_info` and
-:meth:`_task_reward`.
+documented on each task env's page. A task env sets ``objects`` (tool, target), may add to its
+scene (:meth:`scene_config`: contents, places) and fills in :meth:`_task_reset`,
+:meth:`_task_info` and :meth:`_task_reward`.
 """
 
 from __future__ import annotations
@@ -57,14 +57,14 @@ class BimanualEnv(gym.Env):
     Attributes:
         task: The task's name (its default grasps), set by the task's env.
         objects: The tool and the target, set by the task's env.
-        tool_inside: Whether the tool goes into the target (``SceneConfig.tool_inside``).
+        contact: How the tool meets the target (``SceneConfig.contact``).
         measures: What the task measures of an episode: keys of ``info`` at its last step, with
             unit (``"-"``: a count) and meaning; set by the task's env.
     """
 
     task: str
     objects: tuple[str, str]
-    tool_inside: bool = False
+    contact: str = "apart"
     measures: ClassVar[Mapping[str, tuple[str, str]]] = {}
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 50}  # 1 / dt at the default frame_skip
@@ -117,7 +117,7 @@ class BimanualEnv(gym.Env):
 
         parsed = tuple(assembly.Obstacle(**o) if isinstance(o, dict) else o for o in obstacles)
         self.reset_options = tuple(f"{obj}_grasp" for obj in self.objects)
-        self.config = self._scene_config(teacher=teacher, obstacles=parsed, **scene)
+        self.config = self.scene_config(teacher=teacher, obstacles=parsed, **scene)
         assembly.check_clearance(self.config)
         self.model = assembly.build_model(self.config)
         self.data = mujoco.MjData(self.model)
@@ -176,6 +176,8 @@ class BimanualEnv(gym.Env):
         if self.config.teacher:
             self._pose_teacher_at_rest()
         assembly.hold(self.model, self.data, "robot")
+        for content in self.config.contents:
+            content.reset(self.model, self.data, self.np_random)
         self._task_reset()
         mujoco.mj_forward(self.model, self.data)
         self._needs_reset = False
@@ -225,15 +227,16 @@ class BimanualEnv(gym.Env):
             self._renderer = None
 
     # ---------------------------------------------------------------- the task's part
-    def _scene_config(
-        self, teacher: bool, obstacles: tuple[assembly.Obstacle, ...]
+    @classmethod
+    def scene_config(
+        cls, teacher: bool = False, obstacles: tuple[assembly.Obstacle, ...] = ()
     ) -> assembly.SceneConfig:
         """The scene of ``teacher`` and ``obstacles``, the objects at the task's default grasps
-        (a task env with scene arguments of its own adds them)."""
-        grasps = tuple(tasks.options(self.task)[f"{obj}_grasp"].default for obj in self.objects)
+        (a task env with scene arguments of its own, contents or places, adds them)."""
+        grasps = tuple(tasks.options(cls.task)[f"{obj}_grasp"].default for obj in cls.objects)
         return assembly.SceneConfig(
-            teacher=teacher, obstacles=obstacles, objects=self.objects, grasps=grasps,
-            tool_inside=self.tool_inside,
+            teacher=teacher, obstacles=obstacles, objects=cls.objects, grasps=grasps,
+            contact=cls.contact,
         )
 
     def _task_reset(self) -> None:

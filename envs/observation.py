@@ -65,7 +65,7 @@ def watching_scene(config: ObservationConfig) -> tuple[mujoco.MjModel, mujoco.Mj
     them."""
     script = tasks.module(config.teacher.task, "teacher").SCRIPT
     model = build_model(SceneConfig(
-        teacher=True, particles=0, holder="teacher", objects=script.objects,
+        teacher=True, holder="teacher", objects=script.objects,
         grasps=tuple(shapes.GRASP[obj] for obj in script.objects), places=script.places,
     ))
     data = mujoco.MjData(model)

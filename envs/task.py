@@ -8,6 +8,7 @@ judged, and its critical phase.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -16,7 +17,7 @@ from typing import Any, ClassVar, Protocol
 import numpy as np
 
 from imitate.envs import tasks
-from imitate.envs.assembly import Obstacle, Place, SceneConfig
+from imitate.envs.assembly import Obstacle, SceneConfig
 from imitate.envs.bimanual import BimanualEnv
 from imitate.rundir.page import Words, error_keys
 from imitate.taskspace import EQ1, OBJECTS, TaskSpace
@@ -218,25 +219,18 @@ class Task:
             "obstacles": [asdict(o) for o in scene.obstacles],
         }
 
-    def places(self, values: Mapping[str, Any]) -> tuple[Place, ...]:
-        """The places its space names, each where its settings ``values`` put it (its own
-        settings ``<place>_x``, ``<place>_y`` [m])."""
-        return tuple(Place(p, values[f"{p}_x"], values[f"{p}_y"]) for p in self.space.places)
-
     def scene(
         self,
         options: Mapping[str, Any] | None = None,
         obstacles: Sequence[Obstacle] = (),
         teacher: bool = False,
     ) -> SceneConfig:
-        """The scene of these settings, ``obstacles`` and (or not) the teacher."""
+        """The scene of these settings, ``obstacles`` and (or not) the teacher: its env's
+        (:meth:`~imitate.envs.bimanual.BimanualEnv.scene_config`), at the settings' grasps."""
         values = self.settings(options)
         grasps = tuple(float(values[f"{obj}_grasp"]) for obj in self.objects)
-        return SceneConfig(
-            **self._scene_values(values, fields=True), objects=self.objects, grasps=grasps,
-            obstacles=tuple(obstacles), teacher=teacher, tool_inside=self.env.tool_inside,
-            places=self.places(values), space=self.space,
-        )
+        config = self.env.scene_config(teacher, tuple(obstacles), **self._scene_values(values))
+        return dataclasses.replace(config, grasps=grasps, space=self.space)
 
     def make_env(self, scene: SceneConfig, **kwargs: Any) -> BimanualEnv:
         """Its env of ``scene`` (obstacles, teacher and the task's own scene values; the grasps
@@ -249,17 +243,16 @@ class Task:
         """The task's measures of a replay, from the env's ``info`` at its end."""
         return {key: info[key] for key in self.measures}
 
-    def _scene_values(self, values: Any, fields: bool = False) -> dict[str, Any]:
+    def _scene_values(self, values: Mapping[str, Any] | SceneConfig) -> dict[str, Any]:
         """The scene values (beyond the grasps) of settings or of a scene, as its env takes
-        them: the particles, each place's ``<place>_x`` and ``<place>_y``; with ``fields``, those
-        a ``SceneConfig`` holds as its own fields (not the places')."""
-        placed = {f"{p}_{c}" for p in self.space.places for c in "xy"}
-        names = [n for n in self.options if not n.endswith("_grasp")
-                 and not (fields and n in placed)]
+        them: its contents' (the particles), each place's ``<place>_x`` and ``<place>_y``."""
+        names = [n for n in self.options if not n.endswith("_grasp")]
         if isinstance(values, Mapping):
             return {name: values[name] for name in names}
-        where = {f"{p.name}_{c}": getattr(p, c) for p in values.places for c in "xy"}
-        return {name: where[name] if name in placed else getattr(values, name) for name in names}
+        found = {f"{p.name}_{c}": getattr(p, c) for p in values.places for c in "xy"}
+        for content in values.contents:
+            found.update(content.settings)
+        return {name: found[name] for name in names}
 
 
 def shared_outcome(plan_min_distance: float, replays: Sequence[Mapping[str, Any]]) -> str | None:

@@ -3,7 +3,8 @@
 Frames are rendered from kinematic states only (no physics here): the teacher's scripted object
 poses (:mod:`imitate.envs.teacher_motion`) and the states a replay recorded
 (:class:`StateRecorder`). The teacher is seen from above the robot's left shoulder, with the
-robot's own eye view inset; the robot from the teacher's side, where the stream of liquid shows.
+robot's own eye view inset; the robot from the teacher's side, where what goes into the target
+shows.
 Shadows are off by default: on a CPU (Mesa) they are costly; ``quick=True`` also leaves out
 multisampling and reflections, which cost most of a frame's time there (the run's video).
 """
@@ -29,13 +30,12 @@ from imitate.envs.bimanual import BimanualEnv
 from imitate.envs.collision import CollisionPairs, signed_distances
 from imitate.envs.observation import ObservationConfig, watching_scene
 from imitate.envs.rendering import interleaved, make_renderer
-from imitate.models import humanoid, objects
+from imitate.models import humanoid
 from imitate.models import scene as scene_names
 
-# What people see of the liquid; only the copy of the model that draws it is changed, so the
-# physics (particle radius objects.PARTICLE_RADIUS, masses, contacts) stays as it is.
-PARTICLE_DRAWN_RADIUS = 0.008  # [m]
-GLASS_DRAWN_ALPHA = 0.3  # the glass is translucent, so the liquid in it shows
+# The target is drawn translucent, so what goes into it shows; only the copy of the model that
+# draws it is changed (as the scene's contents change theirs: Content.show).
+TARGET_DRAWN_ALPHA = 0.3
 MARK_RGB = (255, 230, 0)  # tracked objects in the robot's eye view
 CAPTION_BOX_RGB = (24, 24, 28)
 FONT = cv2.FONT_HERSHEY_SIMPLEX
@@ -160,13 +160,14 @@ def replay_frames(
     quick: bool = False,
 ) -> Iterator[np.ndarray]:
     """Recorded replay ``states`` (:meth:`StateRecorder.arrays`) of the scene ``config``, seen
-    from ``camera``, the liquid drawn so that it shows; in ``threads`` threads at once
-    (:func:`interleaved`), the same frames; ``quick``: see :func:`frame_renderer`."""
+    from ``camera``, drawn so that what goes into the target shows (:func:`_show`); in ``threads``
+    threads at once (:func:`interleaved`), the same frames; ``quick``: see
+    :func:`frame_renderer`."""
     config = _as_recorded(config, states)
 
     def part(every: slice) -> Iterator[np.ndarray]:
         model = build_model(config)
-        _show_liquid(model)
+        _show(model, config)
         data = mujoco.MjData(model)
         renderer = frame_renderer(model, height, width, shadows=shadows, quick=quick)
         try:
@@ -228,15 +229,12 @@ def _pose(model, data, qpos, mocap_pos, mocap_quat) -> None:
     mujoco.mj_kinematics(model, data)
 
 
-def _show_liquid(model: mujoco.MjModel) -> None:
-    """Draw the particles larger and the glass translucent in ``model`` (for drawing only)."""
-    for g in range(model.ngeom):
-        name = model.geom(g).name
-        if name.startswith(objects.PARTICLE_PREFIX):
-            model.geom_size[g, 0] = PARTICLE_DRAWN_RADIUS
-            model.geom_rbound[g] = PARTICLE_DRAWN_RADIUS
-        elif name == f"{objects.GLASS}_visual":
-            model.geom_rgba[g, 3] = GLASS_DRAWN_ALPHA
+def _show(model: mujoco.MjModel, config: SceneConfig) -> None:
+    """Draw the target translucent and the scene's contents as they show themselves, in
+    ``model`` (of ``config``, a copy for drawing only)."""
+    model.geom_rgba[model.geom(f"{config.objects[1]}_visual").id, 3] = TARGET_DRAWN_ALPHA
+    for content in config.contents:
+        content.show(model)
 
 
 def caption_layout(width: int, height: int, text: str):

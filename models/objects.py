@@ -1,4 +1,4 @@
-"""The objects and the liquid as MjSpec bodies (their data: :mod:`imitate.models.shapes`).
+"""The objects as MjSpec bodies (their data: :mod:`imitate.models.shapes`).
 
 Each container is a body whose frame sits at the centre of its bottom, ``z`` along its long axis.
 It has one uniformly coloured visual mesh (a surface of revolution made by trimesh), hidden
@@ -22,10 +22,6 @@ from imitate.models.shapes import (  # noqa: F401  (the objects' data, re-export
     GRASP_RANGE,
     MARKER,
     MARKER_SHAPE,
-    PARTICLE_DENSITY,
-    PARTICLE_PREFIX,
-    PARTICLE_RADIUS,
-    PARTICLE_RGBA,
     SHAPES,
     STICK,
     STICK_SHAPE,
@@ -138,46 +134,6 @@ def add_container(
             rgba=(1, 1, 1, 0.2),
         )
     return body
-
-
-def add_particles(spec: mujoco.MjSpec, count: int) -> list[mujoco.MjsBody]:
-    """Add ``count`` free, frictionless liquid spheres to the world; placed later by the env."""
-    bodies = []
-    for i in range(count):
-        body = spec.worldbody.add_body(name=f"{PARTICLE_PREFIX}{i}")
-        body.add_freejoint(name=f"{PARTICLE_PREFIX}{i}")
-        body.add_geom(
-            name=f"{PARTICLE_PREFIX}{i}",
-            type=mujoco.mjtGeom.mjGEOM_SPHERE,
-            size=(PARTICLE_RADIUS, 0, 0),
-            density=PARTICLE_DENSITY,
-            rgba=PARTICLE_RGBA,
-            condim=1,
-            solref=STIFF_SOLREF,
-            contype=PHYSICAL,
-            conaffinity=PHYSICAL,
-            group=VISUAL_GROUP,
-        )
-        bodies.append(body)
-    return bodies
-
-
-def particle_slots(shape: ContainerShape, count: int) -> np.ndarray:
-    """Non-overlapping rest positions for ``count`` particles inside ``shape``, bottom up.
-
-    Returns:
-        ``(count, 3)`` positions in the container frame [m].
-    """
-    pitch = 2.05 * PARTICLE_RADIUS
-    reach = shape.profile[0][0] - shape.wall / 2 - PARTICLE_RADIUS * 1.1 - pitch / 3
-    grid = np.arange(-reach, reach + 1e-9, pitch)
-    layer = np.array([(x, y) for x in grid for y in grid if np.hypot(x, y) <= reach])
-    n_layers = -(-count // len(layer))
-    z = shape.wall + PARTICLE_RADIUS * 1.1 + pitch * np.arange(n_layers)
-    slots = np.array([(x, y, h) for h in z for x, y in layer])[:count]
-    # Alternate layers are offset by half a pitch so the pile settles without stacking columns.
-    slots[:, :2] += (np.floor((slots[:, 2] - z[0]) / pitch + 0.5) % 2)[:, None] * pitch / 4
-    return slots
 
 
 def _box_corners(pos, quat, size) -> np.ndarray:

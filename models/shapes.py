@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 BOTTLE, GLASS, STICK, MARKER = "bottle", "glass", "stick", "marker"
-PARTICLE_PREFIX = "particle_"
+
 
 @dataclass(frozen=True)
 class ContainerShape:
@@ -75,11 +75,5 @@ SHAPES = {  # the objects by name
 # (the held ones).
 GRASP_RANGE = {BOTTLE: (0.05, 0.13), GLASS: (0.03, 0.08), STICK: (0.14, 0.22)}
 GRASP = {BOTTLE: 0.09, GLASS: 0.05, STICK: 0.18}
-MAX_PARTICLES = 120  # what fits in the bottle below its shoulder
-PARTICLE_RADIUS = 0.005  # [m]
-PARTICLE_DENSITY = 1000.0  # [kg/m^3], water
-# Red juice: it stands out on the white robot, the grey floor and the beige table, and its hue
-# is far from the bottle's green and the glass's blue.
-PARTICLE_RGBA = (0.82, 0.06, 0.12, 1.0)
 
 

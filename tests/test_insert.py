@@ -44,16 +44,16 @@ def test_check_env_of_the_registered_id():
 def test_the_env_holds_the_glass_where_the_task_does():
     env = InsertingEnv()
     env.reset(seed=0)
-    assert env.config.tool_inside and env.config.objects == (objects.STICK, objects.GLASS)
+    assert env.config.contact == "inside" and env.config.objects == (objects.STICK, objects.GLASS)
     assert env.config.grasps == tuple(get_task("insert").reset_options().values())
     env.close()
 
 
-def _scene(tool_inside: bool = True) -> tuple[mujoco.MjModel, mujoco.MjData]:
+def _scene(contact: str = "inside") -> tuple[mujoco.MjModel, mujoco.MjData]:
     """The robot at rest holding nothing (welds off), the stick and the glass free."""
     config = assembly.SceneConfig(
         teacher=False, objects=(objects.STICK, objects.GLASS), grasps=(0.17, 0.03),
-        tool_inside=tool_inside,
+        contact=contact,
     )
     model = assembly.build_model(config)
     data = mujoco.MjData(model)
@@ -101,10 +101,10 @@ def test_the_lower_end_is_the_lower_of_the_two():
     assert tilt == pytest.approx(180.0)
 
 
-def _clearance(tool_inside: bool, stick_bottom) -> tuple[float, set[tuple[str, str]]]:
+def _clearance(contact: str, stick_bottom) -> tuple[float, set[tuple[str, str]]]:
     """The smallest signed distance [m] over the clearance pairs, and the pairs' geom names, of
     the stick with its lower end at ``stick_bottom``, the glass at ``(0.6, 0, 1)``."""
-    model, data = _scene(tool_inside)
+    model, data = _scene(contact)
     _place(model, data, stick_bottom)
     pairs = CollisionPairs.between(model, assembly.clearance_geoms(model))
     names = {pairs.names(model, k) for k in range(len(pairs))}
@@ -115,9 +115,9 @@ def test_the_stick_keeps_clear_of_the_glass_s_walls_not_of_its_hull():
     """Inside the glass the stick's hull overlaps the glass's solid hull: the insertion's
     clearance measures the stick against the glass's walls and floor instead (and nothing else
     against them); through the wall is a collision still."""
-    centred, names = _clearance(True, (0.6, 0.0, 1.045))
-    through, _ = _clearance(True, (0.6, 0.04, 1.07))
-    solid, solid_names = _clearance(False, (0.6, 0.0, 1.045))
+    centred, names = _clearance("inside", (0.6, 0.0, 1.045))
+    through, _ = _clearance("inside", (0.6, 0.04, 1.07))
+    solid, solid_names = _clearance("apart", (0.6, 0.0, 1.045))
     glass = {pair for pair in names if any(n.startswith("glass_") for n in pair)}
     walls = {pair for pair in glass if "glass_hull_0" not in pair}
     assert walls and all(sorted(pair)[1] == "stick_hull_0" for pair in walls)

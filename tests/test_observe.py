@@ -130,7 +130,7 @@ def test_observe_tracks_the_whole_session_with_its_truth_and_timing():
 
 
 def test_an_unknown_camera_is_refused_with_the_cameras_named():
-    model = build_model(SceneConfig(teacher=False, particles=0))
+    model = build_model(SceneConfig(teacher=False))
     with pytest.raises(ImitateError, match=r"camera 'nose' not in the model; its cameras: \["):
         observation.camera_parameters(model, mujoco.MjData(model), "nose", 64, 48)
 

@@ -30,7 +30,7 @@ MARKERS = np.array([[0.62, 0.05, 1.10], [0.70, -0.12, 1.02], [0.55, 0.10, 0.98]]
 @pytest.fixture(scope="module")
 def marker_views():
     """Left and right 640x480 images of red spheres at MARKERS, with the cameras."""
-    spec = build_spec(SceneConfig(teacher=False, particles=0))
+    spec = build_spec(SceneConfig(teacher=False))
     for i, pos in enumerate(MARKERS):
         body = spec.worldbody.add_body(name=f"marker_{i}", pos=pos)
         body.add_geom(

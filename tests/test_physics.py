@@ -9,6 +9,7 @@ from imitate.envs.bimanual import inside
 from imitate.envs.collision import signed_distances
 from imitate.envs.pour.env import PouringEnv
 from imitate.envs.pour.geometry import PourGeometry
+from imitate.envs.pour.liquid import Liquid, particle_bodies
 from imitate.models import objects
 
 
@@ -59,7 +60,8 @@ def test_particles_stay_in_upright_bottle(env):
 
 
 def _teacher_holding(particles):
-    model = assembly.build_model(assembly.SceneConfig(particles=particles, holder="teacher"))
+    config = assembly.SceneConfig(contents=(Liquid(particles),), holder="teacher")
+    model = assembly.build_model(config)
     data = mujoco.MjData(model)
     return model, data
 
@@ -82,14 +84,13 @@ def test_particles_leave_bottle_tilted_120_degrees():
 
     pose(0.0)
     assembly.hold(model, data, "teacher")
-    assembly.fill_tool(model, data)
+    Liquid(60).reset(model, data, None)
     steps = 400
     for k in range(steps):  # tilt to 120 degrees in 0.8 s, then hold for 1 s
         pose(np.radians(120) * min(1.0, k / (0.8 / model.opt.timestep)))
         mujoco.mj_step(model, data)
     mujoco.mj_step(model, data, nstep=500)
-    ids = [model.body(f"{objects.PARTICLE_PREFIX}{i}").id for i in range(60)]
-    in_bottle = inside(data, objects.BOTTLE, data.xpos[ids])
+    in_bottle = inside(data, objects.BOTTLE, data.xpos[particle_bodies(model)])
     assert in_bottle.mean() < 0.1
 
 

@@ -7,6 +7,7 @@ import pytest
 from imitate.envs import assembly
 from imitate.envs.collision import CollisionPairs
 from imitate.envs.pour.env import PouringEnv
+from imitate.envs.pour.liquid import Liquid, particle_bodies
 from imitate.errors import ImitateError
 from imitate.models import humanoid, objects
 from imitate.models import scene as names
@@ -16,7 +17,7 @@ from imitate.motion.replay import planning_task
 
 @pytest.fixture(scope="module")
 def model():
-    return assembly.build_model(assembly.SceneConfig(particles=5, obstacles=(_box(),)))
+    return assembly.build_model(assembly.SceneConfig(contents=(Liquid(5),), obstacles=(_box(),)))
 
 
 def _box(pos=(0.6, 0.2, 0.72)):
@@ -94,7 +95,7 @@ def test_object_colours_distinct_from_scene():
         h, _, s = colorsys.rgb_to_hls(*rgba[:3])
         return 360 * h, s
 
-    model = assembly.build_model(assembly.SceneConfig(particles=1))
+    model = assembly.build_model(assembly.SceneConfig(contents=(Liquid(1),)))
     targets = {obj: hue_sat(shape.rgba) for obj, shape in objects.SHAPES.items()}
     for g in range(model.ngeom):
         name = model.geom(g).name
@@ -107,17 +108,17 @@ def test_object_colours_distinct_from_scene():
 
 
 def test_variants():
-    bare = assembly.build_model(assembly.SceneConfig(teacher=False, particles=0))
-    assert bare.nmocap == 0 and assembly.particle_count(bare) == 0
-    full = assembly.build_model(
-        assembly.SceneConfig(particles=7, obstacles=(_box(), _box((0.9, -0.3, 0.72))))
-    )
-    assert full.nmocap == 3 * len(teacher_names.SIDES) and assembly.particle_count(full) == 7
+    bare = assembly.build_model(assembly.SceneConfig(teacher=False))
+    assert bare.nmocap == 0 and len(particle_bodies(bare)) == 0
+    full = assembly.build_model(assembly.SceneConfig(
+        contents=(Liquid(7),), obstacles=(_box(), _box((0.9, -0.3, 0.72)))
+    ))
+    assert full.nmocap == 3 * len(teacher_names.SIDES) and len(particle_bodies(full)) == 7
     assert full.geom(f"{names.OBSTACLE_PREFIX}1").size[0] == pytest.approx(0.05)
 
 
 def test_weld_holds_object_at_grasp():
-    model = assembly.build_model(assembly.SceneConfig(particles=0, grasps=(0.12, 0.05)))
+    model = assembly.build_model(assembly.SceneConfig(grasps=(0.12, 0.05)))
     data = _data_at_rest(model)
     grip = data.site(humanoid.RIGHT_GRIP).xpos
     bottom = data.body(objects.BOTTLE).xpos
@@ -128,8 +129,7 @@ def test_weld_holds_object_at_grasp():
 @pytest.mark.parametrize(
     "kwargs, match",
     [
-        ({"particles": -1}, "particles=-1"),
-        ({"particles": 500}, "0..120"),
+        ({"contact": "on"}, r"contact='on' not accepted: one of \('apart', 'inside'\)"),
         ({"holder": "nobody"}, "holder='nobody'"),
         ({"teacher": False, "holder": "teacher"}, "needs teacher=True"),
         ({"grasps": (0.3, 0.05)}, "bottle grasp height"),

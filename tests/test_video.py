@@ -11,6 +11,7 @@ import pytest
 
 from imitate.envs.assembly import build_model
 from imitate.envs.observation import camera_parameters
+from imitate.envs.pour.liquid import PARTICLE_RGBA
 from imitate.envs.rendering import interleaved
 from imitate.envs.teacher_motion import script_demonstrations
 from imitate.envs.video import (
@@ -155,7 +156,7 @@ def test_interleaved_threads_stop_with_their_caller_and_hand_on_an_error():
 def _liquid(frame: np.ndarray) -> np.ndarray:
     """Pixels ``(h, w) bool`` with the liquid's hue, saturated and not dark."""
     hsv = cv2.cvtColor(frame, cv2.COLOR_RGB2HSV).astype(int)
-    rgb = np.uint8([[np.array(objects.PARTICLE_RGBA[:3]) * 255]])
+    rgb = np.uint8([[np.array(PARTICLE_RGBA[:3]) * 255]])
     hue = int(cv2.cvtColor(rgb, cv2.COLOR_RGB2HSV)[0, 0, 0])
     gap = np.abs(hsv[..., 0] - hue)
     return (np.minimum(gap, 180 - gap) < 10) & (hsv[..., 1] > 120) & (hsv[..., 2] > 60)

@@ -96,7 +96,7 @@ class InsertingEnv(BimanualEnv):
     _insert_weight: float
     _deepest: tuple[float, float]
     _progress: float
-    tool_inside = True
+    contact = "inside"
 
     def __init__(self, *args: Any, insert_weight: float = 1.0, **kwargs: Any):
         check_weight("insert_weight", insert_weight)

@@ -52,12 +52,15 @@ class MarkedPouringEnv(PouringEnv):
         super().__init__(*args, marker_x=marker_x, marker_y=marker_y, **kwargs)
         self._marker = self.data.body(objects.MARKER)
 
-    def _scene_config(
-        self, teacher: bool, obstacles: tuple[assembly.Obstacle, ...], particles: int = 60,
+    @classmethod
+    def scene_config(
+        cls, teacher: bool = False, obstacles: tuple[assembly.Obstacle, ...] = (),
+        particles: int = 60,
         marker_x: float = OPTIONS["marker_x"].default,
         marker_y: float = OPTIONS["marker_y"].default,
     ) -> assembly.SceneConfig:
-        config = super()._scene_config(teacher, obstacles, particles)
+        """The pour's scene with the marker where ``marker_x``, ``marker_y`` put it."""
+        config = super().scene_config(teacher, obstacles, particles)
         marker = assembly.Place(objects.MARKER, marker_x, marker_y)
         return dataclasses.replace(config, places=(marker,))
 

@@ -76,6 +76,7 @@ import numpy as np
 
 from imitate.envs import assembly
 from imitate.envs.bimanual import BimanualEnv, check_weight
+from imitate.envs.pour.liquid import Liquid, particle_bodies
 from imitate.envs.pour.outcome import poured
 from imitate.models import objects
 
@@ -100,18 +101,19 @@ class PouringEnv(BimanualEnv):
         self._pour_weight = pour_weight
         self._pour_fraction = 0.0
         super().__init__(*args, particles=particles, **kwargs)
-        self._particle_bodies = np.array(
-            [self.model.body(f"{objects.PARTICLE_PREFIX}{i}").id for i in range(particles)],
-            dtype=int,
-        )
+        self._particle_bodies = particle_bodies(self.model)
 
-    def _scene_config(
-        self, teacher: bool, obstacles: tuple[assembly.Obstacle, ...], particles: int = 60
+    @classmethod
+    def scene_config(
+        cls, teacher: bool = False, obstacles: tuple[assembly.Obstacle, ...] = (),
+        particles: int = 60,
     ) -> assembly.SceneConfig:
-        return dataclasses.replace(super()._scene_config(teacher, obstacles), particles=particles)
+        """The scene with ``particles`` of :class:`~imitate.envs.pour.liquid.Liquid` in the
+        bottle."""
+        config = super().scene_config(teacher, obstacles)
+        return dataclasses.replace(config, contents=(Liquid(particles),))
 
     def _task_reset(self) -> None:
-        assembly.fill_tool(self.model, self.data, self.np_random)
         self._pour_fraction = self._fractions()[0]
 
     def _task_info(self) -> dict[str, Any]:

@@ -2,9 +2,10 @@
 ``import imitate`` and by the command line's help, without MuJoCo)."""
 
 from imitate.envs.tasks import Option
-from imitate.models.shapes import BOTTLE, GLASS, GRASP, GRASP_RANGE, MAX_PARTICLES
+from imitate.models.shapes import BOTTLE, GLASS, GRASP, GRASP_RANGE
 
 ENV_ID, ENV_CLASS = "imitate/Pouring-v0", "PouringEnv"  # the class in the env module
+MAX_PARTICLES = 120  # what fits in the bottle below its shoulder
 OPTIONS = {
     "bottle_grasp": Option(
         GRASP[BOTTLE], "where the robot holds the bottle, height above its bottom [m]",

@@ -35,8 +35,9 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from imitate.envs.assembly import SceneConfig, build_model, fill_tool, hold
+from imitate.envs.assembly import SceneConfig, build_model, hold
 from imitate.envs.mannequin import hand_pose_for_object, holding_side
+from imitate.envs.pour.liquid import Liquid, particle_bodies
 from imitate.envs.teacher_motion import Script, TeacherMotion
 from imitate.errors import ImitateError
 from imitate.models import humanoid, objects, teacher
@@ -107,7 +108,8 @@ def teacher_pour(
     """
     if not 0 <= demo < len(motion.boundaries):
         raise ImitateError(f"demo={demo!r} not accepted: 0..{len(motion.boundaries) - 1}")
-    model = build_model(SceneConfig(teacher=True, holder="teacher", particles=particles))
+    liquid = Liquid(particles)
+    model = build_model(SceneConfig(teacher=True, holder="teacher", contents=(liquid,)))
     data = mujoco.MjData(model)
     joints = [model.joint(j).qposadr[0] for j in humanoid.JOINTS]
     data.qpos[joints] = data.ctrl[:] = humanoid.rest_pose()
@@ -124,12 +126,11 @@ def teacher_pour(
             )
         if step == 0:  # the objects into the hands, then the bottle filled
             hold(model, data, "teacher")
-            fill_tool(model, data, np.random.default_rng(seed))
+            liquid.reset(model, data, np.random.default_rng(seed))
             mujoco.mj_forward(model, data)
         mujoco.mj_step(model, data)
-    liquid = [model.body(f"{objects.PARTICLE_PREFIX}{i}").id for i in range(particles)]
     glass = data.body(objects.GLASS)
-    local = (data.xpos[liquid] - glass.xpos) @ glass.xmat.reshape(3, 3)
+    local = (data.xpos[particle_bodies(model)] - glass.xpos) @ glass.xmat.reshape(3, 3)
     shape = objects.GLASS_SHAPE
     radius = np.interp(local[:, 2], *np.transpose(shape.profile)[::-1])
     inside = (local[:, 2] > 0) & (local[:, 2] < shape.height) & (np.hypot(*local[:, :2].T) < radius)

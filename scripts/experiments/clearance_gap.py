@@ -22,11 +22,12 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from imitate.envs.pour.liquid import particle_geoms
 from imitate.envs.task import get_task
 from imitate.evaluation import Suite, run_task
 from imitate.evaluation.trial import physics, plan_variation
 from imitate.evaluation.variation import draw, path_points
-from imitate.models import humanoid, objects
+from imitate.models import humanoid
 from imitate.motion.replay import measure
 from imitate.stages.files import ModelFile
 
@@ -42,10 +43,7 @@ class Probe:
         self.watched = np.array(
             [model.body_rootid[body[g]] == root or body[g] in held for g in range(model.ngeom)]
         )
-        self.particle = np.array(
-            [model.body(body[g]).name.startswith(objects.PARTICLE_PREFIX)
-             for g in range(model.ngeom)]
-        )
+        self.particle = np.isin(np.arange(model.ngeom), particle_geoms(model))
         self.touch, self.lag, self.joint = np.inf, 0.0, 0
 
     def __call__(self, env) -> None:
