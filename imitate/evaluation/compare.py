@@ -38,6 +38,7 @@ import math
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy import stats
@@ -47,7 +48,7 @@ from imitate.envs.task import Task
 from imitate.errors import ImitateError, quoted
 from imitate.evaluation.compare_report import markdown, measures, plot_comparison, plot_dose
 from imitate.evaluation.inference import ed50, mean_ci, teacher_effect
-from imitate.evaluation.record import change_keys, error_keys, score_keys
+from imitate.evaluation.record import TrialRecord, change_keys, error_keys, score_keys, task_value
 from imitate.evaluation.replication import CONFIRMATION_SEED, parse_primary, replication
 from imitate.evaluation.report import MARGIN, wilson
 from imitate.evaluation.sensitivity import with_importance
@@ -247,7 +248,7 @@ def compare(
         return result
 
 
-def settings_digest(record: dict) -> str:
+def settings_digest(record: TrialRecord) -> str:
     """A record's settings but its weighting (equal for the same variation in every
     weighting)."""
     settings = {k: v for k, v in record["settings"].items() if k != "similarity"}
@@ -255,7 +256,7 @@ def settings_digest(record: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def paired(by_weighting: dict[str, list[dict]], task: Task) -> dict:
+def paired(by_weighting: dict[str, list[TrialRecord]], task: Task) -> dict:
     """Per weighting (its records of ``task``, in the same order for every weighting): success
     over teachers (mean, t interval) and over all variations (Wilson interval), and per teacher
     its success rate, mean score, median Mahalanobis deviation and median clearance, and how
@@ -284,7 +285,7 @@ def paired(by_weighting: dict[str, list[dict]], task: Task) -> dict:
                 )
     phase, min_key = task.phase, score_keys(task)[1]
     moved_m, moved_deg = change_keys(task)
-    weightings = {}
+    weightings: dict[str, dict[str, Any]] = {}
     for s, rs in by_weighting.items():
         ok = [r["outcome"] == "success" for r in rs]
         change = {k: np.array([r["change"][k] for r in rs])
@@ -301,12 +302,12 @@ def paired(by_weighting: dict[str, list[dict]], task: Task) -> dict:
             "pushed": sum(r["plan"]["nullspace_push"] for r in rs),
             "outcomes": {o: sum(r["outcome"] == o for r in rs) for o in
                          sorted({r["outcome"] for r in rs})},
-            f"{min_key}_mean": float(np.mean([r[min_key] for r in rs])),
+            f"{min_key}_mean": float(np.mean([task_value(r, min_key) for r in rs])),
             "mahalanobis_rms_median": float(np.median([r["mahalanobis"]["rms"] for r in rs])),
             "clearance_median_mm": float(np.median([r["plan"]["min_distance_m"] for r in rs]))
             * 1000,
             f"{phase}_error_median_mm": 1000 * float(
-                np.median([r["plan"][error_keys(task)[0]] for r in rs])
+                np.median([task_value(r["plan"], error_keys(task)[0]) for r in rs])
             ),
             f"{phase}_change_mm": _spread(change[moved_m] * 1000),
             f"{phase}_change_deg": _spread(change[moved_deg]),
@@ -399,19 +400,19 @@ def dose(values: Sequence[float], levels: Sequence[dict], task: Task) -> dict:
     return {"rising": rising, "weightings": curves, "pairs": pairs}
 
 
-def _by_teacher(records: Sequence[dict], task: Task) -> dict[str, dict]:
+def _by_teacher(records: Sequence[TrialRecord], task: Task) -> dict[str, dict]:
     """Per teacher (its seed as text): variations, successes, the success rate, the mean of the
     smallest scores (``<score>_min``), the median Mahalanobis deviation and the median plan
     clearance [mm]."""
     min_key = score_keys(task)[1]
-    groups: dict[str, list[dict]] = {}
+    groups: dict[str, list[TrialRecord]] = {}
     for r in records:
         groups.setdefault(str(r["teacher"]), []).append(r)
     return {
         t: {
             "variations": len(rs), "success": sum(r["outcome"] == "success" for r in rs),
             "success_rate": sum(r["outcome"] == "success" for r in rs) / len(rs),
-            min_key: float(np.mean([r[min_key] for r in rs])),
+            min_key: float(np.mean([task_value(r, min_key) for r in rs])),
             "mahalanobis_rms": float(np.median([r["mahalanobis"]["rms"] for r in rs])),
             "clearance_median_mm": float(np.median([r["plan"]["min_distance_m"] for r in rs]))
             * 1000,

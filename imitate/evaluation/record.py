@@ -16,14 +16,15 @@ Beside the fields typed here a record holds the task's numbers, named after its 
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, TypedDict
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any, TypedDict, cast
 
 if TYPE_CHECKING:
     from imitate.envs.task import Task
 
 __all__ = [
     "PlanRecord", "ReplayRecord", "TrialRecord", "change_keys", "error_keys", "is_number",
-    "score_keys",
+    "score_keys", "task_value",
 ]
 
 
@@ -63,12 +64,20 @@ class ReplayRecord(TypedDict):
     geometry: dict[str, Any]
 
 
-class TrialRecord(TypedDict):
-    """A variation's record (and the task's keys of the module docstring), as the worker that
-    ran it files it: after ``digest`` (the evaluation's digest it is filed under) and
-    ``teacher`` (the seed of the teacher whose model reproduced it).
+class _Filed(TypedDict, total=False):
+    """What the worker that ran a variation files its record under."""
+
+    digest: str
+    teacher: int
+
+
+class TrialRecord(_Filed):
+    """A variation's record (and the task's keys of the module docstring, read by
+    :func:`task_value`), as the worker that ran it files it.
 
     Attributes:
+        digest: The evaluation's digest it is filed under (set by the worker).
+        teacher: The seed of the teacher whose model reproduced it (set by the worker).
         id: The variation's index.
         settings: The variation's settings (:meth:`Variation.to_json`).
         outcome: One of the task's outcomes (``Task.outcome``).
@@ -91,6 +100,12 @@ class TrialRecord(TypedDict):
     physics_min_distance_m: float
     clearance_gap_m: float
     seconds: float
+
+
+def task_value(record: TrialRecord | PlanRecord, key: str) -> float:
+    """A record's value of one of its task's keys (:func:`score_keys`, :func:`error_keys`),
+    which the record types cannot name."""
+    return cast(Mapping[str, float], record)[key]
 
 
 def score_keys(task: Task) -> tuple[str, str]:

@@ -16,7 +16,7 @@ from matplotlib.patches import Circle, Patch, Rectangle
 
 from imitate.envs.task import Task
 from imitate.envs.video import StateRecorder, captioned, replay_frames, write_video
-from imitate.evaluation.record import is_number, score_keys
+from imitate.evaluation.record import TrialRecord, is_number, score_keys, task_value
 from imitate.evaluation.trial import physics, plan_variation
 from imitate.evaluation.variation import Variation
 from imitate.learning import LearnedModel
@@ -59,7 +59,7 @@ def colours(task: Task) -> dict[str, str]:
     return {o: COLOURS.get(o) or next(own) for o in task.outcomes}
 
 
-def place(record: dict) -> str:
+def place(record: TrialRecord) -> str:
     """Where the record's obstacle is: one of :data:`PLACES`."""
     settings = record["settings"]
     if settings["obstacle"] is None:
@@ -67,7 +67,7 @@ def place(record: dict) -> str:
     return "in_path" if settings["in_path"] else "random"
 
 
-def summarize(records: Sequence[dict], task: Task) -> dict:
+def summarize(records: Sequence[TrialRecord], task: Task) -> dict:
     """``summary.json``'s numbers over ``records`` (``results.jsonl`` lines of ``task``): the
     score's keys are named after it (``Task.score``: ``<name>_mean``, ``<name>_min``,
     ``<name>_threshold``, ``low_<name>``)."""
@@ -93,7 +93,7 @@ def summarize(records: Sequence[dict], task: Task) -> dict:
     margin = {  # what physics does with the plans that keep the planner's margin
         "margin_m": MARGIN, f"{name}_threshold": threshold, "plans": len(kept),
         "physics_contact": sum(r["physics_min_distance_m"] < 0 for r in kept),
-        f"low_{name}": sum(r[min_key] < threshold for r in kept),
+        f"low_{name}": sum(task_value(r, min_key) < threshold for r in kept),
     }
     pushed = [r for r in records if r["plan"].get("nullspace_push", False)]
     return {
@@ -102,8 +102,8 @@ def summarize(records: Sequence[dict], task: Task) -> dict:
         "success_wilson95": [low, high],
         "outcomes": {o: outcomes.count(o) for o in task.outcomes},
         "outcomes_by_obstacle": by_place,
-        mean_key: float(np.mean([r[mean_key] for r in records])),
-        min_key: float(np.min([r[min_key] for r in records])),
+        mean_key: float(np.mean([task_value(r, mean_key) for r in records])),
+        min_key: float(np.min([task_value(r, min_key) for r in records])),
         "clearance_gap_mm": gap,
         "kept_margin": margin,
         "nullspace_push": {  # plans the attractors alone could not keep clear
@@ -117,7 +117,8 @@ def summarize(records: Sequence[dict], task: Task) -> dict:
 
 
 def summarize_teachers(
-    records: Sequence[dict], digests: dict[int, str], default_runs: dict[int, dict | None],
+    records: Sequence[TrialRecord], digests: dict[int, str],
+    default_runs: dict[int, dict | None],
     task: Task,
 ) -> list[dict]:
     """Per teacher (seed: digest of its records): its success with the Wilson interval, the
@@ -130,13 +131,14 @@ def summarize_teachers(
     for teacher, digest in digests.items():
         own = [r for r in records if r["digest"] == digest]
         successes = sum(r["outcome"] == "success" for r in own)
+        lows = [task_value(r, min_key) for r in own]
         rows.append({
             "seed": teacher, "digest": digest, "variations": len(own), "success": successes,
             "success_rate": successes / max(len(own), 1),
             "success_wilson95": list(wilson(successes, len(own))),
-            min_key: float(min(r[min_key] for r in own)) if own else None,
-            f"{min_key}_mean": float(np.mean([r[min_key] for r in own])) if own else None,
-            mean_key: float(np.mean([r[mean_key] for r in own])) if own else None,
+            min_key: float(min(lows)) if own else None,
+            f"{min_key}_mean": float(np.mean(lows)) if own else None,
+            mean_key: float(np.mean([task_value(r, mean_key) for r in own])) if own else None,
             "failures": [
                 {"id": r["id"], "outcome": r["outcome"], "obstacle": place(r)}
                 for r in own if r["outcome"] != "success"
@@ -219,7 +221,7 @@ def text(summary: dict, out: Path, task: Task) -> str:
     ])
 
 
-def plot_outcomes(records: Sequence[dict], path: np.ndarray, task: Task) -> Figure:
+def plot_outcomes(records: Sequence[TrialRecord], path: np.ndarray, task: Task) -> Figure:
     """Top view of the front of the table: each obstacle's footprint (filled: placed in the
     path), edged by its outcome (of ``task``'s), over the weight-0 path points ``path`` (P, 3);
     beside it the outcome counts by where the obstacle is."""

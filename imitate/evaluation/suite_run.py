@@ -28,6 +28,7 @@ from collections.abc import Collection, Iterator, Sequence
 from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -35,7 +36,13 @@ from imitate.envs import tasks
 from imitate.envs.task import Task, get_task
 from imitate.errors import ImitateError
 from imitate.evaluation.parallel import Job, run_local, run_ray
-from imitate.evaluation.record import change_keys, error_keys, is_number, score_keys
+from imitate.evaluation.record import (
+    TrialRecord,
+    change_keys,
+    error_keys,
+    is_number,
+    score_keys,
+)
 from imitate.evaluation.report import failure_video, plot_outcomes, summarize, summarize_teachers
 from imitate.evaluation.sensitivity import with_importance
 from imitate.evaluation.suite import KEYS, Suite
@@ -253,7 +260,7 @@ def run_jobs(
     ray: str | None,
     progress: bool | None,
     task: Task,
-) -> tuple[dict[tuple[str, int], dict], dict]:
+) -> tuple[dict[tuple[str, int], TrialRecord], dict]:
     """Runs the variations of ``drawn`` (of ``task``) that have no record in ``results`` yet,
     appending each record as it finishes. Returns every record of ``drawn`` by ``(digest, id)``
     and the numbers of this call (``ran``, wall time, back-end, load average).
@@ -288,7 +295,7 @@ def run_jobs(
             f.write(json.dumps(record) + "\n")
             f.flush()
             os.fsync(f.fileno())
-            records[(record["digest"], record["id"])] = record
+            records[(record["digest"], record["id"])] = cast(TrialRecord, record)
             bar.set_postfix(outcome=record["outcome"])
             bar.update()
     run = {
@@ -307,7 +314,9 @@ def combined_digest(digests: Sequence[str]) -> str:
     return hashlib.sha256(",".join(digests).encode()).hexdigest()[:16]
 
 
-def read_records(path: Path, digests: str | Collection[str], task: Task) -> list[dict]:
+def read_records(
+    path: Path, digests: str | Collection[str], task: Task
+) -> list[TrialRecord]:
     """The records of ``path`` (``results.jsonl``) of ``task`` under ``digests`` (one or
     several), the last one per digest and id; a line cut short by an interruption, not UTF-8,
     or not a record (:func:`_is_record`, :func:`_of_task`: an ``id`` that is no whole number
@@ -321,11 +330,11 @@ def read_records(path: Path, digests: str | Collection[str], task: Task) -> list
     return list(records.values())
 
 
-def _records(path: Path) -> Iterator[dict]:
+def _records(path: Path) -> Iterator[TrialRecord]:
     """The lines of ``path`` that are records (:func:`_is_record`), in order; none if missing."""
     if not path.exists():
         return
-    yield from filter(_is_record, _json_lines(path))
+    yield from (cast(TrialRecord, r) for r in _json_lines(path) if _is_record(r))
 
 
 def _json_lines(path: Path) -> Iterator[object]:
@@ -374,7 +383,7 @@ def _is_record(record: object) -> bool:
     return True
 
 
-def _of_task(record: dict, task: Task) -> bool:
+def _of_task(record: TrialRecord, task: Task) -> bool:
     """Whether a record (:func:`_is_record`) is of ``task``: one of its outcomes, its score's
     numbers, its critical phase's errors and changes (what ``compare`` pairs), its own
     settings."""
@@ -396,7 +405,7 @@ def _of_task(record: dict, task: Task) -> bool:
     return True
 
 
-def last_records(out: Path) -> list[dict]:
+def last_records(out: Path) -> list[TrialRecord]:
     """The records of the last evaluation into ``out`` (an evaluation's folder, e.g.
     ``RUN_DIR/eval/default-w10000-variance``; the digests of its ``summary.json``), sorted by
     teacher and id.

@@ -25,6 +25,7 @@ import numpy as np
 
 from imitate.envs.task import get_task
 from imitate.errors import ImitateError
+from imitate.evaluation.record import TrialRecord
 from imitate.evaluation.suite import Suite
 from imitate.evaluation.suite_run import last_records
 from imitate.evaluation.trial import physics, plan_variation
@@ -50,7 +51,7 @@ class Evaluated:
         models: Teacher seed -> its learned model and gaze frame.
     """
 
-    records: list[dict]
+    records: list[TrialRecord]
     models: dict[int, Learned]
 
 
