@@ -52,7 +52,7 @@ run: setup
 # suite leaves a core idle (pip, the warm-up, the suite's last test files). The system
 # libraries first, once, so that the two jobs never run apt-get at the same time.
 test:
-	bash scripts/ci/install_system_deps.sh
+	bash scripts/ci/install_system_deps.sh --test
 	$(MAKE) -j2 suite test-lowest
 
 suite: setup-test lint

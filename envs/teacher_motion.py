@@ -177,7 +177,7 @@ class TeacherMotion:
             sinusoids' amplitude, frequency [Hz] and phase [rad].
         places: where the script's places stand through each demonstration: ``places[i]`` for
             demonstration ``i`` (from the middle of the stillness before it to the middle of
-            the one after it); one tuple for all when the script does not move them.
+            the one after it).
     """
 
     config: TeacherConfig
@@ -188,16 +188,12 @@ class TeacherMotion:
     warps: np.ndarray
     tilt_planes: np.ndarray
     tremor: np.ndarray
-    places: tuple[tuple[Place, ...], ...] = ((),)
+    places: tuple[tuple[Place, ...], ...]
 
     @property
     def watched(self) -> tuple[str, ...]:
         """What the robot tracks: the tool, the target, then the places."""
         return (*self.objects, *(p.name for p in self.places[0]))
-
-    def places_of(self, demo: int) -> tuple[Place, ...]:
-        """Where the places stand through demonstration ``demo``."""
-        return self.places[demo % len(self.places)]
 
     def place_poses(self, times: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """The places' frames at ``times`` ``(n,)`` [s], as :meth:`poses` gives the objects'
@@ -206,7 +202,7 @@ class TeacherMotion:
         times = np.atleast_1d(np.asarray(times, dtype=float))
         moves = (self.boundaries[1:, 0] + self.boundaries[:-1, 1]) / 2  # mid-stillness [s]
         demo = np.searchsorted(moves, times, side="right")
-        return {p.name: (np.array([self.places_of(d)[k].pos for d in demo]).reshape(-1, 3),
+        return {p.name: (np.array([self.places[d][k].pos for d in demo]).reshape(-1, 3),
                          np.tile((1.0, 0.0, 0.0, 0.0), (len(times), 1)))
                 for k, p in enumerate(self.places[0])}
 
@@ -381,8 +377,7 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
         tilt_planes=config.tilt_plane_spread * rng.standard_normal(config.n_demos),
         tremor=tremor,
         places=tuple(tuple(replace(p, x=round(p.x + dx, 6), y=round(p.y + dy, 6))
-                           for p in script.places) for dx, dy in moves)
-        if any(script.place_spread) else (script.places,),
+                           for p in script.places) for dx, dy in moves),
     )
 
 

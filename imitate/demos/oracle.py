@@ -30,7 +30,7 @@ def true_demos(
     return [
         space({"tool": (position[0], axis[0]), "target": (position[1], axis[1]),
                **{p.name: (np.broadcast_to(p.pos, position[0].shape), None)
-                  for p in motion.places_of(i)}}, gaze)
+                  for p in motion.places[i]}}, gaze)
         for i, (position, axis) in enumerate(motion.demonstration_frames(times))
     ]
 
