@@ -1,7 +1,8 @@
 """The tasks by name, light to import: each is a package ``imitate.envs.<name>`` with an
 ``options`` module (its own run settings, read by the command line's help without MuJoCo), a
 ``teacher`` module (its demonstrations' :class:`~imitate.envs.teacher_motion.Script`,
-``SCRIPT``) and a ``task`` module (its :class:`~imitate.envs.task.Task`, ``TASK``, which
+``SCRIPT``, and ``demonstrated(motion, demo)``: whether a demonstration does the task in
+physics) and a ``task`` module (its :class:`~imitate.envs.task.Task`, ``TASK``, which
 :func:`imitate.envs.task.get_task` imports). :data:`NAMES` are found, not listed: every package
 of ``imitate.envs`` with these three modules is a task (:func:`found`).
 """

@@ -64,6 +64,16 @@ def test_every_task_gives_what_the_generic_layers_use(name):
     assert set(task.reset_options()) == {f"{obj}_grasp" for obj in task.objects}
 
 
+@pytest.mark.parametrize("name", tasks.NAMES)
+def test_every_teachers_demonstrations_do_the_task_in_physics(name):
+    """As Meta-World checks each expert: the first and the last of three demonstrations (seed 1)
+    succeed in physics, by the teacher module's own check (``demonstrated``)."""
+    from imitate.envs.teacher_motion import TeacherConfig, script_demonstrations
+
+    motion = script_demonstrations(TeacherConfig(task=name, n_demos=3, seed=1))
+    assert all(tasks.module(name, "teacher").demonstrated(motion, demo) for demo in (0, 2))
+
+
 def test_a_task_is_a_folder_found_by_its_modules_not_a_list(tmp_path):
     for name, parts in (("stack", tasks.PARTS), ("pour", tasks.PARTS), ("notes", ("task",))):
         (tmp_path / name).mkdir()

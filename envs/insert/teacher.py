@@ -19,12 +19,13 @@ import numpy as np
 
 from imitate.envs.assembly import SceneConfig, build_model, hold
 from imitate.envs.insert.geometry import stick_end
+from imitate.envs.insert.outcome import inserted
 from imitate.envs.mannequin import hand_pose_for_object, holding_side
 from imitate.envs.teacher_motion import Script, TeacherMotion
 from imitate.errors import ImitateError
 from imitate.models import humanoid, objects, shapes, teacher
 
-__all__ = ["DEPTH", "SCRIPT", "teacher_insert"]
+__all__ = ["DEPTH", "SCRIPT", "demonstrated", "teacher_insert"]
 
 DEPTH = 0.085  # [m]: how far below the glass's rim the teacher puts the stick's lower end
 # The nominal insertion as waypoints in a demonstration's phase u in [0, 1]: the glass bottom [m],
@@ -114,3 +115,9 @@ def teacher_insert(motion: TeacherMotion, demo: int) -> float:
         mujoco.mj_step(model, data)
         deepest = max(deepest, stick_end(data)[2])
     return deepest
+
+
+def demonstrated(motion: TeacherMotion, demo: int) -> bool:
+    """Whether demonstration ``demo`` of ``motion`` puts the stick into the glass in physics
+    (:func:`teacher_insert`), as deep as a reproduction must."""
+    return inserted(teacher_insert(motion, demo))

@@ -21,10 +21,13 @@ import dataclasses
 import numpy as np
 
 from imitate.envs.assembly import Place
+from imitate.envs.marked.outcome import over
 from imitate.envs.pour.teacher import SCRIPT as POUR
-from imitate.models.shapes import MARKER
+from imitate.envs.pour.teacher import demonstrated as pours
+from imitate.envs.teacher_motion import TeacherMotion
+from imitate.models.shapes import GLASS, MARKER
 
-__all__ = ["LIFT", "MARKER_PLACE", "PLACE_SPREAD", "SCRIPT", "SHIFT"]
+__all__ = ["LIFT", "MARKER_PLACE", "PLACE_SPREAD", "SCRIPT", "SHIFT", "demonstrated"]
 
 SHIFT = np.array((-0.06, 0.0, 0.0))  # [m] the glass's bottom, from the pour's
 LIFT = 0.27  # [m] the teacher's marker's bottom above the table top
@@ -54,3 +57,17 @@ SCRIPT = dataclasses.replace(
     place_spread=PLACE_SPREAD,
     placed_rows=tuple(_POUR_ROWS),
 )
+
+
+def demonstrated(motion: TeacherMotion, demo: int) -> bool:
+    """Whether demonstration ``demo`` of ``motion`` pours in physics (the pour's check) with the
+    glass over the marker where it stood, all through the pour (the script's agree rows)."""
+    start, end = motion.boundaries[demo]
+    times = np.linspace(start, end, 200)
+    _, u = motion.phase(times)
+    first, last = (SCRIPT.waypoints[row][0] for row in SCRIPT.agree_rows)
+    glass = motion.poses(times[(u >= first) & (u <= last)])[GLASS][0]
+    (marker,) = motion.places[demo]
+    return over(float(np.hypot(*(glass[:, :2] - (marker.x, marker.y)).T).max())) and pours(
+        motion, demo
+    )

@@ -38,11 +38,12 @@ import numpy as np
 from imitate.envs.assembly import SceneConfig, build_model, hold
 from imitate.envs.mannequin import hand_pose_for_object, holding_side
 from imitate.envs.pour.liquid import Liquid, particle_bodies
+from imitate.envs.pour.outcome import poured
 from imitate.envs.teacher_motion import Script, TeacherMotion
 from imitate.errors import ImitateError
 from imitate.models import humanoid, objects, teacher
 
-__all__ = ["SCRIPT", "teacher_pour"]
+__all__ = ["SCRIPT", "demonstrated", "teacher_pour"]
 
 # The nominal pour as waypoints in a demonstration's phase u in [0, 1]: the glass bottom [m], the
 # glass tilt towards the bottle [deg], the bottle's mouth relative to the glass rim centre [m] and
@@ -135,3 +136,9 @@ def teacher_pour(
     radius = np.interp(local[:, 2], *np.transpose(shape.profile)[::-1])
     inside = (local[:, 2] > 0) & (local[:, 2] < shape.height) & (np.hypot(*local[:, :2].T) < radius)
     return float(np.mean(inside))
+
+
+def demonstrated(motion: TeacherMotion, demo: int) -> bool:
+    """Whether demonstration ``demo`` of ``motion`` pours in physics (:func:`teacher_pour`), as
+    a reproduction must."""
+    return poured(teacher_pour(motion, demo))
