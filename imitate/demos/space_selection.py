@@ -1,0 +1,91 @@
+"""What to imitate, from the demonstrations' statistics: candidate position terms, each one's
+invariance where the task is decided, and the task space they select.
+
+The candidates (:func:`candidates`) are every relation the tracks can give: the tool relative to
+the target (eq. 1's), and each held object relative to each place of the scene and to the
+world (the robot's frame, :data:`WORLD`, a place at the origin). A term's **invariance ratio**
+(:func:`invariance`) is the demonstrations' spread across one another in the critical phase (the
+trace of their covariance at each of its samples, averaged, the demonstrations normalized in
+time) over the term's whole spread (the trace of the covariance of all its samples): small where
+the demonstrations agree on it while it moves over the movement, the variance criterion the
+paper's authors followed up with.
+
+:func:`select` keeps the tool's most invariant relation (to the target, a place or the world),
+the target's most invariant relation to a place or the world (its relation to the tool is the
+tool's) only where its ratio is under :data:`INVARIANT`, and eq. 1's angles of both objects.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from imitate.errors import ImitateError
+from imitate.taskspace import OBJECTS, Angles, Relative, TaskSpace
+
+__all__ = ["INVARIANT", "WORLD", "candidates", "invariance", "normalized", "select"]
+
+WORLD = "world"  # the robot's frame, as a place at the origin
+# The largest invariance ratio of a relation of the target's kept (the demonstrations spread in
+# the critical phase by under a fifth of its spread over the movement). Chosen on teachers 0-2 of
+# a task with a place (the place's ratio 0.06-0.10) and one without (the world's 0.31-0.40).
+INVARIANT = 0.2
+
+
+def candidates(places: Sequence[str]) -> TaskSpace:
+    """The candidate position terms of a task with ``places``: the tool relative to the target,
+    then the tool and the target relative to each place and to :data:`WORLD`."""
+    tool, target = OBJECTS
+    return TaskSpace((Relative(tool, target),
+                      *(Relative(obj, p) for p in (*places, WORLD) for obj in OBJECTS)))
+
+
+def normalized(demos: Sequence[np.ndarray], samples: int) -> np.ndarray:
+    """The demonstrations ``(n_i, m)`` resampled linearly at ``samples`` evenly spaced phases
+    over each one's span: ``(n_demos, samples, m)``."""
+    if len(demos) < 2:
+        raise ImitateError(f"{len(demos)} demonstration(s): at least 2 to compare")
+    phase = np.linspace(0.0, 1.0, samples)
+    return np.array([
+        np.column_stack([np.interp(phase, np.linspace(0.0, 1.0, len(d)), col) for col in d.T])
+        for d in demos
+    ])
+
+
+def invariance(values: np.ndarray, space: TaskSpace, critical: np.ndarray) -> dict[Relative, float]:
+    """Each position term's invariance ratio (see the module).
+
+    Args:
+        values: The demonstrations in ``space``, normalized in time, ``(n_demos, samples, m)``.
+        space: Their space (its :class:`Relative` terms are rated).
+        critical: ``(samples,)`` bool, the critical phase's samples.
+
+    Raises:
+        ImitateError: no sample in the critical phase.
+    """
+    if not np.any(critical):
+        raise ImitateError("the critical phase holds no sample: nothing to rate the terms by")
+    found = {}
+    for term, start in zip(space.terms, space.starts, strict=True):
+        if not isinstance(term, Relative):
+            continue
+        x = values[:, :, start : start + 3]
+        across = np.mean([np.trace(np.cov(x[:, t].T)) for t in np.flatnonzero(critical)])
+        found[term] = float(across / np.trace(np.cov(x.reshape(-1, 3).T)))
+    return found
+
+
+def select(ratios: Mapping[Relative, float], invariant: float = INVARIANT) -> TaskSpace:
+    """The task space ``ratios`` (:func:`invariance` of :func:`candidates`) point to: the tool's
+    relation of the lowest ratio, the target's to a place or the world of the lowest ratio if it
+    is under ``invariant``, then eq. 1's angles."""
+    tool, target = OBJECTS
+    own = {t: r for t, r in ratios.items() if t.of == tool}
+    if not own:
+        raise ImitateError(f"no relation of the tool among {[str(t) for t in ratios]}")
+    terms: list[Relative | Angles] = [min(own, key=own.__getitem__)]
+    placed = {t: r for t, r in ratios.items() if t.of == target}
+    if placed and min(placed.values()) < invariant:
+        terms.append(min(placed, key=placed.__getitem__))
+    return TaskSpace((*terms, Angles(tool), Angles(target)))
