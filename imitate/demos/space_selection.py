@@ -3,12 +3,13 @@ invariance where the task is decided, and the task space they select.
 
 The candidates (:func:`candidates`) are every relation the tracks can give: the tool relative to
 the target (eq. 1's), and each held object relative to each place of the scene and to the
-world (the robot's frame, :data:`WORLD`, a place at the origin). A term's **invariance ratio**
-(:func:`invariance`) is the demonstrations' spread across one another in the critical phase (the
-trace of their covariance at each of its samples, averaged, the demonstrations normalized in
-time) over the term's whole spread (the trace of the covariance of all its samples): small where
-the demonstrations agree on it while it moves over the movement, the variance criterion the
-paper's authors followed up with.
+world (the robot's frame, :data:`WORLD`, a place at the origin), beside eq. 1's angles. The
+demonstrations in that space are aligned by DTW (:func:`imitate.learning.dtw.align`, as learning
+aligns them). A term's **invariance ratio** (:func:`invariance`) is the aligned demonstrations'
+spread across one another in the critical phase (the trace of their covariance at each of its
+samples, averaged) over the term's whole spread (the trace of the covariance of all its
+samples): small where the demonstrations agree on it while it moves over the movement, the
+variance criterion the paper's authors followed up with.
 
 :func:`select` keeps the tool's most invariant relation (to the target, a place or the world),
 the target's most invariant relation to a place or the world (its relation to the tool is the
@@ -24,40 +25,45 @@ import numpy as np
 from imitate.errors import ImitateError
 from imitate.taskspace import OBJECTS, Angles, Relative, TaskSpace
 
-__all__ = ["INVARIANT", "WORLD", "candidates", "invariance", "normalized", "select"]
+__all__ = ["INVARIANT", "WORLD", "candidates", "columns", "equivalent", "invariance", "select"]
 
 WORLD = "world"  # the robot's frame, as a place at the origin
 # The largest invariance ratio of a relation of the target's kept (the demonstrations spread in
-# the critical phase by under a fifth of its spread over the movement). Chosen on teachers 0-2 of
-# a task with a place (the place's ratio 0.06-0.10) and one without (the world's 0.31-0.40).
-INVARIANT = 0.2
+# the critical phase by under a tenth of its spread over the movement). Chosen on teachers 0-2 of
+# a task with a place (the place's ratio 0.02-0.05) and one without (the world's 0.25-0.33).
+INVARIANT = 0.1
 
 
 def candidates(places: Sequence[str]) -> TaskSpace:
-    """The candidate position terms of a task with ``places``: the tool relative to the target,
-    then the tool and the target relative to each place and to :data:`WORLD`."""
+    """The candidate terms of a task with ``places``: the tool relative to the target, the tool
+    and the target relative to each place and to :data:`WORLD`, then eq. 1's angles."""
     tool, target = OBJECTS
     return TaskSpace((Relative(tool, target),
-                      *(Relative(obj, p) for p in (*places, WORLD) for obj in OBJECTS)))
+                      *(Relative(obj, p) for p in (*places, WORLD) for obj in OBJECTS),
+                      Angles(tool), Angles(target)))
 
 
-def normalized(demos: Sequence[np.ndarray], samples: int) -> np.ndarray:
-    """The demonstrations ``(n_i, m)`` resampled linearly at ``samples`` evenly spaced phases
-    over each one's span: ``(n_demos, samples, m)``."""
-    if len(demos) < 2:
-        raise ImitateError(f"{len(demos)} demonstration(s): at least 2 to compare")
-    phase = np.linspace(0.0, 1.0, samples)
-    return np.array([
-        np.column_stack([np.interp(phase, np.linspace(0.0, 1.0, len(d)), col) for col in d.T])
-        for d in demos
-    ])
+def columns(space: TaskSpace, part: TaskSpace) -> np.ndarray:
+    """The columns of ``space`` that hold ``part``'s terms, in ``part``'s order.
+
+    Raises:
+        ImitateError: a term of ``part`` is not in ``space``.
+    """
+    missing = [t for t in part.terms if t not in space.terms]
+    if missing:
+        raise ImitateError(f"terms {missing} are not among {space.terms}")
+    found = []
+    for term in part.terms:
+        k = space.terms.index(term)
+        found.extend(range(space.starts[k], space.starts[k] + len(term.units)))
+    return np.array(found)
 
 
 def invariance(values: np.ndarray, space: TaskSpace, critical: np.ndarray) -> dict[Relative, float]:
     """Each position term's invariance ratio (see the module).
 
     Args:
-        values: The demonstrations in ``space``, normalized in time, ``(n_demos, samples, m)``.
+        values: The demonstrations in ``space``, aligned, ``(n_demos, samples, m)``.
         space: Their space (its :class:`Relative` terms are rated).
         critical: ``(samples,)`` bool, the critical phase's samples.
 
@@ -89,3 +95,21 @@ def select(ratios: Mapping[Relative, float], invariant: float = INVARIANT) -> Ta
     if placed and min(placed.values()) < invariant:
         terms.append(min(placed, key=placed.__getitem__))
     return TaskSpace((*terms, Angles(tool), Angles(target)))
+
+
+def equivalent(a: TaskSpace, b: TaskSpace) -> bool:
+    """Whether ``a`` and ``b`` hold the same of the demonstrations: the angles of the same
+    objects, and relations joining the same objects and places (each space's positions a linear
+    map of the other's: ``tool - marker`` and ``target - marker`` give ``tool - target``)."""
+
+    def parts(space: TaskSpace) -> tuple[frozenset, frozenset]:
+        joined: list[set[str]] = []
+        for term in space.terms:
+            if isinstance(term, Relative):
+                touching = [g for g in joined if {term.of, term.to} & g]
+                merged = set().union({term.of, term.to}, *touching)
+                joined = [g for g in joined if g not in touching] + [merged]
+        angles = frozenset(t.of for t in space.terms if isinstance(t, Angles))
+        return angles, frozenset(frozenset(g) for g in joined)
+
+    return parts(a) == parts(b)

@@ -3,12 +3,13 @@
 the task's declared one.
 
 For each run (a teacher: ``demos.npz`` and ``config.json``), its demonstrations as the robot
-tracked them are put in every candidate term (the places where each demonstration saw them),
-normalized in time (``--samples`` each); the critical phase is the task's ``critical`` of their
-mean in its declared space. Prints the ratio per run and term, the selected space and whether it
-is the declared one, and the medians over the runs.
+tracked them are put in every candidate term (the places where each demonstration saw them) and
+aligned by DTW; the critical phase is the task's ``critical`` of their mean in its declared space.
+Prints the ratio per run and term, the selected space and whether it is the declared one or one
+equivalent to it (:func:`~imitate.demos.space_selection.equivalent`), and the medians over the
+runs.
 
-Usage: ``python scripts/experiments/space_statistics.py RUN_DIR [RUN_DIR ...] [--samples 200]``
+Usage: ``python scripts/experiments/space_statistics.py RUN_DIR [RUN_DIR ...]``
 """
 
 from __future__ import annotations
@@ -19,53 +20,58 @@ from pathlib import Path
 import numpy as np
 
 from imitate.demos.segment import place_positions, task_demo
-from imitate.demos.space_selection import WORLD, candidates, invariance, normalized, select
+from imitate.demos.space_selection import (
+    WORLD,
+    candidates,
+    columns,
+    equivalent,
+    invariance,
+    select,
+)
 from imitate.envs.task import get_task
+from imitate.learning.dtw import align
 from imitate.stages.config import load_config
 from imitate.stages.files import DemosFile
 from imitate.taskspace import Relative, TaskSpace
 
 
-def rated(run_dir: Path, samples: int) -> tuple[str, dict[Relative, float], TaskSpace]:
+def rated(run_dir: Path) -> tuple[str, dict[Relative, float], TaskSpace]:
     """The task of ``run_dir``, its candidates' invariance ratios and the space they select."""
     config, cut = load_config(run_dir), DemosFile.load(run_dir)
     task = get_task(config.task)
     rate = 1.0 / float(np.median(np.diff(cut.segments[0].times)))
-    places = place_positions(cut.segments, cut.objects)
-
-    def demos(space: TaskSpace) -> np.ndarray:
-        return normalized([
-            task_demo(d, cut.objects, cut.gaze, space, {**p, WORLD: np.zeros(3)},
-                      smoothing=config.smoothing, rate=rate)
-            for d, p in zip(cut.segments, places, strict=True)
-        ], samples)
-
     space = candidates(task.space.places)
-    critical = task.critical(demos(task.space).mean(axis=0))
-    ratios = invariance(demos(space), space, critical)
+    values = align([
+        task_demo(d, cut.objects, cut.gaze, space, {**p, WORLD: np.zeros(3)},
+                  smoothing=config.smoothing, rate=rate)
+        for d, p in zip(cut.segments, place_positions(cut.segments, cut.objects), strict=True)
+    ]).aligned
+    critical = task.critical(values.mean(axis=0)[:, columns(space, task.space)])
+    ratios = invariance(values, space, critical)
     return task.name, ratios, select(ratios)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("runs", nargs="+", type=Path)
-    parser.add_argument("--samples", type=int, default=200)
     args = parser.parse_args()
-    table = {run: rated(run, args.samples) for run in args.runs}
+    table = {run: rated(run) for run in args.runs}
     names = {f"{t.of}-{t.to}": t for t in next(iter(table.values()))[1]}
     print("invariance ratio in the critical phase: the demonstrations' spread there over the "
           "term's whole spread (small: they agree where the task is decided)")
-    print(f"{'run':34s}" + "".join(f"{n:>15s}" for n in names) + "  selected (= declared?)")
+    print(f"{'run':34s}" + "".join(f"{n:>15s}" for n in names)
+          + "  selected (the declared one, or equivalent?)")
     agree = 0
     for run, (task, ratios, selected) in table.items():
-        same = selected == get_task(task).space
+        same = equivalent(selected, get_task(task).space)
         agree += same
         chosen = ", ".join(f"{t.of}-{t.to}" for t in selected.terms if isinstance(t, Relative))
         print(f"{str(run)[-34:]:34s}" + "".join(f"{ratios[t]:15.4f}" for t in names.values())
               + f"  {chosen} ({'yes' if same else 'no'})")
     medians = [np.median([ratios[t] for _, ratios, _ in table.values()]) for t in names.values()]
     print(f"{'median':34s}" + "".join(f"{m:15.4f}" for m in medians))
-    print(f"the selected space is the declared one for {agree} of {len(table)} teachers")
+    print(f"the selected space is the declared one or equivalent for {agree} of {len(table)} "
+          "teachers")
 
 
 if __name__ == "__main__":
