@@ -22,10 +22,14 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from imitate.demos.segment import Demonstration, place_positions, task_demo
+from imitate.envs.task import Task
 from imitate.errors import ImitateError
+from imitate.learning.dtw import align
 from imitate.taskspace import OBJECTS, Angles, Relative, TaskSpace
 
-__all__ = ["INVARIANT", "WORLD", "candidates", "columns", "equivalent", "invariance", "select"]
+__all__ = ["INVARIANT", "WORLD", "candidates", "columns", "equivalent", "invariance", "rate",
+           "select"]
 
 WORLD = "world"  # the robot's frame, as a place at the origin
 # The largest invariance ratio of a relation of the target's kept (the demonstrations spread in
@@ -52,7 +56,7 @@ def columns(space: TaskSpace, part: TaskSpace) -> np.ndarray:
     missing = [t for t in part.terms if t not in space.terms]
     if missing:
         raise ImitateError(f"terms {missing} are not among {space.terms}")
-    found = []
+    found: list[int] = []
     for term in part.terms:
         k = space.terms.index(term)
         found.extend(range(space.starts[k], space.starts[k] + len(term.units)))
@@ -80,6 +84,25 @@ def invariance(values: np.ndarray, space: TaskSpace, critical: np.ndarray) -> di
         across = np.mean([np.trace(np.cov(x[:, t].T)) for t in np.flatnonzero(critical)])
         found[term] = float(across / np.trace(np.cov(x.reshape(-1, 3).T)))
     return found
+
+
+def rate(
+    segments: Sequence[Demonstration], objects: tuple[str, ...], gaze: np.ndarray, task: Task,
+    *, smoothing: float,
+) -> dict[Relative, float]:
+    """The candidates' invariance ratios of a teacher's cut demonstrations ``segments`` (of
+    ``objects``, seen with ``gaze``, smoothed as learning smooths them): put in every candidate
+    term (the places where each demonstration saw them), aligned by DTW, the critical phase
+    ``task``'s of their mean in its declared space."""
+    rate_hz = 1.0 / float(np.median(np.diff(segments[0].times)))
+    space = candidates(task.space.places)
+    values = align([
+        task_demo(d, objects, gaze, space, {**p, WORLD: np.zeros(3)}, smoothing=smoothing,
+                  rate=rate_hz)
+        for d, p in zip(segments, place_positions(segments, objects), strict=True)
+    ]).aligned
+    critical = task.critical(values.mean(axis=0)[:, columns(space, task.space)])
+    return invariance(values, space, critical)
 
 
 def select(ratios: Mapping[Relative, float], invariant: float = INVARIANT) -> TaskSpace:

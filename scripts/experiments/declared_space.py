@@ -1,16 +1,18 @@
-"""Does a task's declared space matter? Its teachers' demonstrations learned in the task's own
-space and in eq. 1's, each reproduced over the same places.
+"""Does a task's space matter? Its teachers' demonstrations learned in the task's declared space,
+in the space selected from their statistics (:mod:`imitate.demos.space_selection`) and in eq. 1's,
+each reproduced over the same places.
 
 For a task whose space is not eq. 1 and whose critical phase is the pour's (``marked``: the glass
-relative to the marker is part of its space; in eq. 1's the pour is found from the bottle's angle,
-column 3, by :func:`~imitate.envs.pour.task.pour_phase`), each teacher of ``RUN_DIR`` (seeds as
+relative to the marker is part of its space; in another space the pour is found from the bottle's
+angle column by :func:`~imitate.envs.pour.task.pour_phase`), each teacher of ``RUN_DIR`` (seeds as
 ``imitate eval --teachers N`` takes them, learned under ``RUN_DIR/eval/teachers`` where missing) is
-learned again from its own cut demonstrations in :data:`imitate.taskspace.EQ1` (the same learning
-settings). Both models are reproduced with the default planner in the task's default scene and at
-``--n`` places of each of the task's places drawn uniformly over the built-in suite's ranges (the
-same draws for both, other settings at their defaults), each replayed in physics from seeds 0, 1, 2;
-the outcome is the task's. The table gives, per teacher and space, the outcome at the default place
-and the successes over the drawn ones, then the totals with Wilson intervals.
+learned again from its own cut demonstrations in the selected space and in
+:data:`imitate.taskspace.EQ1` (the same learning settings). The models are reproduced with the
+default planner in the task's default scene and at ``--n`` places of each of the task's places
+drawn uniformly over the built-in suite's ranges (the same draws for all, other settings at
+their defaults), each replayed in physics from seeds 0, 1, 2; the outcome is the task's. The
+table gives, per teacher and space, the outcome at the default place and the successes over the
+drawn ones (the selected space's terms beside), then the totals with Wilson intervals.
 
 Usage: ``python scripts/experiments/declared_space.py RUN_DIR [--teachers 3] [--n 10]
 [--seed 0] [--workers 2]``
@@ -20,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import multiprocessing
 from collections import Counter
 from pathlib import Path
@@ -27,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from imitate.demos.segment import task_demos
+from imitate.demos.space_selection import rate, select
 from imitate.envs.pour.task import pour_phase
 from imitate.envs.task import Task, get_task
 from imitate.evaluation.report import wilson
@@ -37,37 +41,49 @@ from imitate.motion import PlanConfig, plan_from_model
 from imitate.motion.replay import measure, planning_task
 from imitate.stages.config import load_config
 from imitate.stages.files import DemosFile
-from imitate.taskspace import EQ1
+from imitate.taskspace import EQ1, Angles, TaskSpace
 
-SPACES = ("declared", "eq1")
+SPACES = ("declared", "selected", "eq1")
 
 
-def eq1_model(run_dir: Path):
-    """The teacher's demonstrations in ``run_dir`` learned again in eq. 1's space."""
+def model_in(run_dir: Path, space: TaskSpace):
+    """The teacher's demonstrations in ``run_dir`` learned again in ``space``."""
     config, cut = load_config(run_dir), DemosFile.load(run_dir)
-    demos, rate = task_demos(cut.segments, cut.objects, cut.gaze, EQ1, smoothing=config.smoothing)
+    demos, rate_hz = task_demos(cut.segments, cut.objects, cut.gaze, space,
+                                smoothing=config.smoothing)
     settings = LearningConfig(k_max=min(config.k_max, *(len(d) for d in demos)),
                               bic_method=config.bic, seed=config.seed)
-    return learn(demos, rate=rate, config=settings)
+    return learn(demos, rate=rate_hz, config=settings)
 
 
-def as_eq1(task: Task) -> Task:
-    """``task`` planned and measured in eq. 1's space (the pour's critical phase, from the
-    bottle's angle there)."""
-    return dataclasses.replace(task, space=EQ1, critical=pour_phase)
+def selected_space(run_dir: Path, task: Task) -> TaskSpace:
+    """The space the teacher's cut demonstrations in ``run_dir`` select."""
+    config, cut = load_config(run_dir), DemosFile.load(run_dir)
+    return select(rate(cut.segments, cut.objects, cut.gaze, task, smoothing=config.smoothing))
+
+
+def planned_in(task: Task, space: TaskSpace) -> Task:
+    """``task`` planned and measured in ``space`` (the pour's critical phase, from the bottle's
+    angle there)."""
+    if space == task.space:
+        return task
+    tilt = space.starts[space.terms.index(Angles("tool"))]
+    return dataclasses.replace(task, space=space,
+                               critical=functools.partial(pour_phase, tilt_column=tilt))
 
 
 def trial(job) -> tuple[int, int, str, str]:
-    """One teacher's reproduction at one place in one space: its outcome (in a worker)."""
-    seed, index, space, options, model, gaze, name = job
+    """One teacher's reproduction at one place in one space (its arm of :data:`SPACES`): its
+    outcome (in a worker)."""
+    seed, index, arm, space, options, model, gaze, name = job
     task = get_task(name)
-    planned = task if space == "declared" else as_eq1(task)
+    planned = planned_in(task, space)
     scene = dataclasses.replace(task.scene(options), space=planned.space)
     plan = plan_from_model(planning_task(scene, gaze), model, q0=humanoid.rest_pose(),
                            config=PlanConfig(), critical=planned.critical)
     records = [measure(planned, plan, task.make_env(scene), seed=s, gaze=gaze,
                        options=options)[1] for s in range(task.replays)]
-    return seed, index, space, task.outcome(plan.min_distance, records, task.settings(options))
+    return seed, index, arm, task.outcome(plan.min_distance, records, task.settings(options))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -86,10 +102,13 @@ def main(argv: list[str] | None = None) -> int:
     rng = np.random.default_rng(args.seed)
     places = [{}] + [{k: float(rng.uniform(*r)) for k, r in ranges.items()}
                      for _ in range(args.n)]
-    jobs = []
+    jobs, chosen = [], {}
     for t in teachers(args.run_dir, args.run_dir / "eval", args.teachers, (), args.workers):
-        models = {"declared": t.learned.model, "eq1": eq1_model(t.path.parent)}
-        jobs += [(t.seed, i, s, p, models[s], t.learned.gaze, name)
+        chosen[t.seed] = selected_space(t.path.parent, task)
+        spaces = {"declared": task.space, "selected": chosen[t.seed], "eq1": EQ1}
+        models = {"declared": t.learned.model, "selected": model_in(t.path.parent, chosen[t.seed]),
+                  "eq1": model_in(t.path.parent, EQ1)}
+        jobs += [(t.seed, i, s, spaces[s], p, models[s], t.learned.gaze, name)
                  for i, p in enumerate(places) for s in SPACES]
     with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
         results = pool.map(trial, jobs)
@@ -105,7 +124,10 @@ def main(argv: list[str] | None = None) -> int:
             drawn = Counter(r[3] for r in mine if r[1] > 0)
             totals[space, "success"] += drawn["success"]
             totals[space, "n"] += sum(drawn.values())
-            print(f"| {seed} | {space} | {default} | {drawn['success']} of {sum(drawn.values())}"
+            terms = (", ".join(f"{t.of}-{t.to}" for t in chosen[seed].terms if hasattr(t, "to"))
+                     if space == "selected" else "")
+            print(f"| {seed} | {space}{f' ({terms})' if terms else ''} | {default} | "
+                  f"{drawn['success']} of {sum(drawn.values())}"
                   f" | {', '.join(f'{o} {k}' for o, k in drawn.most_common())} |")
     print()
     for space in SPACES:

@@ -19,17 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate.demos.segment import place_positions, task_demo
-from imitate.demos.space_selection import (
-    WORLD,
-    candidates,
-    columns,
-    equivalent,
-    invariance,
-    select,
-)
+from imitate.demos.space_selection import equivalent, rate, select
 from imitate.envs.task import get_task
-from imitate.learning.dtw import align
 from imitate.stages.config import load_config
 from imitate.stages.files import DemosFile
 from imitate.taskspace import Relative, TaskSpace
@@ -39,15 +30,7 @@ def rated(run_dir: Path) -> tuple[str, dict[Relative, float], TaskSpace]:
     """The task of ``run_dir``, its candidates' invariance ratios and the space they select."""
     config, cut = load_config(run_dir), DemosFile.load(run_dir)
     task = get_task(config.task)
-    rate = 1.0 / float(np.median(np.diff(cut.segments[0].times)))
-    space = candidates(task.space.places)
-    values = align([
-        task_demo(d, cut.objects, cut.gaze, space, {**p, WORLD: np.zeros(3)},
-                  smoothing=config.smoothing, rate=rate)
-        for d, p in zip(cut.segments, place_positions(cut.segments, cut.objects), strict=True)
-    ]).aligned
-    critical = task.critical(values.mean(axis=0)[:, columns(space, task.space)])
-    ratios = invariance(values, space, critical)
+    ratios = rate(cut.segments, cut.objects, cut.gaze, task, smoothing=config.smoothing)
     return task.name, ratios, select(ratios)
 
 
