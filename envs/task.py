@@ -8,9 +8,8 @@ judged, and its critical phase.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, ClassVar, Protocol
 
@@ -230,7 +229,7 @@ class Task:
         values = self.settings(options)
         grasps = tuple(float(values[f"{obj}_grasp"]) for obj in self.objects)
         config = self.env.scene_config(teacher, tuple(obstacles), **self._scene_values(values))
-        return dataclasses.replace(config, grasps=grasps, space=self.space)
+        return replace(config, grasps=grasps, space=self.space)
 
     def make_env(self, scene: SceneConfig, **kwargs: Any) -> BimanualEnv:
         """Its env of ``scene`` (obstacles, teacher and the task's own scene values; the grasps
