@@ -84,8 +84,9 @@ class Task:
         outcomes: The outcomes of a reproduction, ``"success"`` first.
         outcome: ``outcome(plan_min_distance [m], records, options) -> str``, one of
             ``outcomes``.
-        critical: ``critical(mean (T, m)) -> (T,) bool``: the steps of a learned mean in the
-            task's critical phase (where its success is decided).
+        critical_steps: ``critical_steps(mean (T, m), space) -> (T,) bool``: the steps of a
+            learned mean in ``space`` in the task's critical phase (where its success is
+            decided); :meth:`critical` in its own space.
         watcher: The :class:`Watcher` of a replay (a class: its ``KEYS`` are read).
         score: The replay measure its success is judged by (:class:`Score`).
         words: What its pages and datasets say of it (:class:`~imitate.rundir.page.Words`).
@@ -102,7 +103,7 @@ class Task:
     phase: str
     outcomes: tuple[str, ...]
     outcome: Callable[[float, Sequence[Mapping[str, Any]], Mapping[str, Any]], str]
-    critical: Callable[[np.ndarray], np.ndarray]
+    critical_steps: Callable[[np.ndarray, TaskSpace], np.ndarray]
     watcher: type[Watcher]
     score: Score
     words: Words
@@ -114,6 +115,16 @@ class Task:
     def name(self) -> str:
         """Its name (its env's ``task``)."""
         return self.env.task
+
+    def critical(self, mean: np.ndarray) -> np.ndarray:
+        """The steps ``(T,) bool`` of a learned mean ``(T, m)`` in its space in its critical
+        phase (:attr:`critical_steps`)."""
+        return self.critical_steps(mean, self.space)
+
+    def in_space(self, space: TaskSpace) -> Task:
+        """The task learned, planned and measured in ``space`` (a space selected from the
+        demonstrations, say) instead of its declared one."""
+        return replace(self, space=space)
 
     @property
     def env_id(self) -> str:

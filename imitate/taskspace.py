@@ -163,6 +163,17 @@ class TaskSpace:
         names = [n for t in self.terms if isinstance(t, Relative) for n in (t.of, t.to)]
         return tuple(dict.fromkeys(n for n in names if n not in OBJECTS))
 
+    def columns(self, term: Term) -> slice:
+        """The columns of ``term``.
+
+        Raises:
+            ImitateError: ``term`` is not one of the space's.
+        """
+        if term not in self.terms:
+            raise ImitateError(f"{term} is not a term of the task space {self.terms}")
+        start = self.starts[self.terms.index(term)]
+        return slice(start, start + len(term.units))
+
     @property
     def positions(self) -> tuple[slice, ...]:
         """The columns of each :class:`Relative` [m]; the first is the task's main one."""

@@ -28,6 +28,7 @@ from imitate.models import humanoid, objects
 from imitate.models.scene import OBSTACLE_PREFIX
 from imitate.motion import PlanConfig, plan_from_model
 from imitate.motion.replay import planning_task
+from imitate.taskspace import EQ1
 
 POUR = get_task("pour")
 
@@ -99,7 +100,7 @@ def _clearance(plan, fixture: Fixture, body: str, lift: float) -> float:
     geom = m.geom(f"{OBSTACLE_PREFIX}0").id
     hulls = [g for g in range(m.ngeom) if m.geom(g).name.startswith(f"{body}_hull_")]
     closest = np.inf
-    for q in plan.q[pour_phase(plan.mean)]:
+    for q in plan.q[pour_phase(plan.mean, EQ1)]:
         kin.update(q)
         closest = min(closest, *(mujoco.mj_geomDistance(m, d, geom, h, 0.1, None) for h in hulls))
     return closest

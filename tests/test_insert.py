@@ -25,6 +25,7 @@ from imitate.envs.task import get_task
 from imitate.envs.teacher_motion import TeacherConfig, script_demonstrations
 from imitate.models import humanoid, objects
 from imitate.perception.colour import object_models
+from imitate.taskspace import EQ1
 
 SMALL = {"width": 96, "height": 72}
 GLASS_HEIGHT = objects.GLASS_SHAPE.height
@@ -170,12 +171,12 @@ def test_the_insert_phase_is_where_the_mean_holds_the_stick_in_the_glass():
     mean = np.zeros((100, 7))
     mean[:, 1] = np.where(np.arange(100) < 40, -0.2, 0.0)  # beside, then over the glass
     mean[:, 2] = np.linspace(0.3, 0.05, 100)  # down, to 5 cm above the glass's bottom
-    phase = insert_phase(mean)
+    phase = insert_phase(mean, EQ1)
     assert phase.any() and np.all(mean[phase, 2] <= GLASS_HEIGHT + 0.01)
     assert not phase[:40].any() and phase[-1]
     beside = mean.copy()
     beside[:, 1] = -0.2 + np.linspace(0.0, 0.1, 100)  # never over the opening
-    assert np.flatnonzero(insert_phase(beside)).min() >= 85  # the nearest tenth
+    assert np.flatnonzero(insert_phase(beside, EQ1)).min() >= 85  # the nearest tenth
 
 
 @pytest.mark.parametrize("seed", [0, 3])

@@ -13,6 +13,7 @@ from imitate.envs.insert.outcome import OUTCOMES, SUCCESS_DEPTH, outcome
 from imitate.envs.task import Score, Task
 from imitate.models import objects
 from imitate.rundir.page import Words, shown
+from imitate.taskspace import Relative, TaskSpace
 
 __all__ = ["TASK", "insert_phase"]
 
@@ -20,13 +21,15 @@ _RIM = objects.GLASS_SHAPE.profile[-1][0] - objects.GLASS_SHAPE.wall / 2  # inne
 _ABOVE = 0.01  # [m]: how far above the rim the insertion phase starts
 
 
-def insert_phase(mean: np.ndarray) -> np.ndarray:
-    """Steps ``(T,) bool`` where the GMR mean ``(T, 7)`` holds the stick's lower end over the
-    glass's opening (within the rim's inner radius of the glass's axis) and at most 1 cm above
-    the rim: the low-variance descent into the glass. Where it never does, the steps where the
-    end is nearest to the glass's axis (within 1 cm of the nearest)."""
-    offset = np.hypot(mean[:, 0], mean[:, 1])
-    phase = (offset < _RIM) & (mean[:, 2] <= objects.GLASS_SHAPE.height + _ABOVE)
+def insert_phase(mean: np.ndarray, space: TaskSpace) -> np.ndarray:
+    """Steps ``(T,) bool`` where the GMR mean ``(T, m)`` in ``space`` (its stick relative to the
+    glass, ``Relative("tool", "target")``) holds the stick's lower end over the glass's opening
+    (within the rim's inner radius of the glass's axis) and at most 1 cm above the rim: the
+    low-variance descent into the glass. Where it never does, the steps where the end is
+    nearest to the glass's axis (within 1 cm of the nearest)."""
+    dx, dy, dz = mean[:, space.columns(Relative("tool", "target"))].T
+    offset = np.hypot(dx, dy)
+    phase = (offset < _RIM) & (dz <= objects.GLASS_SHAPE.height + _ABOVE)
     return phase if phase.any() else offset <= offset.min() + 0.01
 
 
@@ -56,7 +59,7 @@ TASK = Task(
     phase="insert",
     outcomes=OUTCOMES,
     outcome=outcome,
-    critical=insert_phase,
+    critical_steps=insert_phase,
     watcher=InsertGeometry,
     score=Score("insert_depth", SUCCESS_DEPTH, "insert", unit="mm", scale=1000.0),
     words=Words(verbs=("inserts", "does not insert"), noun="the insertion",

@@ -12,15 +12,17 @@ from imitate.envs.pour.geometry import PourGeometry
 from imitate.envs.pour.outcome import OUTCOMES, SUCCESS_FRACTION, outcome
 from imitate.envs.task import Score, Task
 from imitate.rundir.page import Words, shown
+from imitate.taskspace import Angles, TaskSpace
 
 __all__ = ["TASK", "pour_phase"]
 
 
-def pour_phase(mean: np.ndarray, tilt_column: int = 3) -> np.ndarray:
+def pour_phase(mean: np.ndarray, space: TaskSpace) -> np.ndarray:
     """Steps ``(T,) bool`` where the bottle is tilted beyond 80 % of its largest tilt from the
-    start, given the GMR mean ``(T, m)`` whose column ``tilt_column`` is the bottle's angle
-    (eq. 1's 3): the low-variance pouring phase."""
-    tilt = np.abs(mean[:, tilt_column] - mean[0, tilt_column])
+    start, given the GMR mean ``(T, m)`` in ``space`` (its bottle's angle: the first column of
+    ``Angles("tool")``): the low-variance pouring phase."""
+    column = space.columns(Angles("tool")).start
+    tilt = np.abs(mean[:, column] - mean[0, column])
     return tilt >= 0.8 * tilt.max()
 
 
@@ -50,7 +52,7 @@ TASK = Task(
     phase="pour",
     outcomes=OUTCOMES,
     outcome=outcome,
-    critical=pour_phase,
+    critical_steps=pour_phase,
     watcher=PourGeometry,
     score=Score("pour_fraction", SUCCESS_FRACTION, "pour"),
     words=Words(verbs=("pours", "does not pour"), noun="the pour",

@@ -2,17 +2,17 @@
 in the space selected from their statistics (:mod:`imitate.demos.space_selection`) and in eq. 1's,
 each reproduced over the same places.
 
-For a task whose space is not eq. 1 and whose critical phase is the pour's (``marked``: the glass
-relative to the marker is part of its space; in another space the pour is found from the bottle's
-angle column by :func:`~imitate.envs.pour.task.pour_phase`), each teacher of ``RUN_DIR`` (seeds as
-``imitate eval --teachers N`` takes them, learned under ``RUN_DIR/eval/teachers`` where missing) is
-learned again from its own cut demonstrations in the selected space and in
-:data:`imitate.taskspace.EQ1` (the same learning settings). The models are reproduced with the
-default planner in the task's default scene and at ``--n`` places of each of the task's places
-drawn uniformly over the built-in suite's ranges (the same draws for all, other settings at
-their defaults), each replayed in physics from seeds 0, 1, 2; the outcome is the task's. The
-table gives, per teacher and space, the outcome at the default place and the successes over the
-drawn ones (the selected space's terms beside), then the totals with Wilson intervals.
+For a task whose space is not eq. 1 (``marked``: the glass relative to the marker is part of its
+space; its critical phase is found in any space, ``Task.critical_steps``), each teacher of
+``RUN_DIR`` (seeds as ``imitate eval --teachers N`` takes them, learned under
+``RUN_DIR/eval/teachers`` where missing) is learned again from its own cut demonstrations in
+the selected space and in :data:`imitate.taskspace.EQ1` (the same learning settings). The models
+are reproduced with the default planner in the task's default scene and at ``--n`` places of
+each of the task's places drawn uniformly over the built-in suite's ranges (the same draws for
+all, other settings at their defaults), each replayed in physics from seeds 0, 1, 2; the outcome
+is the task's. The table gives, per teacher and space, the outcome at the default place and the
+successes over the drawn ones (the selected space's terms beside), then the totals with Wilson
+intervals.
 
 Usage: ``python scripts/experiments/declared_space.py RUN_DIR [--teachers 3] [--n 10]
 [--seed 0] [--workers 2]``
@@ -21,8 +21,6 @@ Usage: ``python scripts/experiments/declared_space.py RUN_DIR [--teachers 3] [--
 from __future__ import annotations
 
 import argparse
-import dataclasses
-import functools
 import multiprocessing
 from collections import Counter
 from pathlib import Path
@@ -31,7 +29,6 @@ import numpy as np
 
 from imitate.demos.segment import task_demos
 from imitate.demos.space_selection import rate, select
-from imitate.envs.pour.task import pour_phase
 from imitate.envs.task import Task, get_task
 from imitate.evaluation.report import wilson
 from imitate.evaluation.teachers import run_task, teachers
@@ -41,7 +38,7 @@ from imitate.motion import PlanConfig, plan_from_model
 from imitate.motion.replay import measure, planning_task
 from imitate.stages.config import load_config
 from imitate.stages.files import DemosFile
-from imitate.taskspace import EQ1, Angles, TaskSpace
+from imitate.taskspace import EQ1, TaskSpace
 
 SPACES = ("declared", "selected", "eq1")
 
@@ -62,23 +59,13 @@ def selected_space(run_dir: Path, task: Task) -> TaskSpace:
     return select(rate(cut.segments, cut.objects, cut.gaze, task, smoothing=config.smoothing))
 
 
-def planned_in(task: Task, space: TaskSpace) -> Task:
-    """``task`` planned and measured in ``space`` (the pour's critical phase, from the bottle's
-    angle there)."""
-    if space == task.space:
-        return task
-    tilt = space.starts[space.terms.index(Angles("tool"))]
-    return dataclasses.replace(task, space=space,
-                               critical=functools.partial(pour_phase, tilt_column=tilt))
-
-
 def trial(job) -> tuple[int, int, str, str]:
     """One teacher's reproduction at one place in one space (its arm of :data:`SPACES`): its
     outcome (in a worker)."""
     seed, index, arm, space, options, model, gaze, name = job
     task = get_task(name)
-    planned = planned_in(task, space)
-    scene = dataclasses.replace(task.scene(options), space=planned.space)
+    planned = task.in_space(space)
+    scene = planned.scene(options)
     plan = plan_from_model(planning_task(scene, gaze), model, q0=humanoid.rest_pose(),
                            config=PlanConfig(), critical=planned.critical)
     records = [measure(planned, plan, task.make_env(scene), seed=s, gaze=gaze,
