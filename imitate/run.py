@@ -21,7 +21,7 @@ import numpy as np
 
 from imitate.demos.segment import task_demos
 from imitate.envs.assembly import Obstacle, check_clearance
-from imitate.envs.task import get_task
+from imitate.envs.task import Task, get_task
 from imitate.errors import ImitateError
 from imitate.learning import LearnedModel
 from imitate.motion import Plan
@@ -68,12 +68,17 @@ class Run:
         """The segmented demonstrations (``demos.npz``)."""
         return DemosFile.load(self.path)
 
+    @property
+    def task(self) -> Task:
+        """The run's task in the space its model was learned in (:meth:`Learned.task`)."""
+        return self.learned.task(get_task(self.config.task))
+
     def task_demos(self) -> tuple[list[np.ndarray], float]:
         """The demonstrations in the task's space as the ``learn`` stage projects them (one
         ``(n_i, m)`` array each, in :attr:`gaze`'s frame) and their rate [Hz]: the arrays
         :func:`imitate.learn` takes."""
         d = self.demos
-        return task_demos(d.segments, d.objects, d.gaze, get_task(self.config.task).space,
+        return task_demos(d.segments, d.objects, d.gaze, self.task.space,
                           smoothing=self.config.smoothing)
 
     @cached_property
@@ -120,7 +125,7 @@ class Run:
             ImitateError: an unknown setting, a bad value, or an obstacle that overlaps the
                 robot or what it holds.
         """
-        scene = self.config.scene()
+        scene = self.config.scene(task=self.task)
         if obstacles is not None:
             scene = dataclasses.replace(scene, obstacles=tuple(obstacles))
             check_clearance(scene)

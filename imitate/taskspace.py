@@ -47,7 +47,7 @@ neither chases nor is thrown by an undefined quantity; the ``a . f`` component s
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -206,6 +206,31 @@ class TaskSpace:
             if isinstance(t, Angles):
                 ref[..., OBJECTS.index(t.of)] = x[..., s]
         return ref
+
+    @property
+    def text(self) -> tuple[str, ...]:
+        """Its terms as text, ``("tool-target", "tool angles", ...)``: what a run stores
+        (:meth:`from_text` reads it back)."""
+        return tuple(f"{t.of}-{t.to}" if isinstance(t, Relative) else f"{t.of} angles"
+                     for t in self.terms)
+
+    @classmethod
+    def from_text(cls, text: Sequence[str]) -> TaskSpace:
+        """The space whose :attr:`text` is ``text``.
+
+        Raises:
+            ImitateError: a term not in that form.
+        """
+        terms: list[Term] = []
+        for item in text:
+            words = str(item).split(" ")
+            if len(words) == 2 and words[1] == "angles":
+                terms.append(Angles(words[0]))
+            elif len(words) == 1 and len(words[0].split("-")) == 2:
+                terms.append(Relative(*words[0].split("-")))
+            else:
+                raise ImitateError(f"task space term {item!r} not accepted: 'OF-TO' or 'OF angles'")
+        return cls(tuple(terms))
 
     def labels(self, names: Mapping[str, str] | None = None) -> tuple[str, ...]:
         """Each column's label in the task's words ``names`` (role -> name: ``{"tool":

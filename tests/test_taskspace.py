@@ -402,3 +402,14 @@ def test_a_place_stands_on_the_table_and_the_robot_maps_a_space_relative_to_it()
         check_clearance(dataclasses.replace(scene, places=(Place("marker", 0.42, -0.18),)), 0.05)
     with pytest.raises(ImitateError, match=r"relative to \['marker'\], not in places"):
         dataclasses.replace(scene, places=())
+
+
+def test_a_space_is_stored_as_text_and_read_back():
+    assert EQ1.text == ("tool-target", "tool angles", "target angles")
+    assert TaskSpace.from_text(PLACED.text) == PLACED
+    with pytest.raises(ImitateError, match=r"term 'tool target' not accepted: 'OF-TO' or"):
+        TaskSpace.from_text(["tool target"])
+    assert EQ1.columns(Angles("tool")) == slice(3, 5)
+    assert PLACED.columns(Relative("tool", "target")) == slice(3, 6)
+    with pytest.raises(ImitateError, match="is not a term of the task space"):
+        EQ1.columns(Relative("target", "spot"))

@@ -106,7 +106,8 @@ def measure(
                             "seed": seed, "key": keys[seed],
                             "model": sens.model_digest(models[seed].model_bytes),
                             "magnitudes": magnitudes,
-                            **_summary(learned[seed], task, rates[seed], magnitudes),
+                            **_summary(learned[seed], learned[seed].task(task), rates[seed],
+                                       magnitudes),
                         }
                         save_json(sens.result_path(run_dir, seed), results[seed])
         save_bytes(sens.results_folder(run_dir) / FIGURE, figure_png(_plot(results, task.space.m)))
@@ -120,7 +121,8 @@ def _start(models: dict, task: str) -> None:
 def _probe(job: tuple[int, int, tuple[float, ...], int]) -> tuple[int, int, list]:
     """One teacher's failure rates along one direction (in a worker)."""
     seed, index, magnitudes, seeds = job
-    learned, task = _worker["models"][seed], _worker["task"]
+    learned = _worker["models"][seed]
+    task = learned.task(_worker["task"])
     if seed not in _worker["plans"]:
         plan = sens.reproduction(learned.model, learned.gaze, task)
         covariance = sens.critical_covariance(learned.model, plan, task)

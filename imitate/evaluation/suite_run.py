@@ -131,8 +131,7 @@ def evaluate(
         save_json(out / "summary.json", summary)
         figure = plot_outcomes(ordered, drawn[0].path, task)
         save_bytes(out / "outcomes.png", plots.figure_png(figure))
-        learned = {t.seed: t.learned.model for t in models}
-        gaze = {t.seed: t.learned.gaze for t in models}
+        learned = {t.seed: t.learned for t in models}
         failures = [r for r in ordered if r["outcome"] != "success"][:videos]
         for record in progress_bar(failures, progress, desc="failure videos", unit="video"):
             name = f"{record['id']:04d}-{record['outcome']}.mp4"
@@ -140,7 +139,8 @@ def evaluate(
             refuse_link(video, out)
             if not video.exists():
                 t = record["teacher"]
-                failure_video(video, learned[t], gaze[t], record, task)
+                failure_video(video, learned[t].model, learned[t].gaze, record,
+                              learned[t].task(task))
         page.save_eval_page(out, summary, task.score.name)
         return summary
 
@@ -243,7 +243,8 @@ def draw_jobs(
     drawn = []
     for t in models:
         if t.seed not in places:
-            places[t.seed] = free_places(t.learned.model, t.learned.gaze, suite["max_iter"], task)
+            places[t.seed] = free_places(t.learned.model, t.learned.gaze, suite["max_iter"],
+                                         t.learned.task(task))
         path, place = places[t.seed]
         drawn.append(Draw(
             t.seed, suite.digest(seed, t.seed, t.digest_bytes, code), path,

@@ -91,7 +91,7 @@ class Trial:
     """
 
     def __init__(self, learned: Learned, task: Task):
-        self.learned, self.gaze, self.task = learned.model, learned.gaze, task
+        self.learned, self.gaze, self.task = learned.model, learned.gaze, learned.task(task)
         self.importance = learned.importance
         self._free: dict[tuple[str, int], Plan] = {}
 

@@ -159,7 +159,8 @@ def robot_episode(run: Run, images: bool = False) -> Episode:
             workspace camera) at every step.
     """
     config = run.config
-    task, scene = get_task(config.task), config.scene()
+    task = run.task
+    scene = config.scene(task=task)
     kwargs: dict[str, Any] = {**task.env_kwargs(scene), **image_kwargs(run, images)}
     return recorded(
         task, run.plan, task.env(**kwargs), kwargs, config.seed, task.scene_reset(scene), run.gaze

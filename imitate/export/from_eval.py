@@ -116,8 +116,9 @@ def evaluated_episodes(
     for record in progress_bar(evaluation.records, progress, desc="export", unit="episode"):
         variation = Variation.from_json(record["settings"])
         teacher = record["teacher"]
-        gaze = evaluation.models[teacher].gaze
-        plan = plan_variation(evaluation.models[teacher].model, gaze, variation, task)
+        learned = evaluation.models[teacher]
+        gaze, planned = learned.gaze, learned.task(task)
+        plan = plan_variation(learned.model, gaze, variation, planned)
         evaluated_plan = record["plan"]
         if (plan.min_distance, plan.n_iter) != (
             evaluated_plan["min_distance_m"], evaluated_plan["iterations"]
@@ -127,11 +128,11 @@ def evaluated_episodes(
                 f"evaluated (clearance {plan.min_distance} m, {plan.n_iter} iterations against "
                 f"{evaluated_plan['min_distance_m']} m, {evaluated_plan['iterations']})"
             )
-        scene, pixels = variation.scene(task), image_kwargs(run, images)
-        kwargs: dict[str, Any] = {**task.env_kwargs(scene), **pixels}
+        scene, pixels = variation.scene(planned), image_kwargs(run, images)
+        kwargs: dict[str, Any] = {**planned.env_kwargs(scene), **pixels}
         episode = recorded(
-            task, plan, physics(variation, task, **pixels), kwargs, variation.replay_seeds[0],
-            task.scene_reset(scene), gaze,
+            planned, plan, physics(variation, planned, **pixels), kwargs,
+            variation.replay_seeds[0], planned.scene_reset(scene), gaze,
         )
         places = {
             place: np.tile(vector(getattr(variation, place)), (len(episode) + 1, 1))

@@ -61,6 +61,12 @@ REPORT_KEYS: dict[str, tuple[str, str]] = {
         "-",
         "tracked samples missing in the demonstrations, bridged linearly",
     ),
+    "learning.task_space": ("-", "the task space learned in, its terms (`--task-space`)"),
+    "learning.space_ratios": (
+        "-",
+        "with `--task-space auto`, each candidate relation's invariance ratio where the task "
+        "is decided (`imitate.demos.space_selection`); empty otherwise",
+    ),
     "optimization.collision_weight": ("-", "weight of the collision cost of the plan"),
     "optimization.similarity": (
         "-",
@@ -191,7 +197,8 @@ KINDS: dict[str, type | tuple[type, ...]] = {
     "seed": int, "demos.detected": int, "demos.expected": int, "perception.long_gaps": int,
     "learning.source": str, "learning.bic": str, "learning.n_components": int,
     "learning.n_components_fast_bic": int, "learning.n_components_full_bic": int,
-    "learning.bridged_samples": int, "optimization.collision_weight": (int, float),
+    "learning.bridged_samples": int, "learning.task_space": str, "learning.space_ratios": dict,
+    "optimization.collision_weight": (int, float),
     "optimization.similarity": str, "optimization.sigma_max_scale": (int, float),
     "optimization.iterations": int, "optimization.converged": bool,
     "optimization.closest_pair": list, "optimization.message": str,

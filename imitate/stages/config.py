@@ -23,6 +23,7 @@ from imitate.stages import table
 
 if TYPE_CHECKING:  # loaded on use: the command line's help reads the declarations only
     from imitate.envs import assembly
+    from imitate.envs.task import Task
     from imitate.envs.teacher_motion import TeacherConfig
     from imitate.motion import PlanConfig
 
@@ -206,6 +207,12 @@ class RunConfig:
         False, "learn from ground-truth poses instead of perception", stage="learn",
         flag="--oracle",
     )
+    task_space: str = _setting(
+        "declared", "the task space learned in: the task's declared one, or the one the "
+        "demonstrations' statistics select (auto: each relation's invariance where the task is "
+        "decided, imitate.demos.space_selection)", stage="learn", flag="--task-space",
+        choices=("declared", "auto"),
+    )
     collision_weight: float = _setting(
         defaults.COLLISION_WEIGHT, "weight of the collision cost", stage="optimize",
         flag="--collision-weight", low=0, high=defaults.MAX_WEIGHT,
@@ -293,11 +300,12 @@ class RunConfig:
         values["options"] = {**quick, **(overrides.pop("options", None) or {})}
         return cls(**{**values, **overrides})
 
-    def scene(self, teacher: bool = False) -> assembly.SceneConfig:
-        """The robot's scene (objects in its hands, the obstacle, the task's own values)."""
+    def scene(self, teacher: bool = False, task: Task | None = None) -> assembly.SceneConfig:
+        """The robot's scene (objects in its hands, the obstacle, the task's own values) of the
+        run's task, or of ``task`` (the run's in the space its model was learned in)."""
         from imitate.envs.task import get_task
 
-        return get_task(self.task).scene(
+        return (task or get_task(self.task)).scene(
             self.options, (self.obstacle,) if self.obstacle else (), teacher=teacher
         )
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from imitate.demos import space_selection
 from imitate.demos.oracle import true_demos
 from imitate.demos.segment import task_demos
 from imitate.envs.task import Task
@@ -19,9 +20,15 @@ from imitate.stages.files import DemosFile, Learned, ModelFile, ObservationsFile
 
 
 def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
-    """``task``'s space, DTW, GMM (components by BIC), GMR; the other BIC method for
-    comparison."""
-    space = task.space
+    """The task space (``task``'s, or the one its demonstrations select), DTW, GMM (components
+    by BIC), GMR; the other BIC method for comparison."""
+    space, ratios = task.space, {}
+    if config.task_space == "auto":
+        cut = DemosFile.load(run_dir)
+        rated = space_selection.rate(cut.segments, cut.objects, cut.gaze, task,
+                                     smoothing=config.smoothing)
+        space = space_selection.select(rated)
+        ratios = {f"{t.of}-{t.to}": value for t, value in rated.items()}
     if config.oracle:
         tracks = ObservationsFile.load(run_dir).observations.tracks
         motion = script_demonstrations(config.teacher())
@@ -49,7 +56,8 @@ def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
     )
     assert model.alignment is not None  # learned with DTW (LearningConfig's default)
     ModelFile(
-        Learned(model, gaze), raw=raw, rate=rate, bic_fast=curves["fast"],
+        Learned(model, gaze, space=space if config.task_space == "auto" else None), raw=raw,
+        rate=rate, bic_fast=curves["fast"],
         bic_full=curves["full"], aligned=np.asarray(model.alignment.aligned),
     ).save(run_dir)
     return {
@@ -61,5 +69,7 @@ def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
             "n_components_full_bic": chosen["full"],
             "seconds": seconds,
             "bridged_samples": bridged,
+            "task_space": " ".join(f"({term})" for term in space.text),
+            "space_ratios": ratios,
         }
     }

@@ -89,7 +89,7 @@ def _physics(task: Task, plan: Plan, config: RunConfig, gaze: np.ndarray, seed: 
     """``plan`` replayed in a fresh env of the task (the teacher at rest across the table) from
     ``seed``: :func:`~imitate.motion.replay.measure`'s result, record and watcher summary, then
     the recorded states (:meth:`StateRecorder.arrays`) and their spacing [s]."""
-    env = task.make_env(config.scene(teacher=True))
+    env = task.make_env(config.scene(teacher=True, task=task))
     recorder = StateRecorder(every=max(1, round(1.0 / (config.video_fps * env.dt))))
     measured = measure(task, plan, env, seed=seed, gaze=gaze, options=config.options,
                        approach=APPROACH_S, on_step=recorder)

@@ -22,6 +22,7 @@ from imitate.rundir.artifacts import refuse_link, save_json, staged
 from imitate.rundir.schema import KINDS, REPORT_SCHEMA, check_values, load_report, report_keys
 from imitate.stages import provenance, table
 from imitate.stages.config import RunConfig, load_config
+from imitate.stages.files import ModelFile
 
 __all__ = ["run_keys", "run_stage", "run_stages"]
 
@@ -56,7 +57,7 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
         refuse_link(run_dir / name)  # now, not after the stage's work, at its commit
     with staged(run_dir, last=provenance.MANIFEST) as staging:
         start = time.perf_counter()
-        sections = current.body()(run_dir, config, task)
+        sections = current.body()(run_dir, config, _learned_task(run_dir, current, task))
         seconds = time.perf_counter() - start
         outputs = staging.files()
         manifest = provenance.recorded(manifest, run_dir, current, config, outputs)
@@ -127,6 +128,14 @@ def run_keys(task: Task) -> tuple[dict[str, tuple[str, str]], dict[str, Any]]:
     :func:`~imitate.rundir.schema.report_keys`) and the kinds of those whose value is no number
     (:data:`~imitate.rundir.schema.KINDS` and the task's)."""
     return report_keys(task.phase, task.outcomes, task.keys), {**KINDS, **task.kinds}
+
+
+def _learned_task(run_dir: Path, current: table.Stage, task: Task) -> Task:
+    """``task`` as ``current`` plans and measures it: after ``learn``, in the space its model was
+    learned in (``model.npz``, :meth:`Learned.task`)."""
+    if layout.MODEL not in current.reads:
+        return task
+    return ModelFile.load_learned(run_dir).task(task)
 
 
 def _report_task(run_dir: Path, task: Task) -> Task:

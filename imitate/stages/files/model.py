@@ -3,15 +3,18 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from imitate.envs.task import Task
 from imitate.learning import LearnedModel
 from imitate.rundir.artifacts import save_npz
 from imitate.rundir.layout import MODEL
 from imitate.stages.files._npz import read, reading
+from imitate.taskspace import TaskSpace
 
 __all__ = ["Learned", "ModelFile"]
 
@@ -28,18 +31,26 @@ class Learned:
         importance: ``(m, m)`` the task's measured importance in the critical phase (tolerance
             units, :mod:`imitate.evaluation.sensitivity`), which the ``importance`` weighting
             plans with; ``None`` where not measured (not in ``model.npz``).
+        space: The task space it was learned in where the run chose it (``--task-space auto``,
+            ``model.npz``'s ``task_space``); ``None``: the task's declared one.
     """
 
     model: LearnedModel
     gaze: np.ndarray
     importance: np.ndarray | None = None
+    space: TaskSpace | None = None
+
+    def task(self, task: Task) -> Task:
+        """``task`` in the space this model was learned in (its own where it declares it)."""
+        return task if self.space is None else task.in_space(self.space)
 
 
 @dataclass(frozen=True, eq=False)
 class ModelFile:
     """Contents of ``model.npz``: the model's arrays (:meth:`LearnedModel.to_arrays`), those of
     the model learned without DTW (prefixed ``raw_``), ``gaze``, ``rate``, ``bic_fast``,
-    ``bic_full`` and ``aligned``.
+    ``bic_full``, ``aligned`` and, where the run chose its space, ``task_space`` (its terms as
+    text, :attr:`TaskSpace.text`).
 
     Attributes:
         learned: The model learned with DTW and its gaze frame.
@@ -64,6 +75,8 @@ class ModelFile:
             **self.learned.model.to_arrays(), **self.raw.to_arrays(RAW),
             "gaze": self.learned.gaze, "rate": self.rate, "bic_fast": self.bic_fast,
             "bic_full": self.bic_full, "aligned": self.aligned,
+            **({} if self.learned.space is None
+               else {"task_space": np.array(self.learned.space.text)}),
         })
 
     @classmethod
@@ -80,7 +93,7 @@ class ModelFile:
         ))
         with reading(a.path):
             return cls(
-                Learned(LearnedModel.from_arrays(a), a["gaze"]),
+                Learned(LearnedModel.from_arrays(a), a["gaze"], space=_space(a)),
                 raw=LearnedModel.from_arrays(a, RAW), rate=float(a["rate"]),
                 bic_fast=a["bic_fast"], bic_full=a["bic_full"], aligned=a["aligned"],
             )
@@ -91,4 +104,9 @@ class ModelFile:
         are neither read nor needed), as :meth:`load` does."""
         a = read(run_dir, MODEL, (*LearnedModel.array_names(), "gaze"))
         with reading(a.path):
-            return Learned(LearnedModel.from_arrays(a), a["gaze"])
+            return Learned(LearnedModel.from_arrays(a), a["gaze"], space=_space(a))
+
+
+def _space(arrays: Mapping[str, np.ndarray]) -> TaskSpace | None:
+    """The space ``model.npz``'s arrays name (``task_space``), ``None`` where they name none."""
+    return TaskSpace.from_text(arrays["task_space"].tolist()) if "task_space" in arrays else None
