@@ -358,6 +358,11 @@ def eval_args(run_dir: Path, work: Path, n: int, videos: int) -> list[str]:
             "--videos", str(videos), "--workers", "1"]
 
 
+def compare_args(run_dir: Path, work: Path) -> list[str]:
+    return ["compare", str(run_dir), "--suite", str(tiny_suite(work)), "--n", "1",
+            "--similarity", "variance,uniform", "--workers", "1"]
+
+
 def only_under(changed: list[str], folder: str) -> bool:
     """Whether every change of ``changed`` (:func:`changes`) is under ``folder/``."""
     return all(c.lstrip("+-").startswith(folder + "/") for c in changed)
@@ -714,6 +719,29 @@ def _linked_folder(
     o = finish(f"symlink-{folder} (R/{folder} a link to an outside folder)",
                start(*args(run_dir)), run_dir, before, [])
     o.checks = {**one_line(o, 1), "nothing written outside": listing(outside) == {}}
+    return [o]
+
+
+@case("symlink-compare", fast=True)
+def symlink_compare(base: Path, work: Path) -> list[Outcome]:
+    """`compare` with R/compare a symbolic link to an outside folder."""
+    return _linked_folder(base, work, "compare", lambda run_dir: compare_args(run_dir, work))
+
+
+@case("hardlink-compare-results", fast=True)
+def hardlink_compare_results(base: Path, work: Path) -> list[Outcome]:
+    """`compare` whose results.jsonl is a hard link to a user's file (review F): exit 1, one
+    line, the user's file as it was."""
+    run_dir = copy(base, work, "hardlink-compare-results")
+    victim = work / "hardlink-compare-notes.txt"
+    victim.write_text("notes\n")
+    folder = run_dir / "compare" / "tiny"
+    folder.mkdir(parents=True)
+    os.link(victim, folder / "results.jsonl")
+    before = snapshot(run_dir)
+    o = finish("hardlink-compare-results (R/compare/tiny/results.jsonl a hard link to a user's "
+               "file)", start(*compare_args(run_dir, work)), run_dir, before, [])
+    o.checks = {**one_line(o, 1), "the user's file as it was": victim.read_text() == "notes\n"}
     return [o]
 
 
