@@ -22,7 +22,7 @@ from imitate import defaults
 from imitate.envs.collision import INSIDE, inside
 from imitate.errors import ImitateError
 from imitate.models import humanoid, model_path, objects, scene, shapes, teacher
-from imitate.taskspace import EQ1, TaskSpace
+from imitate.taskspace import EQ1, WORLD, TaskSpace
 
 HOLDERS = ("robot", "teacher")
 # How the tool meets the target: never (each keeps clear of the other's hulls), or it goes into
@@ -261,7 +261,7 @@ class SceneConfig:
                 f"places={self.places!r} not accepted: Place instances of distinct objects, "
                 f"none of {self.objects}"
             )
-        missing = sorted(set(self.space.places) - set(names))
+        missing = sorted(set(self.space.places) - set(names) - {WORLD})
         if missing:
             raise ImitateError(f"the task space is relative to {missing}, not in places {names}")
 

@@ -61,6 +61,7 @@ __all__ = [
     "SINGULAR_TOL",
     "Angles",
     "Relative",
+    "WORLD",
     "TaskSpace",
     "check_gaze",
     "gaze_frame",
@@ -70,6 +71,7 @@ __all__ = [
 ]
 
 OBJECTS = ("tool", "target")  # the held objects' roles; any other name in a term is a place
+WORLD = "world"  # the place every scene has: the world's origin, MuJoCo's world body
 # Projected length ``rho`` of a unit axis onto the image plane below which its angle is
 # undefined (the axis lies within about 1e-6 rad of the gaze).
 SINGULAR_TOL = 1e-6
@@ -249,7 +251,8 @@ class TaskSpace:
 
         Args:
             tracks: By role or place: ``(positions (n_steps, 3) [m], long axes (n_steps, 3))``
-                in the world frame, any non-zero axis length; a place's axes may be ``None``.
+                in the world frame, any non-zero axis length; a place's axes may be ``None``;
+                :data:`WORLD` needs none (it is the origin).
             gaze: ``R_gaze``, shape ``(3, 3)``, right-handed, columns (right, down, forward).
             singular_tol: Projected axis length below which an angle is undefined and held.
 
@@ -260,6 +263,9 @@ class TaskSpace:
             ImitateError: On a missing track, mismatched shapes, non-finite values, zero axes
                 or a bad gaze frame.
         """
+        if WORLD in self.places and WORLD not in tracks:
+            first = np.asarray(next(iter(tracks.values()))[0], dtype=float)
+            tracks = {**tracks, WORLD: (np.zeros_like(first), None)}
         missing = sorted({n for t in self.terms for n in vars(t).values()} - set(tracks))
         if missing:
             raise ImitateError(f"no track of {missing}; given: {sorted(tracks)}")

@@ -8,7 +8,6 @@ import pytest
 
 from imitate.demos.space_selection import (
     INVARIANT,
-    WORLD,
     candidates,
     columns,
     equivalent,
@@ -19,7 +18,7 @@ from imitate.envs.task import get_task
 from imitate.envs.teacher_motion import TeacherConfig, script_demonstrations
 from imitate.errors import ImitateError
 from imitate.learning.dtw import align
-from imitate.taskspace import EQ1, Angles, Relative, TaskSpace, gaze_frame
+from imitate.taskspace import EQ1, WORLD, Angles, Relative, TaskSpace, gaze_frame
 
 GAZE = gaze_frame((1.0, 0.0, -0.3))
 
@@ -66,7 +65,7 @@ def test_spaces_whose_relations_join_the_same_things_are_equivalent():
     assert not equivalent(TaskSpace((Relative("tool", "target"), Angles("tool"))), EQ1)
     space = candidates(("spot",))
     assert list(columns(space, EQ1)) == [0, 1, 2, 15, 16, 17, 18]
-    with pytest.raises(ImitateError, match="are not among"):
+    with pytest.raises(ImitateError, match="is not a term of the task space"):
         columns(EQ1, declared)
 
 
@@ -78,7 +77,7 @@ def _true_ratios(task: str, seed: int) -> dict[Relative, float]:
     demos = []
     for i, (position, axis) in enumerate(motion.demonstration_frames(
             np.arange(0.0, motion.duration, 0.02))):
-        places = {p.name: p.pos for p in motion.places[i]} | {WORLD: np.zeros(3)}
+        places = {p.name: p.pos for p in motion.places[i]}  # the world needs no track
         demos.append(space({"tool": (position[0], axis[0]), "target": (position[1], axis[1]),
                             **{n: (np.broadcast_to(p, position[0].shape), None)
                                for n, p in places.items()}}, GAZE))
@@ -94,3 +93,17 @@ def test_the_teachers_true_poses_select_the_declared_space(task):
     marker between demonstrations and pours over it)."""
     for seed in (0, 1):
         assert equivalent(select(_true_ratios(task, seed)), get_task(task).space)
+
+
+def test_the_world_is_a_place_every_scene_has():
+    """A space relative to the world maps tracks without one (the origin) and plans in a scene
+    without a place of that name (MuJoCo's world body)."""
+    from imitate.envs.task import get_task
+    from imitate.motion.replay import planning_task
+
+    space = TaskSpace((Relative("tool", "target"), Relative("target", WORLD), Angles("tool")))
+    p, a = np.array([[0.1, 0.2, 0.3]]), np.array([[0.0, 0.0, 1.0]])
+    x = space({"tool": (p + 1.0, a), "target": (p, a)}, GAZE)
+    np.testing.assert_allclose(x[0, 3:6], p[0])
+    task_map = planning_task(get_task("pour").in_space(space).scene(), GAZE)
+    assert task_map.space == space

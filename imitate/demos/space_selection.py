@@ -3,7 +3,7 @@ invariance where the task is decided, and the task space they select.
 
 The candidates (:func:`candidates`) are every relation the tracks can give: the tool relative to
 the target (eq. 1's), and each held object relative to each place of the scene and to the
-world (the robot's frame, :data:`WORLD`, a place at the origin), beside eq. 1's angles. The
+world (the robot's frame, :data:`~imitate.taskspace.WORLD`), beside eq. 1's angles. The
 demonstrations in that space are aligned by DTW (:func:`imitate.learning.dtw.align`, as learning
 aligns them). A term's **invariance ratio** (:func:`invariance`) is the aligned demonstrations'
 spread across one another in the critical phase (the trace of their covariance at each of its
@@ -26,12 +26,11 @@ from imitate.demos.segment import Demonstration, place_positions, task_demo
 from imitate.envs.task import Task
 from imitate.errors import ImitateError
 from imitate.learning.dtw import align
-from imitate.taskspace import OBJECTS, Angles, Relative, TaskSpace
+from imitate.taskspace import OBJECTS, WORLD, Angles, Relative, TaskSpace
 
-__all__ = ["INVARIANT", "WORLD", "candidates", "columns", "equivalent", "invariance", "rate",
+__all__ = ["INVARIANT", "candidates", "columns", "equivalent", "invariance", "rate",
            "select"]
 
-WORLD = "world"  # the robot's frame, as a place at the origin
 # The largest invariance ratio of a relation of the target's kept (the demonstrations spread in
 # the critical phase by under a tenth of its spread over the movement). Chosen on teachers 0-2 of
 # a task with a place (the place's ratio 0.02-0.05) and one without (the world's 0.25-0.33).
@@ -40,7 +39,7 @@ INVARIANT = 0.1
 
 def candidates(places: Sequence[str]) -> TaskSpace:
     """The candidate terms of a task with ``places``: the tool relative to the target, the tool
-    and the target relative to each place and to :data:`WORLD`, then eq. 1's angles."""
+    and the target relative to each place and to the world, then eq. 1's angles."""
     tool, target = OBJECTS
     return TaskSpace((Relative(tool, target),
                       *(Relative(obj, p) for p in (*places, WORLD) for obj in OBJECTS),
@@ -53,14 +52,7 @@ def columns(space: TaskSpace, part: TaskSpace) -> np.ndarray:
     Raises:
         ImitateError: a term of ``part`` is not in ``space``.
     """
-    missing = [t for t in part.terms if t not in space.terms]
-    if missing:
-        raise ImitateError(f"terms {missing} are not among {space.terms}")
-    found: list[int] = []
-    for term in part.terms:
-        k = space.terms.index(term)
-        found.extend(range(space.starts[k], space.starts[k] + len(term.units)))
-    return np.array(found)
+    return np.concatenate([np.arange(c.start, c.stop) for c in map(space.columns, part.terms)])
 
 
 def invariance(values: np.ndarray, space: TaskSpace, critical: np.ndarray) -> dict[Relative, float]:
@@ -97,8 +89,7 @@ def rate(
     rate_hz = 1.0 / float(np.median(np.diff(segments[0].times)))
     space = candidates(task.space.places)
     values = align([
-        task_demo(d, objects, gaze, space, {**p, WORLD: np.zeros(3)}, smoothing=smoothing,
-                  rate=rate_hz)
+        task_demo(d, objects, gaze, space, p, smoothing=smoothing, rate=rate_hz)
         for d, p in zip(segments, place_positions(segments, objects), strict=True)
     ]).aligned
     critical = task.critical(values.mean(axis=0)[:, columns(space, task.space)])
