@@ -41,7 +41,8 @@ class Learned:
     space: TaskSpace | None = None
 
     def task(self, task: Task) -> Task:
-        """``task`` in the space this model was learned in (its own where it declares it)."""
+        """``task`` in the space this model was learned in (``task`` itself where that is its
+        declared one)."""
         return task if self.space is None else task.in_space(self.space)
 
 
