@@ -19,7 +19,7 @@ H = 1e-6  # central-difference step [rad]
 
 @pytest.fixture(scope="module")
 def kin():
-    model = assembly.build_model(replace(assembly.SceneConfig(), particles=0, holder="robot"))
+    model = assembly.build_model(replace(assembly.SceneConfig(), holder="robot"))
     return Kinematics(model, humanoid.JOINTS, assembly.clearance_geoms(model))
 
 
@@ -86,7 +86,7 @@ def test_near_pair_bounds_skip_no_pair_within_range():
         assembly.Obstacle("box", (0.45, -0.17, 0.7), (0.05, 0.05, 0.09)),
         assembly.Obstacle("cylinder", (0.45, 0.17, 0.7), (0.04, 0.09)),
     )
-    config = replace(assembly.SceneConfig(), particles=0, holder="robot", obstacles=obstacles)
+    config = replace(assembly.SceneConfig(), holder="robot", obstacles=obstacles)
     model = assembly.build_model(config)
     kin = Kinematics(model, humanoid.JOINTS, assembly.clearance_geoms(model))
     distmax, fromto, measured = 0.05, np.zeros(6), 0
@@ -108,7 +108,7 @@ def test_planning_model_is_the_whole_scene_bit_for_bit():
     Jacobians, Jacobian rates and distances, bit for bit, with an obstacle and a cylinder."""
     obstacles = (assembly.Obstacle("cylinder", (0.45, 0.0, 0.72), (0.04, 0.09)),)
     config = replace(assembly.SceneConfig(), obstacles=obstacles)
-    whole_model = assembly.build_model(replace(config, particles=0, holder="robot"))
+    whole_model = assembly.build_model(replace(config, holder="robot"))
     models = (whole_model, assembly.planning_model(config))
     assert models[1].ngeom < models[0].ngeom / 4 and models[1].nbody < models[0].nbody
     kins = [Kinematics(m, humanoid.JOINTS, assembly.clearance_geoms(m)) for m in models]

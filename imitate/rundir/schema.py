@@ -64,8 +64,8 @@ REPORT_KEYS: dict[str, tuple[str, str]] = {
     "learning.task_space": ("-", "the task space learned in, its terms (`--task-space`)"),
     "learning.space_ratios": (
         "-",
-        "with `--task-space auto`, each candidate relation's invariance ratio where the task "
-        "is decided (`imitate.demos.space_selection`); empty otherwise",
+        "with `--task-space auto`, each candidate relation and its invariance ratio where the "
+        "task is decided, `[relation, ratio]` (`imitate.demos.space_selection`); empty otherwise",
     ),
     "optimization.collision_weight": ("-", "weight of the collision cost of the plan"),
     "optimization.similarity": (
@@ -197,7 +197,7 @@ KINDS: dict[str, type | tuple[type, ...]] = {
     "seed": int, "demos.detected": int, "demos.expected": int, "perception.long_gaps": int,
     "learning.source": str, "learning.bic": str, "learning.n_components": int,
     "learning.n_components_fast_bic": int, "learning.n_components_full_bic": int,
-    "learning.bridged_samples": int, "learning.task_space": str, "learning.space_ratios": dict,
+    "learning.bridged_samples": int, "learning.task_space": str, "learning.space_ratios": list,
     "optimization.collision_weight": (int, float),
     "optimization.similarity": str, "optimization.sigma_max_scale": (int, float),
     "optimization.iterations": int, "optimization.converged": bool,

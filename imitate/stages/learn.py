@@ -22,13 +22,13 @@ from imitate.stages.files import DemosFile, Learned, ModelFile, ObservationsFile
 def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
     """The task space (``task``'s, or the one its demonstrations select), DTW, GMM (components
     by BIC), GMR; the other BIC method for comparison."""
-    space, ratios = task.space, {}
+    space, ratios = task.space, []
     if config.task_space == "auto":
         cut = DemosFile.load(run_dir)
         rated = space_selection.rate(cut.segments, cut.objects, cut.gaze, task,
                                      smoothing=config.smoothing)
         space = space_selection.select(rated)
-        ratios = {f"{t.of}-{t.to}": value for t, value in rated.items()}
+        ratios = [[f"{t.of}-{t.to}", value] for t, value in rated.items()]
     if config.oracle:
         tracks = ObservationsFile.load(run_dir).observations.tracks
         motion = script_demonstrations(config.teacher())
