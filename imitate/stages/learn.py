@@ -56,9 +56,9 @@ def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
     )
     assert model.alignment is not None  # learned with DTW (LearningConfig's default)
     ModelFile(
-        Learned(model, gaze, space=space if config.task_space == "auto" else None), raw=raw,
-        rate=rate, bic_fast=curves["fast"],
-        bic_full=curves["full"], aligned=np.asarray(model.alignment.aligned),
+        Learned(model, gaze, space=space if config.task_space == "auto" else None),
+        raw=raw, rate=rate, bic_fast=curves["fast"], bic_full=curves["full"],
+        aligned=np.asarray(model.alignment.aligned),
     ).save(run_dir)
     return {
         "learning": {
