@@ -130,7 +130,8 @@ class Run:
             scene = dataclasses.replace(scene, obstacles=tuple(obstacles))
             check_clearance(scene)
         return reproduce(
-            self.model, gaze=self.gaze, scene=scene, config=self.config.plan_config(), **settings
+            self.learned.planned, gaze=self.gaze, scene=scene, config=self.config.plan_config(),
+            **settings,
         )
 
     def __repr__(self) -> str:

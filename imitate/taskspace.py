@@ -176,6 +176,14 @@ class TaskSpace:
         start = self.starts[self.terms.index(term)]
         return slice(start, start + len(term.units))
 
+    def part_columns(self, part: TaskSpace) -> np.ndarray:
+        """The columns that hold ``part``'s terms, in ``part``'s order.
+
+        Raises:
+            ImitateError: a term of ``part`` is not one of the space's.
+        """
+        return np.concatenate([np.arange(c.start, c.stop) for c in map(self.columns, part.terms)])
+
     @property
     def positions(self) -> tuple[slice, ...]:
         """The columns of each :class:`Relative` [m]; the first is the task's main one."""

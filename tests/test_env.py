@@ -300,7 +300,8 @@ def test_replay_stops_where_the_physics_diverges():
         times=np.array([0.0, 0.1, 0.2]), attractors=np.zeros((1, 7)), push=np.zeros((1, 18)),
         target=np.zeros((3, 7)), x=np.zeros((3, 7)), q=q, q_start=q[0],
         approach_bend=np.zeros_like(q[0]), mean=np.zeros((3, 7)),
-        variance=np.ones((3, 7)), weights=np.ones((3, 7)), costs={}, min_distance=0.1,
+        variance=np.ones((3, 7)), covariance=np.tile(np.eye(7), (3, 1, 1)),
+        weights=np.ones((3, 7)), costs={}, min_distance=0.1,
         closest=None, converged=True, clipped=0, message="", n_iter=0, n_evaluations=0,
     )
     calls = []

@@ -82,9 +82,10 @@ def test_a_quick_marked_run_end_to_end_tracks_the_marker_and_reports_its_keys(tm
     objects, the model is learned in the task's own space, and the report holds every key the
     task declares."""
     from imitate.cli import main
+    from imitate.demos.space_selection import candidates
     from imitate.rundir import layout
     from imitate.rundir.schema import check_values
-    from imitate.stages.files import ModelFile, ObservationsFile
+    from imitate.stages.files import ModelFile, ObservationsFile, PlanFile
     from imitate.stages.runner import run_keys
 
     run_dir = tmp_path / "marked"
@@ -113,6 +114,17 @@ def test_a_quick_marked_run_end_to_end_tracks_the_marker_and_reports_its_keys(tm
         "tool-target", "tool-marker", "target-marker", "tool-world", "target-world"
     }
     assert report["replay"]["outcome"] in TASK.outcomes
+
+    # TP-GMM: learned in every frame, planned and replayed in the product's space.
+    for stage in ("learn", "optimize", "replay"):
+        assert main([stage, str(run_dir), *(["--task-space", "tpgmm"] if stage == "learn"
+                                             else [])]) == 0
+    learned = ModelFile.load_learned(run_dir)
+    assert learned.frames and learned.space == candidates((objects.MARKER,), world=False)
+    assert learned.model.mean.shape[1] == learned.space.m == 13
+    assert learned.task(TASK).space == SPACE  # the reproduction's space: the declared one here
+    assert PlanFile.load(run_dir).plan.mean.shape[1] == SPACE.m
+    assert json.loads((run_dir / layout.REPORT).read_text())["replay"]["outcome"] in TASK.outcomes
 
 
 

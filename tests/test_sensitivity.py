@@ -26,7 +26,8 @@ def _plan(task_map, steps: int = 9) -> Plan:
     return Plan(
         times=0.08 * np.arange(steps), attractors=np.zeros((1, 7)), push=np.zeros((1, 18)),
         target=x, x=x, q=q, q_start=q[0], approach_bend=np.zeros(18), mean=x,
-        variance=np.ones_like(x), weights=np.ones_like(x), costs={}, min_distance=0.1,
+        variance=np.ones_like(x), covariance=np.tile(np.eye(7), (steps, 1, 1)),
+        weights=np.ones_like(x), costs={}, min_distance=0.1,
         closest=None, converged=True, clipped=0, message="", n_iter=0, n_evaluations=0,
     )
 

@@ -9,7 +9,6 @@ import pytest
 from imitate.demos.space_selection import (
     INVARIANT,
     candidates,
-    columns,
     equivalent,
     invariance,
     select,
@@ -64,9 +63,9 @@ def test_spaces_whose_relations_join_the_same_things_are_equivalent():
     assert not equivalent(EQ1, declared)
     assert not equivalent(TaskSpace((Relative("tool", "target"), Angles("tool"))), EQ1)
     space = candidates(("spot",))
-    assert list(columns(space, EQ1)) == [0, 1, 2, 15, 16, 17, 18]
+    assert list(space.part_columns(EQ1)) == [0, 1, 2, 15, 16, 17, 18]
     with pytest.raises(ImitateError, match="is not a term of the task space"):
-        columns(EQ1, declared)
+        EQ1.part_columns(declared)
 
 
 def _true_ratios(task: str, seed: int) -> dict[Relative, float]:
@@ -82,7 +81,7 @@ def _true_ratios(task: str, seed: int) -> dict[Relative, float]:
                             **{n: (np.broadcast_to(p, position[0].shape), None)
                                for n, p in places.items()}}, GAZE))
     values = align(demos).aligned
-    critical = declared.critical(values.mean(axis=0)[:, columns(space, declared.space)])
+    critical = declared.critical(values.mean(axis=0)[:, space.part_columns(declared.space)])
     return invariance(values, space, critical)
 
 

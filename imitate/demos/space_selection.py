@@ -28,8 +28,7 @@ from imitate.errors import ImitateError
 from imitate.learning.dtw import align
 from imitate.taskspace import OBJECTS, WORLD, Angles, Relative, TaskSpace
 
-__all__ = ["INVARIANT", "candidates", "columns", "equivalent", "invariance", "rate",
-           "select"]
+__all__ = ["INVARIANT", "candidates", "equivalent", "invariance", "rate", "select"]
 
 # The largest invariance ratio of a relation of the target's kept (the demonstrations spread in
 # the critical phase by under a tenth of its spread over the movement). Chosen on teachers 0-2 of
@@ -37,22 +36,15 @@ __all__ = ["INVARIANT", "candidates", "columns", "equivalent", "invariance", "ra
 INVARIANT = 0.1
 
 
-def candidates(places: Sequence[str]) -> TaskSpace:
+def candidates(places: Sequence[str], world: bool = True) -> TaskSpace:
     """The candidate terms of a task with ``places``: the tool relative to the target, the tool
-    and the target relative to each place and to the world, then eq. 1's angles."""
+    and the target relative to each place and (with ``world``) to the world, then eq. 1's
+    angles."""
     tool, target = OBJECTS
+    frames = (*places, WORLD) if world else tuple(places)
     return TaskSpace((Relative(tool, target),
-                      *(Relative(obj, p) for p in (*places, WORLD) for obj in OBJECTS),
+                      *(Relative(obj, p) for p in frames for obj in OBJECTS),
                       Angles(tool), Angles(target)))
-
-
-def columns(space: TaskSpace, part: TaskSpace) -> np.ndarray:
-    """The columns of ``space`` that hold ``part``'s terms, in ``part``'s order.
-
-    Raises:
-        ImitateError: a term of ``part`` is not in ``space``.
-    """
-    return np.concatenate([np.arange(c.start, c.stop) for c in map(space.columns, part.terms)])
 
 
 def invariance(values: np.ndarray, space: TaskSpace, critical: np.ndarray) -> dict[Relative, float]:
@@ -92,7 +84,7 @@ def rate(
         task_demo(d, objects, gaze, space, p, smoothing=smoothing, rate=rate_hz)
         for d, p in zip(segments, place_positions(segments, objects), strict=True)
     ]).aligned
-    critical = task.critical(values.mean(axis=0)[:, columns(space, task.space)])
+    critical = task.critical(values.mean(axis=0)[:, space.part_columns(task.space)])
     return invariance(values, space, critical)
 
 

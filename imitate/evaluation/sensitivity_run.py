@@ -32,6 +32,7 @@ from imitate.figures.plots import figure_png
 from imitate.motion.replay import planning_task
 from imitate.rundir.artifacts import load_json, save_bytes, save_json
 from imitate.rundir.lock import locked
+from imitate.stages.files import ModelFile
 from imitate.stages.progress import bar
 from imitate.stages.provenance import code_digest
 
@@ -72,6 +73,10 @@ def measure(
     names = sens.direction_names(task)
     with locked(run_dir, f"imitate sensitivity {run_dir}"):
         check_model(run_dir)
+        if ModelFile.load_learned(run_dir).frames:
+            raise ImitateError(f"{run_dir} learned in TP-GMM's frames (--task-space tpgmm), "
+                               "reproduced anew in each scene; sensitivity probes one space: "
+                               "learn it with --task-space declared or auto")
         more = tuple(range(CONFIRMATION_SEED, CONFIRMATION_SEED + confirm))
         models = {t.seed: t for t in teachers(run_dir, run_dir / "eval", n_teachers, more,
                                               workers)}

@@ -243,7 +243,7 @@ def draw_jobs(
     drawn = []
     for t in models:
         if t.seed not in places:
-            places[t.seed] = free_places(t.learned.model, t.learned.gaze, suite["max_iter"],
+            places[t.seed] = free_places(t.learned.planned, t.learned.gaze, suite["max_iter"],
                                          t.learned.task(task))
         path, place = places[t.seed]
         drawn.append(Draw(

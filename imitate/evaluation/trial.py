@@ -11,7 +11,6 @@ The task (:class:`~imitate.envs.task.Task`) builds the physics, measures each re
 from __future__ import annotations
 
 import time
-import warnings
 from typing import Any, cast
 
 import mujoco
@@ -22,6 +21,7 @@ from imitate.envs.task import Task
 from imitate.evaluation.record import ReplayRecord, TrialRecord, error_keys, score_keys
 from imitate.evaluation.variation import Variation
 from imitate.learning import LearnedModel
+from imitate.learning.tpgmm import FrameModel
 from imitate.models import humanoid
 from imitate.motion import Plan, PlanConfig, plan_from_model
 from imitate.motion.metrics import critical_error, mahalanobis, task_change
@@ -32,7 +32,7 @@ __all__ = ["Trial", "physics", "plan_variation", "replay_once"]
 
 
 def plan_variation(
-    learned: LearnedModel, gaze: np.ndarray, variation: Variation, task: Task,
+    learned: LearnedModel | FrameModel, gaze: np.ndarray, variation: Variation, task: Task,
     importance: np.ndarray | None = None,
 ) -> Plan:
     """The reproduction of ``learned`` in the variation's scene of ``task`` (its obstacle,
@@ -73,14 +73,6 @@ def replay_once(
     return cast(ReplayRecord, {"seed": seed, **record, "geometry": watched})
 
 
-def _quiet_predict(learned, times: np.ndarray) -> np.ndarray:
-    """The GMR covariance ``(T, m, m)`` at a plan's ``times`` [s]: its grid may end up to half a
-    planner step past the movement's span, which is not the user's extrapolation to warn of."""
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message="predict at t = ", category=UserWarning)
-        return learned.predict(times)[1]
-
-
 class Trial:
     """Runs variations of ``task`` with one teacher's learned model; keeps its unconstrained
     reproductions.
@@ -91,7 +83,7 @@ class Trial:
     """
 
     def __init__(self, learned: Learned, task: Task):
-        self.learned, self.gaze, self.task = learned.model, learned.gaze, learned.task(task)
+        self.learned, self.gaze, self.task = learned.planned, learned.gaze, learned.task(task)
         self.importance = learned.importance
         self._free: dict[tuple[str, int], Plan] = {}
 
@@ -140,8 +132,7 @@ class Trial:
                 "seconds": plan_seconds,
             },
             "change": task_change(plan, free, task.space, critical, task.phase),
-            "mahalanobis": mahalanobis(plan, task.space,
-                                       _quiet_predict(self.learned, plan.times)),
+            "mahalanobis": mahalanobis(plan, task.space),
             "replays": replays,
             "physics_min_distance_m": physics_min,
             "clearance_gap_m": plan.min_distance - physics_min,

@@ -29,6 +29,7 @@ from imitate.envs.task import Task, get_task
 from imitate.errors import ImitateError
 from imitate.evaluation.suite import Suite
 from imitate.learning import LearnedModel
+from imitate.learning.tpgmm import FrameModel
 from imitate.models import humanoid
 from imitate.models.scene import TABLE_HEIGHT, TABLE_X, TABLE_Y
 from imitate.models.shapes import SHAPES
@@ -169,7 +170,7 @@ class CriticalPlace:
 
 
 def free_places(
-    learned: LearnedModel, gaze: np.ndarray, max_iter: int, task: Task
+    learned: LearnedModel | FrameModel, gaze: np.ndarray, max_iter: int, task: Task
 ) -> tuple[np.ndarray, CriticalPlace]:
     """:func:`path_points` and where the tool and the target are in the critical phase of one
     reproduction of ``learned`` at collision weight 0 in ``task``'s default scene (eq. 21's
@@ -184,7 +185,9 @@ def free_places(
     return _path_points(planning.kin, plan, task), _critical_place(planning.kin, plan, task)
 
 
-def path_points(learned: LearnedModel, gaze: np.ndarray, max_iter: int, task: Task) -> np.ndarray:
+def path_points(
+    learned: LearnedModel | FrameModel, gaze: np.ndarray, max_iter: int, task: Task
+) -> np.ndarray:
     """Points ``(P, 3)`` [m] over the table top that the bottoms of the held objects pass
     through when ``learned`` is reproduced at collision weight 0 in ``task``'s default scene
     (each plan step's tool and target, in that order)."""

@@ -118,7 +118,7 @@ def evaluated_episodes(
         teacher = record["teacher"]
         learned = evaluation.models[teacher]
         gaze, planned = learned.gaze, learned.task(task)
-        plan = plan_variation(learned.model, gaze, variation, planned)
+        plan = plan_variation(learned.planned, gaze, variation, planned)
         evaluated_plan = record["plan"]
         if (plan.min_distance, plan.n_iter) != (
             evaluated_plan["min_distance_m"], evaluated_plan["iterations"]

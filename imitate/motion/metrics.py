@@ -65,14 +65,14 @@ def deviation(plan: Plan, first: Plan, space: TaskSpace) -> dict[str, float]:
     }
 
 
-def mahalanobis(plan: Plan, space: TaskSpace, covariance: np.ndarray) -> dict[str, float]:
+def mahalanobis(plan: Plan, space: TaskSpace) -> dict[str, float]:
     """How many of the demonstrations' standard deviations ``plan`` (in ``space``) sits from
-    the GMR mean: the Mahalanobis distance ``d_t`` of ``x_t - mu_t`` under the GMR covariance
-    ``(T + 1, m, m)`` at ``plan.times`` plus the tolerances squared (where the demonstrations
+    the GMR mean: the Mahalanobis distance ``d_t`` of ``x_t - mu_t`` under the plan's GMR
+    covariance plus the tolerances squared (where the demonstrations
     agree to within a tolerance, an error of one tolerance counts as about one standard
     deviation; the same floor as the ``precision`` weighting's at its lambda of 1, which that
     weighting therefore minimizes: not a neutral measure for it). ``rms``: over the movement."""
     error = plan.task_error()
     floor = np.diag(np.square(space.tolerance))
-    d = np.sqrt(np.einsum("ti,tij,tj->t", error, np.linalg.inv(covariance + floor), error))
+    d = np.sqrt(np.einsum("ti,tij,tj->t", error, np.linalg.inv(plan.covariance + floor), error))
     return {"rms": float(np.sqrt(np.mean(d * d)))}

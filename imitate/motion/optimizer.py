@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Literal, TypedDict, cast, overload
 import numpy as np
 
 from imitate.errors import ImitateError
+from imitate.learning.tpgmm import FrameModel
 from imitate.motion.approach import approach_clearance, bend_approach, clear_start
 from imitate.motion.attractors import AttractorDynamics
 from imitate.motion.control import (
@@ -179,6 +180,7 @@ class Setup:
     Attributes:
         times: ``(T + 1,)`` planning steps [s], ``dt`` apart from the first GMR time.
         mean, variance: ``(T + 1, m)`` GMR mean and variances resampled to ``times``.
+        covariance: ``(T + 1, m, m)`` GMR covariance resampled to ``times``.
         weights: ``W_t`` of ``config.similarity``: ``(T + 1, m)`` diagonals, or ``(T + 1, m, m)``
             matrices (``precision``).
         problem: The total cost over the attractors, from the start posture ``problem.q_start``
@@ -189,6 +191,7 @@ class Setup:
     times: np.ndarray
     mean: np.ndarray
     variance: np.ndarray
+    covariance: np.ndarray
     weights: np.ndarray
     problem: Problem
     a0: np.ndarray
@@ -196,7 +199,7 @@ class Setup:
 
 def setup(
     task_map: TaskMap,
-    model: LearnedModel,
+    model: LearnedModel | FrameModel,
     *,
     q0: np.ndarray,
     config: PlanConfig = PlanConfig(),
@@ -211,7 +214,8 @@ def setup(
     Args:
         task_map: Task map of the robot (kinematics, objects, gaze).
         model: The learned model: GMR ``times`` ``(T_g,)`` [s] (increasing, from 0), ``mean``
-            and ``covariance`` over ``m`` task dimensions, GMM over ``(t, x)``.
+            and ``covariance`` over ``m`` task dimensions, GMM over ``(t, x)``; or one learned in
+            frames, reproduced at ``task_map``'s places (TP-GMM's product, in its space).
         q0: ``(n,)`` current posture [rad].
         config: Parameters.
         critical: The task's critical phase: the steps ``(T,) bool`` of a mean ``(T, m)``; the
@@ -223,6 +227,8 @@ def setup(
         ImitateError: On inconsistent shapes or non-finite inputs, or the oracle or importance
             weighting without what it reads.
     """
+    if isinstance(model, FrameModel):
+        model = model.at(task_map.origins(model.places))
     times, mean, variance = (
         np.asarray(v, dtype=float) for v in (model.times, model.mean, model.variance)
     )
@@ -251,11 +257,10 @@ def setup(
     sigma_max = np.asarray(
         c.sigma_max if c.sigma_max is not None else c.sigma_max_scale * var.max(axis=0)
     )
-    cov = None
-    if c.similarity == "precision":  # element by element: a mean of covariances is one
-        flat = np.asarray(model.covariance, dtype=float).reshape(len(times), -1)
-        cov = np.column_stack([np.interp(grid, times, f) for f in flat.T])
-        cov = cov.reshape(len(grid), task_map.m, task_map.m)
+    # element by element: a mean of covariances is one
+    flat = np.asarray(model.covariance, dtype=float).reshape(len(times), -1)
+    cov = np.column_stack([np.interp(grid, times, f) for f in flat.T])
+    cov = cov.reshape(len(grid), task_map.m, task_map.m)
     steps = None  # the oracle's and importance's: the task's critical phase
     if c.similarity in ("oracle", "importance"):
         if critical is None:
@@ -286,7 +291,7 @@ def setup(
         q_start = clear_start(task_map, q_start, mu[0], c.control, limits, c.margin)
     problem = Problem(task_map, dynamics, q_start, mu, weights, c)
     a0 = dynamics.fit(mu, problem.x_start, weights)
-    return Setup(grid, mu, var, weights, problem, a0)
+    return Setup(grid, mu, var, cov, weights, problem, a0)
 
 
 class _Best(TypedDict):
@@ -299,7 +304,7 @@ class _Best(TypedDict):
 
 def plan_from_model(
     task_map: TaskMap,
-    model: LearnedModel,
+    model: LearnedModel | FrameModel,
     *,
     q0: np.ndarray,
     config: PlanConfig = PlanConfig(),
@@ -383,6 +388,7 @@ def plan_from_model(
     return Plan(
         times=start.times, attractors=v[:, :m], push=push, target=target, x=final.x, q=final.q,
         q_start=problem.q_start, approach_bend=bend, mean=mu, variance=start.variance,
+        covariance=start.covariance,
         weights=np.diagonal(start.weights, axis1=1, axis2=2).copy()
         if start.weights.ndim == 3 else start.weights,
         costs=costs, min_distance=min_d, closest=closest, converged=converged,

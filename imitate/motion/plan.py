@@ -28,6 +28,7 @@ class Plan:
         approach_bend: ``(n,)`` bend [rad] of the joint-space path from the given posture to
             ``q_start`` (:mod:`imitate.motion.approach`); zeros for the straight line.
         mean, variance, weights: GMR mean, variance and eq. 21 weights at ``times``, ``(T+1, m)``.
+        covariance: GMR covariance at ``times``, ``(T + 1, m, m)``.
         costs: ``{term: (n_iter + 1,)}`` weighted cost per iteration of the accepted iterate,
             and ``"total"``.
         min_distance: Smallest signed distance [m] over the approach and the
@@ -51,6 +52,7 @@ class Plan:
     approach_bend: np.ndarray
     mean: np.ndarray
     variance: np.ndarray
+    covariance: np.ndarray
     weights: np.ndarray
     costs: dict[str, np.ndarray]
     min_distance: float

@@ -22,6 +22,7 @@ from imitate.envs.bimanual import BimanualEnv
 from imitate.envs.task import Task
 from imitate.errors import ImitateError
 from imitate.learning import LearnedModel
+from imitate.learning.tpgmm import FrameModel
 from imitate.models import humanoid
 from imitate.motion import Plan, PlanConfig, plan_from_model
 from imitate.motion.approach import approach_path
@@ -96,7 +97,7 @@ def narrowed_limits(
 
 
 def reproduce(
-    model: LearnedModel,
+    model: LearnedModel | FrameModel,
     *,
     gaze: np.ndarray | None = None,
     scene: assembly.SceneConfig | None = None,
@@ -109,7 +110,8 @@ def reproduce(
     :func:`planning_task`, nothing written.
 
     Args:
-        model: A learned model (:func:`imitate.learn`'s) in the task space of ``gaze``.
+        model: A learned model (:func:`imitate.learn`'s) in the task space of ``gaze``, or one
+            in TP-GMM's frames (reproduced at ``scene``'s places).
         gaze: ``(3, 3)`` gaze frame the model's task space is expressed in (columns right,
             down, forward); ``None`` for the robot's left eye at the rest pose.
         scene: Objects, obstacles and grasps; ``None`` for ``SceneConfig()``.

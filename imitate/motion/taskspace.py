@@ -19,6 +19,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, NamedTuple
 
+import mujoco
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -99,6 +100,18 @@ class TaskMap:
         nv = kin.model.nv
         self._jac = np.empty((2, 2, 3, nv))
         self._rates = np.empty((2, 2, 2, 3, nv))
+
+    def origins(self, places: Sequence[str]) -> dict[str, np.ndarray]:
+        """Where each of ``places`` (bodies fixed to the world) stands: ``(3,)`` [m], world
+        frame.
+
+        Raises:
+            ImitateError: a place that is no body fixed to the world.
+        """
+        model = self.kin.model
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)
+        return {name: data.xpos[_place(model, name)].copy() for name in places}
 
     def __call__(self, angle_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(x (m,), J (m, n))`` at the kinematics' last update; angles on the branch nearest to

@@ -210,8 +210,9 @@ class RunConfig:
     task_space: str = _setting(
         "declared", "the task space learned in: the task's declared one, or the one the "
         "demonstrations' statistics select (auto: each relation's invariance where the task is "
-        "decided, imitate.demos.space_selection)", stage="learn", flag="--task-space",
-        choices=("declared", "auto"),
+        "decided, imitate.demos.space_selection), or every candidate frame at once, reproduced "
+        "by the product of their Gaussians in each scene (tpgmm, imitate.learning.tpgmm)",
+        stage="learn", flag="--task-space", choices=("declared", "auto", "tpgmm"),
     )
     collision_weight: float = _setting(
         defaults.COLLISION_WEIGHT, "weight of the collision cost", stage="optimize",

@@ -55,8 +55,11 @@ def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
     _check_states(replayed, config, run_dir / layout.REPLAY)
     sweep = dict(zip(weights, planned.sweep.x, strict=True))
     clearance = dict(zip(weights, planned.sweep.clearance, strict=True))
-    labels, units = task.dims, task.space.units
-    angle = int(task.space.angles[0]) if task.space.angles.size else 0  # Fig. 4's dimension
+    # the model's space (TP-GMM's frames where it learned in them) and the plan's
+    frames = learning.learned.space if learning.learned.frames else None
+    learned = task if frames is None else task.in_space(frames)
+    labels, units = learned.dims, learned.space.units
+    angle = int(learned.space.angles[0]) if learned.space.angles.size else 0  # Fig. 4's
     # name: (plots' function, its arguments); Fig. 8's snapshots rendered below
     drawings: dict[str, tuple[Any, ...]] = {
         "observation": (plots.plot_observation, observations, boundaries),
@@ -70,7 +73,7 @@ def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
         "gmr": (partial(plots.plot_gmr, labels=labels, units=units), model,
                 list(learning.aligned)),
         "fig9_collision_sweep": (
-            partial(plots.plot_collision_sweep, labels=labels, units=units,
+            partial(plots.plot_collision_sweep, labels=task.dims, units=task.space.units,
                     position=task.space.positions[0]),
             plan.times, plan.mean,
             plan.variance, sweep, clearance, plan.weights,

@@ -20,9 +20,12 @@ from imitate.stages.files import DemosFile, Learned, ModelFile, ObservationsFile
 
 
 def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
-    """The task space (``task``'s, or the one its demonstrations select), DTW, GMM (components
-    by BIC), GMR; the other BIC method for comparison."""
+    """The task space (``task``'s, the one its demonstrations select, or TP-GMM's candidate
+    frames side by side), DTW, GMM (components by BIC), GMR; the other BIC method for
+    comparison."""
     space, ratios = task.space, []
+    if config.task_space == "tpgmm":
+        space = space_selection.candidates(task.space.places, world=False)
     if config.task_space == "auto":
         cut = DemosFile.load(run_dir)
         rated = space_selection.rate(cut.segments, cut.objects, cut.gaze, task,
@@ -56,7 +59,8 @@ def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
     )
     assert model.alignment is not None  # learned with DTW (LearningConfig's default)
     ModelFile(
-        Learned(model, gaze, space=space if config.task_space == "auto" else None),
+        Learned(model, gaze, space=None if config.task_space == "declared" else space,
+                frames=config.task_space == "tpgmm"),
         raw=raw, rate=rate, bic_fast=curves["fast"], bic_full=curves["full"],
         aligned=np.asarray(model.alignment.aligned),
     ).save(run_dir)

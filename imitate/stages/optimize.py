@@ -22,7 +22,7 @@ from imitate.stages.progress import bar
 def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
     """Whole-body attractor optimization at ``collision_weight``, and the Fig. 9 sweep."""
     learned = ModelFile.load_learned(run_dir)
-    model = learned.model
+    model = learned.planned
     task_map = planning_task(config.scene(task=task), learned.gaze)
     chosen = config.collision_weight
     weights = sorted({chosen * s for s in config.sweep} | {chosen})

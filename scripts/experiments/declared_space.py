@@ -1,12 +1,13 @@
 """Does a task's space matter? Its teachers' demonstrations learned in the task's declared space,
-in the space selected from their statistics (:mod:`imitate.demos.space_selection`) and in eq. 1's,
-each reproduced over the same places.
+in the space selected from their statistics (:mod:`imitate.demos.space_selection`), in TP-GMM's
+frames (:mod:`imitate.learning.tpgmm`) and in eq. 1's, each reproduced over the same places.
 
 For a task whose space is not eq. 1 (``marked``: the glass relative to the marker is part of its
 space; its critical phase is found in any space, ``Task.critical_steps``), each teacher of
 ``RUN_DIR`` (seeds as ``imitate eval --teachers N`` takes them, learned under
 ``RUN_DIR/eval/teachers`` where missing) is learned again from its own cut demonstrations in
-the selected space and in :data:`imitate.taskspace.EQ1` (the same learning settings). The models
+the selected space, in every candidate frame but the world (reproduced by TP-GMM's product at
+each scene's places) and in :data:`imitate.taskspace.EQ1` (the same learning settings). The models
 are reproduced with the default planner in the task's default scene and at ``--n`` places of
 each of the task's places drawn uniformly over the built-in suite's ranges (the same draws for
 all, other settings at their defaults), each replayed in physics from seeds 0, 1, 2; the outcome
@@ -28,11 +29,12 @@ from pathlib import Path
 import numpy as np
 
 from imitate.demos.segment import task_demos
-from imitate.demos.space_selection import rate, select
+from imitate.demos.space_selection import candidates, rate, select
 from imitate.envs.task import Task, get_task
 from imitate.evaluation.report import wilson
 from imitate.evaluation.teachers import run_task, teachers
 from imitate.learning import LearningConfig, learn
+from imitate.learning.tpgmm import FrameModel
 from imitate.models import humanoid
 from imitate.motion import PlanConfig, plan_from_model
 from imitate.motion.replay import measure, planning_task
@@ -40,7 +42,7 @@ from imitate.stages.config import load_config
 from imitate.stages.files import DemosFile
 from imitate.taskspace import EQ1, TaskSpace
 
-SPACES = ("declared", "selected", "eq1")
+SPACES = ("declared", "selected", "tpgmm", "eq1")
 
 
 def model_in(run_dir: Path, space: TaskSpace):
@@ -92,9 +94,12 @@ def main(argv: list[str] | None = None) -> int:
     jobs, chosen = [], {}
     for t in teachers(args.run_dir, args.run_dir / "eval", args.teachers, (), args.workers):
         chosen[t.seed] = selected_space(t.path.parent, task)
-        spaces = {"declared": task.space, "selected": chosen[t.seed], "eq1": EQ1}
+        frames = candidates(task.space.places, world=False)
+        framed = FrameModel(model_in(t.path.parent, frames), frames)
+        spaces = {"declared": task.space, "selected": chosen[t.seed], "tpgmm": framed.space,
+                  "eq1": EQ1}
         models = {"declared": t.learned.model, "selected": model_in(t.path.parent, chosen[t.seed]),
-                  "eq1": model_in(t.path.parent, EQ1)}
+                  "tpgmm": framed, "eq1": model_in(t.path.parent, EQ1)}
         jobs += [(t.seed, i, s, spaces[s], p, models[s], t.learned.gaze, name)
                  for i, p in enumerate(places) for s in SPACES]
     with multiprocessing.get_context("spawn").Pool(args.workers) as pool:

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from imitate.envs.task import Task
-from imitate.learning import LearnedModel
+from imitate.learning import LearnedModel, tpgmm
 from imitate.rundir.artifacts import save_npz
 from imitate.rundir.layout import MODEL
 from imitate.stages.files._npz import read, reading
@@ -31,19 +31,34 @@ class Learned:
         importance: ``(m, m)`` the task's measured importance in the critical phase (tolerance
             units, :mod:`imitate.evaluation.sensitivity`), which the ``importance`` weighting
             plans with; ``None`` where not measured (not in ``model.npz``).
-        space: The task space it was learned in where the run chose it (``--task-space auto``,
-            ``model.npz``'s ``task_space``); ``None``: the task's declared one.
+        space: The task space it was learned in where the run chose it (``--task-space auto``
+            or ``tpgmm``, ``model.npz``'s ``task_space``); ``None``: the task's declared one.
+        frames: Whether ``space`` holds TP-GMM's candidate frames (``--task-space tpgmm``,
+            ``model.npz``'s ``frames``): plans reproduce it by their product in each scene.
     """
 
     model: LearnedModel
     gaze: np.ndarray
     importance: np.ndarray | None = None
     space: TaskSpace | None = None
+    frames: bool = False
 
     def task(self, task: Task) -> Task:
-        """``task`` in the space this model was learned in (``task`` itself where that is its
-        declared one)."""
+        """``task`` in the space this model is planned in (``task`` itself where that is its
+        declared one; TP-GMM's reproduction space for frames)."""
+        if self.frames:
+            assert self.space is not None  # frames are stored with their space
+            return task.in_space(tpgmm.reproduction_space(self.space.places))
         return task if self.space is None else task.in_space(self.space)
+
+    @property
+    def planned(self) -> LearnedModel | tpgmm.FrameModel:
+        """What a plan reproduces: the model, or in frames the :class:`~imitate.learning.tpgmm.
+        FrameModel` the planner reproduces at each scene's places."""
+        if self.frames:
+            assert self.space is not None  # frames are stored with their space
+            return tpgmm.FrameModel(self.model, self.space)
+        return self.model
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,7 +66,7 @@ class ModelFile:
     """Contents of ``model.npz``: the model's arrays (:meth:`LearnedModel.to_arrays`), those of
     the model learned without DTW (prefixed ``raw_``), ``gaze``, ``rate``, ``bic_fast``,
     ``bic_full``, ``aligned`` and, where the run chose its space, ``task_space`` (its terms as
-    text, :attr:`TaskSpace.text`).
+    text, :attr:`TaskSpace.text`) and, in TP-GMM's frames, ``frames``.
 
     Attributes:
         learned: The model learned with DTW and its gaze frame.
@@ -78,6 +93,7 @@ class ModelFile:
             "bic_full": self.bic_full, "aligned": self.aligned,
             **({} if self.learned.space is None
                else {"task_space": np.array(self.learned.space.text)}),
+            **({"frames": np.array(True)} if self.learned.frames else {}),
         })
 
     @classmethod
@@ -94,7 +110,8 @@ class ModelFile:
         ))
         with reading(a.path):
             return cls(
-                Learned(LearnedModel.from_arrays(a), a["gaze"], space=_space(a)),
+                Learned(LearnedModel.from_arrays(a), a["gaze"], space=_space(a),
+                        frames=_frames(a)),
                 raw=LearnedModel.from_arrays(a, RAW), rate=float(a["rate"]),
                 bic_fast=a["bic_fast"], bic_full=a["bic_full"], aligned=a["aligned"],
             )
@@ -105,7 +122,13 @@ class ModelFile:
         are neither read nor needed), as :meth:`load` does."""
         a = read(run_dir, MODEL, (*LearnedModel.array_names(), "gaze"))
         with reading(a.path):
-            return Learned(LearnedModel.from_arrays(a), a["gaze"], space=_space(a))
+            return Learned(LearnedModel.from_arrays(a), a["gaze"], space=_space(a),
+                           frames=_frames(a))
+
+
+def _frames(arrays: Mapping[str, np.ndarray]) -> bool:
+    """Whether ``model.npz``'s arrays hold a model in TP-GMM's frames (``frames``)."""
+    return "frames" in arrays and bool(arrays["frames"])
 
 
 def _space(arrays: Mapping[str, np.ndarray]) -> TaskSpace | None:
