@@ -140,8 +140,9 @@ class BimanualEnv(gym.Env):
         self._renderer: mujoco.Renderer | None = None
         self._needs_reset = True
 
-        ctrl = self.model.actuator_ctrlrange.astype(np.float32)
-        self.action_space = gym.spaces.Box(ctrl[:, 0], ctrl[:, 1], dtype=np.float32)
+        # float64 joint targets [rad], MuJoCo's ctrl: a planned replay's actions as computed
+        ctrl = self.model.actuator_ctrlrange
+        self.action_space = gym.spaces.Box(ctrl[:, 0], ctrl[:, 1], dtype=np.float64)
         n = len(humanoid.JOINTS)
         self.observation_structure = {"qpos": n, "qvel": n, **{obj: 7 for obj in self.objects}}
         state = gym.spaces.Box(

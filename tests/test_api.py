@@ -53,6 +53,7 @@ def test_replan_plays_in_the_env_as_the_replay_stage_does(quick_run):
     env.reset(seed=0)
     steps = imitate.actions(run.plan, env)
     assert steps.shape == (len(steps), 18) and np.all(np.isfinite(steps))
+    assert all(env.action_space.contains(step) for step in steps)  # its dtype and bounds
     duration = run.plan.times[-1] - run.plan.times[0]
     assert len(steps) == round((1.0 + duration + 1.5) / env.dt) + 1  # approach, plan, settle
     with pytest.raises(imitate.ImitateError, match=r"plan setting\(s\) \['colision_weight'\]"):

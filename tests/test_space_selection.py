@@ -53,6 +53,9 @@ def test_selection_keeps_the_targets_relation_only_where_it_is_invariant():
         (tool_target, target_spot, Angles("tool"), Angles("target"))
     )
     assert select({**ratios, target_spot: INVARIANT + 0.01}) == EQ1
+    # the world, however invariant, is rated and never kept: the teacher's spot is not the robot's
+    assert select({**ratios, Relative("tool", WORLD): 0.001, Relative("target", WORLD): 0.001}) == (
+        select(ratios))
 
 
 def test_spaces_whose_relations_join_the_same_things_are_equivalent():

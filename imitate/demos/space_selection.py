@@ -3,7 +3,9 @@ invariance where the task is decided, and the task space they select.
 
 The candidates (:func:`candidates`) are every relation the tracks can give: the tool relative to
 the target (eq. 1's), and each held object relative to each place of the scene and to the
-world (the robot's frame, :data:`~imitate.taskspace.WORLD`), beside eq. 1's angles. The
+world (the robot's frame, :data:`~imitate.taskspace.WORLD`), beside eq. 1's angles. The world is
+rated, never kept: the teacher works across the table, so where it held the objects in the
+robot's frame is out of the robot's reach (a relation to it cannot be reproduced). The
 demonstrations in that space are aligned by DTW (:func:`imitate.learning.dtw.align`, as learning
 aligns them). A term's **invariance ratio** (:func:`invariance`) is the aligned demonstrations'
 spread across one another in the critical phase (the trace of their covariance at each of its
@@ -11,9 +13,9 @@ samples, averaged) over the term's whole spread (the trace of the covariance of 
 samples): small where the demonstrations agree on it while it moves over the movement, the
 variance criterion the paper's authors followed up with.
 
-:func:`select` keeps the tool's most invariant relation (to the target, a place or the world),
-the target's most invariant relation to a place or the world (its relation to the tool is the
-tool's) only where its ratio is under :data:`INVARIANT`, and eq. 1's angles of both objects.
+:func:`select` keeps the tool's most invariant relation (to the target or a place), the target's
+most invariant relation to a place (its relation to the tool is the tool's) only where its ratio
+is under :data:`INVARIANT`, and eq. 1's angles of both objects.
 """
 
 from __future__ import annotations
@@ -28,7 +30,8 @@ from imitate.errors import ImitateError
 from imitate.learning.dtw import align
 from imitate.taskspace import OBJECTS, WORLD, Angles, Relative, TaskSpace
 
-__all__ = ["INVARIANT", "candidates", "equivalent", "invariance", "rate", "select"]
+__all__ = ["INVARIANT", "aligned", "candidates", "equivalent", "invariance", "rate", "select",
+           "spread"]
 
 # The largest invariance ratio of a relation of the target's kept (the demonstrations spread in
 # the critical phase by under a tenth of its spread over the movement). Chosen on teachers 0-2 of
@@ -60,39 +63,52 @@ def invariance(values: np.ndarray, space: TaskSpace, critical: np.ndarray) -> di
     """
     if not np.any(critical):
         raise ImitateError("the critical phase holds no sample: nothing to rate the terms by")
-    found = {}
-    for term, start in zip(space.terms, space.starts, strict=True):
-        if not isinstance(term, Relative):
-            continue
-        x = values[:, :, start : start + 3]
-        across = np.mean([np.trace(np.cov(x[:, t].T)) for t in np.flatnonzero(critical)])
-        found[term] = float(across / np.trace(np.cov(x.reshape(-1, 3).T)))
-    return found
+    return {term: float(np.mean(across[critical] ** 2)
+                        / np.trace(np.cov(values[:, :, space.columns(term)].reshape(-1, 3).T)))
+            for term, across in spread(values, space).items()}
 
 
-def rate(
+def spread(values: np.ndarray, space: TaskSpace) -> dict[Relative, np.ndarray]:
+    """Each position term's spread across the aligned demonstrations ``values`` ``(n_demos,
+    samples, m)`` in ``space`` at each sample: ``sqrt`` of the trace of their covariance
+    ``(samples,)`` [m]."""
+    return {term: np.sqrt([np.trace(np.cov(x.T)) for x in values[:, :, space.columns(term)]
+                           .transpose(1, 0, 2)])
+            for term in space.terms if isinstance(term, Relative)}
+
+
+def aligned(
     segments: Sequence[Demonstration], objects: tuple[str, ...], gaze: np.ndarray, task: Task,
     *, smoothing: float,
-) -> dict[Relative, float]:
-    """The candidates' invariance ratios of a teacher's cut demonstrations ``segments`` (of
-    ``objects``, seen with ``gaze``, smoothed as learning smooths them): put in every candidate
-    term (the places where each demonstration saw them), aligned by DTW, the critical phase
-    ``task``'s of their mean in its declared space."""
+) -> tuple[np.ndarray, TaskSpace, np.ndarray]:
+    """A teacher's cut demonstrations ``segments`` (of ``objects``, seen with ``gaze``, smoothed
+    as learning smooths them) in every candidate term (the places where each demonstration saw
+    them), aligned by DTW ``(n_demos, samples, m)``; the candidates; the critical phase's samples
+    ``(samples,)`` bool (``task``'s, of their mean in its declared space)."""
     rate_hz = 1.0 / float(np.median(np.diff(segments[0].times)))
     space = candidates(task.space.places)
     values = align([
         task_demo(d, objects, gaze, space, p, smoothing=smoothing, rate=rate_hz)
         for d, p in zip(segments, place_positions(segments, objects), strict=True)
     ]).aligned
-    critical = task.critical(values.mean(axis=0)[:, space.part_columns(task.space)])
-    return invariance(values, space, critical)
+    return values, space, task.critical(values.mean(axis=0)[:, space.part_columns(task.space)])
+
+
+def rate(
+    segments: Sequence[Demonstration], objects: tuple[str, ...], gaze: np.ndarray, task: Task,
+    *, smoothing: float,
+) -> dict[Relative, float]:
+    """The candidates' invariance ratios of a teacher's cut demonstrations (:func:`aligned`'s
+    arguments)."""
+    return invariance(*aligned(segments, objects, gaze, task, smoothing=smoothing))
 
 
 def select(ratios: Mapping[Relative, float], invariant: float = INVARIANT) -> TaskSpace:
     """The task space ``ratios`` (:func:`invariance` of :func:`candidates`) point to: the tool's
-    relation of the lowest ratio, the target's to a place or the world of the lowest ratio if it
-    is under ``invariant``, then eq. 1's angles."""
+    relation of the lowest ratio, the target's to a place of the lowest ratio if it is under
+    ``invariant``, then eq. 1's angles (relations to the world aside: see the module)."""
     tool, target = OBJECTS
+    ratios = {t: r for t, r in ratios.items() if t.to != WORLD}
     own = {t: r for t, r in ratios.items() if t.of == tool}
     if not own:
         raise ImitateError(f"no relation of the tool among {[str(t) for t in ratios]}")

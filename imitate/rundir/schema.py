@@ -61,7 +61,9 @@ REPORT_KEYS: dict[str, tuple[str, str]] = {
         "-",
         "tracked samples missing in the demonstrations, bridged linearly",
     ),
-    "learning.task_space": ("-", "the task space learned in, its terms (`--task-space`)"),
+    "learning.task_space": (
+        "-", "the task space learned in, its terms (`--task-space`; TP-GMM's frames for `tpgmm`)"
+    ),
     "learning.space_ratios": (
         "-",
         "with `--task-space auto`, each candidate relation and its invariance ratio where the "

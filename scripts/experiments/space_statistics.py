@@ -7,9 +7,10 @@ tracked them are put in every candidate term (the places where each demonstratio
 aligned by DTW; the critical phase is the task's ``critical`` of their mean in its declared space.
 Prints the ratio per run and term, the selected space and whether it is the declared one or one
 equivalent to it (:func:`~imitate.demos.space_selection.equivalent`), and the medians over the
-runs.
+runs. ``--figure PNG`` draws the first run's candidates' spread across its demonstrations over
+the aligned movement, the critical phase shaded, the selected terms bold.
 
-Usage: ``python scripts/experiments/space_statistics.py RUN_DIR [RUN_DIR ...]``
+Usage: ``python scripts/experiments/space_statistics.py RUN_DIR [RUN_DIR ...] [--figure PNG]``
 """
 
 from __future__ import annotations
@@ -19,8 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate.demos.space_selection import equivalent, rate, select
+from imitate.demos.space_selection import aligned, equivalent, invariance, select, spread
 from imitate.envs.task import get_task
+from imitate.figures.plots import figure_png, use_agg
 from imitate.stages.config import load_config
 from imitate.stages.files import DemosFile
 from imitate.taskspace import Relative, TaskSpace
@@ -28,16 +30,49 @@ from imitate.taskspace import Relative, TaskSpace
 
 def rated(run_dir: Path) -> tuple[str, dict[Relative, float], TaskSpace]:
     """The task of ``run_dir``, its candidates' invariance ratios and the space they select."""
+    task, values, space, critical = demonstrated(run_dir)
+    ratios = invariance(values, space, critical)
+    return task, ratios, select(ratios)
+
+
+def demonstrated(run_dir: Path) -> tuple[str, np.ndarray, TaskSpace, np.ndarray]:
+    """The task of ``run_dir`` and its demonstrations in the candidates
+    (:func:`~imitate.demos.space_selection.aligned`)."""
     config, cut = load_config(run_dir), DemosFile.load(run_dir)
     task = get_task(config.task)
-    ratios = rate(cut.segments, cut.objects, cut.gaze, task, smoothing=config.smoothing)
-    return task.name, ratios, select(ratios)
+    return (task.name, *aligned(cut.segments, cut.objects, cut.gaze, task,
+                                smoothing=config.smoothing))
+
+
+def draw(run_dir: Path, path: Path) -> None:
+    """``run_dir``'s candidates' spread over the aligned movement, as a PNG at ``path``."""
+    import matplotlib.pyplot as plt
+
+    use_agg()
+    task, values, space, critical = demonstrated(run_dir)
+    chosen = select(invariance(values, space, critical))
+    rate_hz = load_config(run_dir).fps
+    times = np.arange(values.shape[1]) / rate_hz
+    fig, ax = plt.subplots(figsize=(7.0, 3.6), layout="constrained")
+    ax.fill_between(times, 0, 1, where=critical, transform=ax.get_xaxis_transform(),
+                    color="0.9", label=f"{get_task(task).phase} (critical phase)")
+    for term, across in spread(values, space).items():
+        kept = term in chosen.terms
+        ax.plot(times, 1e3 * across, lw=2.6 if kept else 1.0,
+                label=f"{term.of}-{term.to}" + (" (selected)" if kept else ""))
+    ax.set(yscale="log", xlabel="aligned time [s]", ylabel="spread across demos [mm]",
+           title=f"{task}, {run_dir}: each relation's spread over the movement")
+    ax.legend(fontsize=8, ncols=2)
+    path.write_bytes(figure_png(fig))
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("runs", nargs="+", type=Path)
+    parser.add_argument("--figure", type=Path, help="PNG of the first run's spreads")
     args = parser.parse_args()
+    if args.figure:
+        draw(args.runs[0], args.figure)
     table = {run: rated(run) for run in args.runs}
     names = {f"{t.of}-{t.to}": t for t in next(iter(table.values()))[1]}
     print("invariance ratio in the critical phase: the demonstrations' spread there over the "
