@@ -3,11 +3,12 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 LOWEST := .venv-lowest
+LEROBOT := .venv-lerobot
 RUN ?= runs/latest
 MUJOCO_GL ?= egl
 export MUJOCO_GL
 
-.PHONY: setup setup-test run test suite test-lowest lint clean
+.PHONY: setup setup-test run test suite test-lowest test-lerobot lint clean
 
 # System libraries, the virtual environment and the package with $(1) (extras, or nothing).
 define install
@@ -93,5 +94,13 @@ test-lowest: $(LOWEST)/.installed
 	 } > $(LOWEST)/test.log 2>&1; status=$$?; \
 	 echo "== lowest versions ($(LOWEST)/test.log)"; cat $(LOWEST)/test.log; exit $$status
 
+# LeRobot's own reader on an exported dataset, outside `make test`: LeRobot brings torch (about
+# 4 min to install on two cores), in a virtual environment of its own.
+test-lerobot:
+	bash scripts/ci/install_system_deps.sh
+	$(PYTHON) -m venv $(LEROBOT)
+	$(LEROBOT)/bin/pip install --quiet -e ".[export]" pytest lerobot
+	$(LEROBOT)/bin/python -m pytest -q -p no:cacheprovider tests/test_export.py -k lerobot
+
 clean:
-	rm -rf $(VENV) $(LOWEST) runs build *.egg-info
+	rm -rf $(VENV) $(LOWEST) $(LEROBOT) runs build *.egg-info
