@@ -745,6 +745,20 @@ def hardlink_compare_results(base: Path, work: Path) -> list[Outcome]:
     return [o]
 
 
+@case("eval-other-task", fast=True)
+def eval_other_task(base: Path, work: Path) -> list[Outcome]:
+    """`eval` of a pour run whose config.json names the insertion (as `observe --task insert`
+    leaves it before learning; review A): exit 1, one line, nothing changed."""
+    run_dir = copy(base, work, "eval-other-task")
+    config = json.loads((run_dir / "config.json").read_text())
+    (run_dir / "config.json").write_text(json.dumps({**config, "task": "insert"}, indent=2))
+    before = snapshot(run_dir)
+    o = finish("eval-other-task (eval of a pour model in a run that names the insertion)",
+               start(*eval_args(run_dir, work, n=1, videos=0)), run_dir, before, [])
+    o.checks = one_line(o, 1)
+    return [o]
+
+
 @case("eval-out-foreign", fast=True)
 def eval_out_foreign(base: Path, work: Path) -> list[Outcome]:
     """`eval --out F`, F a user's folder holding report.html and summary.json (review N-x3):
