@@ -745,17 +745,19 @@ def hardlink_compare_results(base: Path, work: Path) -> list[Outcome]:
     return [o]
 
 
-@case("eval-other-task", fast=True)
+@case("eval-other-task")
 def eval_other_task(base: Path, work: Path) -> list[Outcome]:
-    """`eval` of a pour run whose config.json names the insertion (as `observe --task insert`
-    leaves it before learning; review A): exit 1, one line, nothing changed."""
+    """`eval` after `observe --quick --task insert` into a pour run (review A: the pour model was
+    evaluated in the insert scene): exit 1, one line naming the model, nothing changed."""
     run_dir = copy(base, work, "eval-other-task")
-    config = json.loads((run_dir / "config.json").read_text())
-    (run_dir / "config.json").write_text(json.dumps({**config, "task": "insert"}, indent=2))
+    observed = subprocess.run([sys.executable, "-m", "imitate", "observe", "--quick", "--task",
+                               "insert", str(run_dir)], capture_output=True, text=True)
     before = snapshot(run_dir)
-    o = finish("eval-other-task (eval of a pour model in a run that names the insertion)",
-               start(*eval_args(run_dir, work, n=1, videos=0)), run_dir, before, [])
-    o.checks = one_line(o, 1)
+    o = finish("eval-other-task (eval of a pour model after observe --task insert)",
+               start("eval", str(run_dir), "--n", "1", "--videos", "0", "--workers", "1"),
+               run_dir, before, [])
+    o.checks = {"observe exit 0": observed.returncode == 0, **one_line(o, 1),
+                "names model.npz": "model.npz" in "".join(o.errors)}
     return [o]
 
 
