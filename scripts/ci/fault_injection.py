@@ -751,7 +751,7 @@ def eval_other_task(base: Path, work: Path) -> list[Outcome]:
     evaluated in the insert scene): exit 1, one line naming the model, nothing changed."""
     run_dir = copy(base, work, "eval-other-task")
     observed = subprocess.run([sys.executable, "-m", "imitate", "observe", "--quick", "--task",
-                               "insert", str(run_dir)], capture_output=True, text=True)
+                               "insert", str(run_dir)], capture_output=True, text=True, check=False)
     before = snapshot(run_dir)
     o = finish("eval-other-task (eval of a pour model after observe --task insert)",
                start("eval", str(run_dir), "--n", "1", "--videos", "0", "--workers", "1"),
