@@ -68,14 +68,19 @@ def test_the_frame_the_demonstrations_agree_in_places_the_reproduction():
 
 
 def test_without_a_place_it_is_eq_1_and_a_missing_frame_is_named():
-    """No place: the reproduction's space is eq. 1, the product of one expert per term; frames
-    without the tool's relation to the target are refused, and an origin must be given."""
+    """No place: the reproduction's space is eq. 1, one expert per term, each its own columns:
+    the GMR mean and variances are the model's (so eq. 21 plans as in the declared space; only
+    the cross-covariances between terms are dropped); frames without the tool's relation to the
+    target are refused, and an origin must be given."""
     assert reproduction_space(()) == EQ1
     rng = np.random.default_rng(1)
     model = learn([d[:, [0, 1, 2, 13, 14, 15, 16]] for d in _demos(rng)], rate=10.0,
                   config=LearningConfig(n_components=2, use_dtw=False))
     reproduced = FrameModel(model, EQ1).at({})
-    np.testing.assert_allclose(reproduced.mean, model.mean, atol=1e-3)
+    np.testing.assert_allclose(reproduced.mean, model.mean, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(reproduced.variance, model.variance, rtol=1e-9, atol=1e-15)
+    cross = np.abs(model.covariance[:, :3, 3:]).max()
+    assert cross > 1e-12 and np.abs(reproduced.covariance[:, :3, 3:]).max() < 1e-9 * cross
     with pytest.raises(ImitateError, match="need"):
         FrameModel(model, TaskSpace((Relative("tool", "a"), *ANGLES)))
     with pytest.raises(ImitateError, match=r"no origin of the places \['a', 'b'\]"):
