@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from imitate.demos.oracle import oracle_model
-from imitate.envs.assembly import Obstacle, SceneConfig
+from imitate.envs.assembly import Fixture, Obstacle, SceneConfig
 from imitate.errors import ImitateError
 from imitate.learning import LearningConfig
 from imitate.models import humanoid
@@ -29,10 +29,11 @@ from imitate.motion.approach import (
     approach_cost,
     approach_path,
     bend_approach,
+    clear_start,
 )
 from imitate.motion.optimizer import _PUSH_SCALE
 from imitate.motion.replay import planning_task
-from imitate.taskspace import EQ1, gaze_frame, object_orientation
+from imitate.taskspace import EQ1, WORLD, Relative, TaskSpace, gaze_frame, object_orientation
 
 DT = 0.1  # coarse steps keep the finite-difference sweeps fast
 
@@ -245,6 +246,56 @@ def test_start_moves_clear_of_an_obstacle_beside_the_learned_start(task, learned
     assert 0 < clearance(reached.q_start) < c.margin
     assert clearance(cleared.q_start) >= c.margin + START_ZONE - 1e-3
     np.testing.assert_allclose(cleared.x_start, reached.x_start, atol=1e-6)
+
+
+def test_a_start_a_place_pins_moves_as_far_as_the_demonstrations_spread(task, learned):
+    """In a space that holds the glass relative to the world (as a place would), the null space
+    cannot take the start off a plate 5 mm under the glass: the task state moves, in its
+    positions, where a spread is given (not where it is 0), until the start keeps the margin
+    plus START_ZONE to the plate."""
+    from imitate.envs.task import get_task
+    from imitate.motion.control import reach
+
+    c = PlanConfig(dt=DT)
+    pinned = get_task("pour").in_space(TaskSpace((Relative("tool", "target"),
+                                                  Relative("target", WORLD), *EQ1.terms[1:])))
+    free = setup(task, learned, q0=humanoid.rest_pose(), config=c).problem
+    task.kin.update(free.q_start)
+    x, y, z = task.kin.data.body("glass").xpos
+
+    def near(top: float):  # the pinned space's map, a plate under the glass, its top at ``top``
+        box = Fixture("box", (x, y, top - 0.01), (0.03, 0.03, 0.01))
+        return planning_task(dataclasses.replace(pinned.scene(), obstacles=(box,)), task.gaze)
+
+    def clearance(task_map, q):  # to the fixed geoms (the table, the plate)
+        task_map.kin.update(q)
+        found = task_map.kin.distances(1.0)
+        return found.dist[task_map.kin.pairs.fixed(task_map.kin.model)[found.pairs]].min()
+
+    probe = near(z - 0.03)
+    start = reach(probe, _state(probe, free.q_start), free.q_start, c.control, _limits(probe, c))
+    probe = near(z - 0.03 + clearance(probe, start) - 0.005)  # the start 5 mm from its top
+    goal = _state(probe, start)
+    limits = _limits(probe, c)
+    spread = np.full(probe.m, 0.03**2)
+    stuck = clear_start(probe, start, goal, c.control, limits, c.margin)
+    still = clear_start(probe, start, goal, c.control, limits, c.margin, np.zeros(probe.m))
+    moved = clear_start(probe, start, goal, c.control, limits, c.margin, spread)
+    assert clearance(probe, stuck) < c.margin and clearance(probe, still) < c.margin
+    assert clearance(probe, moved) >= c.margin + START_ZONE - 1e-3
+    change = _state(probe, moved) - goal
+    assert probe.space.distance(change) > 0.005  # the glass itself moved
+    np.testing.assert_allclose(change[probe.space.angles], 0.0, atol=2e-3)  # not its angles
+
+
+def _state(task_map, q):
+    """The task state at the posture ``q``."""
+    task_map.kin.update(q)
+    return task_map(np.zeros(2))[0]
+
+
+def _limits(task_map, c):
+    return JointLimitCost(task_map.kin.lower, task_map.kin.upper, c.control.free_ratio)
 
 
 @pytest.mark.parametrize("term", ["collision", "joint_acceleration"])

@@ -4,9 +4,12 @@ that start is.
 The start is reached by RMR onto the learned start (:func:`~imitate.motion.control.reach`), which
 knows nothing of the scene: an obstacle next to where the demonstrations began can be within
 reach of a hand there, and no attractor moves the start. :func:`clear_start` moves it in the
-task's null space (the task state stays the learned start; the task space is relative, so the
-hands can move together) until it keeps the margin plus :data:`START_ZONE` to every geom fixed in
-the world (the table, obstacles), where the null space allows.
+task's null space (the task state stays the learned start; in a space of the objects' relation
+the hands can move together) until it keeps the margin plus :data:`START_ZONE` to every geom
+fixed in the world (the table, obstacles), where the null space allows. Where it does not (a
+space relative to a place pins the objects) and the start still lies within the margin, the
+task state moves too, in the positions and as far as the demonstrations spread at their start:
+each step along the potential's descent in the task space scaled by their variances.
 
 The replay moves the robot from where it stands, ``q_a``, to the plan's first posture ``q_b``
 along
@@ -42,6 +45,7 @@ _WEIGHT = 1e4  # w: the potential's weight against the bend's size [rad^2/m]
 START_ZONE = 0.03
 _START_GAIN = 2.0  # g [1/m]: the push [1/rad] per unit of the potential's gradient [m/rad]
 _START_STEPS = 300  # RMR steps of clear_start, at most
+_GOAL_STEP = 0.002  # [m]: how far a step of clear_start moves the task state, where it does
 
 
 def _fractions(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
@@ -109,24 +113,50 @@ def bend_approach(
 
 def clear_start(
     task_map: TaskMap, q: np.ndarray, goal: np.ndarray, config: ControlConfig,
-    limits: JointLimitCost, margin: float,
+    limits: JointLimitCost, margin: float, spread: np.ndarray | None = None,
 ) -> np.ndarray:
     """The start posture ``q`` ``(n,)`` [rad] moved clear of the fixed geoms (see the module):
     RMR steps onto the task state ``goal`` ``(m,)`` with the null-space push ``-g dP/dq``, ``P``
     the collision cost's potential over the pairs with a fixed geom closer than ``margin +
-    START_ZONE`` [m]; at most ``_START_STEPS`` of them. ``q`` itself where none is closer."""
+    START_ZONE`` [m]; at most ``_START_STEPS`` of them. ``q`` itself where none is closer. If
+    the start is still within ``margin`` of a fixed geom and ``spread`` ``(m,)`` (the
+    demonstrations' variances at the start) is given, as many steps again that also move the
+    task state, in its position columns, by ``_GOAL_STEP`` along ``-spread * dP/dx``."""
     kin = task_map.kin
     if kin.pairs is None:
         raise ImitateError("clear_start needs the Kinematics to be built with geoms")
     fixed = kin.pairs.fixed(kin.model)
-    target = np.tile(goal, (2, 1))
+    q, closest = _clear(task_map, q, goal, config, limits, margin, fixed, None)
+    if spread is not None and closest < margin:
+        moving = np.zeros_like(spread)
+        columns = task_map.space.position_columns
+        moving[columns] = spread[columns]
+        q, _ = _clear(task_map, q, goal, config, limits, margin, fixed, moving)
+    return q
+
+
+def _clear(
+    task_map: TaskMap, q: np.ndarray, goal: np.ndarray, config: ControlConfig,
+    limits: JointLimitCost, margin: float, fixed: np.ndarray, spread: np.ndarray | None,
+) -> tuple[np.ndarray, float]:
+    """:func:`clear_start`'s steps (the task state moving by ``spread`` where given); the start
+    and its distance [m] to the closest fixed geom (``inf`` beyond the zone)."""
+    kin = task_map.kin
     for _ in range(_START_STEPS):
         kin.update(q)
         near = kin.distances(margin + START_ZONE, jacobian=True)
         keep = fixed[near.pairs]
         if not np.any(keep):
-            break
+            return q, np.inf
         _, slope = potential(near.dist[keep] - margin, START_ZONE)
-        push = -_START_GAIN * (slope @ near.jac[keep])
-        q = rollout(task_map, target, q, config, limits, push=push[None]).q[-1]
-    return q
+        gradient = slope @ near.jac[keep]  # dP/dq
+        if spread is not None:  # dP/dx, least squares through J^T
+            _, J = task_map(task_map.space.angle_ref(goal))
+            step = spread * np.linalg.lstsq(J.T, gradient, rcond=None)[0]
+            goal = goal - _GOAL_STEP * step / max(float(task_map.space.distance(step)), 1e-12)
+        q = rollout(task_map, np.tile(goal, (2, 1)), q, config, limits,
+                    push=-_START_GAIN * gradient[None]).q[-1]
+    kin.update(q)
+    near = kin.distances(margin + START_ZONE)
+    keep = fixed[near.pairs]
+    return q, float(near.dist[keep].min()) if np.any(keep) else np.inf

@@ -288,7 +288,7 @@ def setup(
     limits = JointLimitCost(kin.lower, kin.upper, c.control.free_ratio)
     q_start = reach(task_map, mu[0], q0, c.control, limits)
     if c.collision_weight > 0:
-        q_start = clear_start(task_map, q_start, mu[0], c.control, limits, c.margin)
+        q_start = clear_start(task_map, q_start, mu[0], c.control, limits, c.margin, var[0])
     problem = Problem(task_map, dynamics, q_start, mu, weights, c)
     a0 = dynamics.fit(mu, problem.x_start, weights)
     return Setup(grid, mu, var, cov, weights, problem, a0)
