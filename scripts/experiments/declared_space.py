@@ -1,13 +1,16 @@
 """Does a task's space matter? Its teachers' demonstrations learned in the task's declared space,
 in the space selected from their statistics (:mod:`imitate.demos.space_selection`), in TP-GMM's
-frames (:mod:`imitate.learning.tpgmm`) and in eq. 1's, each reproduced over the same places.
+frames (:mod:`imitate.learning.tpgmm`) and in each single relation of the tool's (to the target:
+eq. 1's; to the task's first place), each reproduced over the same places.
 
 For a task whose space is not eq. 1 (``marked``: the glass relative to the marker is part of its
 space; its critical phase is found in any space, ``Task.critical_steps``), each teacher of
 ``RUN_DIR`` (seeds as ``imitate eval --teachers N`` takes them, learned under
 ``RUN_DIR/eval/teachers`` where missing) is learned again from its own cut demonstrations in
 the selected space, in every candidate frame but the world (reproduced by TP-GMM's product at
-each scene's places) and in :data:`imitate.taskspace.EQ1` (the same learning settings). The models
+each scene's places), in :data:`imitate.taskspace.EQ1` and in the tool's relation to the first
+place with the angles, the target's place left to the planner (the same learning settings;
+``--spaces`` picks some of these arms, :data:`SPACES`). The models
 are reproduced with the default planner in the task's default scene and at ``--n`` places of
 each of the task's places drawn uniformly over the built-in suite's ranges (the same draws for
 all, other settings at their defaults), each replayed in physics from seeds 0, 1, 2; the outcome
@@ -16,7 +19,7 @@ successes over the drawn ones (the selected space's terms beside), then the tota
 intervals.
 
 Usage: ``python scripts/experiments/declared_space.py RUN_DIR [--teachers 3] [--n 10]
-[--seed 0] [--workers 2]``
+[--seed 0] [--workers 2] [--spaces declared,selected,tpgmm,eq1,tool-place]``
 """
 
 from __future__ import annotations
@@ -40,9 +43,9 @@ from imitate.motion import PlanConfig, plan_from_model
 from imitate.motion.replay import measure, planning_task
 from imitate.stages.config import load_config
 from imitate.stages.files import DemosFile
-from imitate.taskspace import EQ1, TaskSpace
+from imitate.taskspace import EQ1, Relative, TaskSpace
 
-SPACES = ("declared", "selected", "tpgmm", "eq1")
+SPACES = ("declared", "selected", "tpgmm", "eq1", "tool-place")
 
 
 def model_in(run_dir: Path, space: TaskSpace):
@@ -82,7 +85,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--n", type=int, default=10, help="drawn places per teacher")
     parser.add_argument("--seed", type=int, default=0, help="of the places' draws")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--spaces", default=",".join(SPACES), help="arms, comma-separated")
     args = parser.parse_args(argv)
+    arms = tuple(args.spaces.split(","))
+    if not arms or set(arms) - set(SPACES):
+        parser.error(f"--spaces {args.spaces!r} not accepted: some of {', '.join(SPACES)}")
     name = run_task(args.run_dir)
     task = get_task(name)
     if task.space == EQ1:
@@ -95,13 +102,16 @@ def main(argv: list[str] | None = None) -> int:
     for t in teachers(args.run_dir, args.run_dir / "eval", args.teachers, (), args.workers):
         chosen[t.seed] = selected_space(t.path.parent, task)
         frames = candidates(task.space.places, world=False)
-        framed = FrameModel(model_in(t.path.parent, frames), frames)
-        spaces = {"declared": task.space, "selected": chosen[t.seed], "tpgmm": framed.space,
-                  "eq1": EQ1}
-        models = {"declared": t.learned.model, "selected": model_in(t.path.parent, chosen[t.seed]),
-                  "tpgmm": framed, "eq1": model_in(t.path.parent, EQ1)}
+        spaces = {"declared": task.space, "selected": chosen[t.seed], "tpgmm": frames, "eq1": EQ1,
+                  "tool-place": TaskSpace((Relative("tool", task.space.places[0]),
+                                           *EQ1.terms[1:]))}
+        models = {arm: t.learned.model if arm == "declared"
+                  else model_in(t.path.parent, spaces[arm]) for arm in arms}
+        if "tpgmm" in arms:
+            models["tpgmm"] = FrameModel(models["tpgmm"], frames)
+            spaces["tpgmm"] = models["tpgmm"].space
         jobs += [(t.seed, i, s, spaces[s], p, models[s], t.learned.gaze, name)
-                 for i, p in enumerate(places) for s in SPACES]
+                 for i, p in enumerate(places) for s in arms]
     with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
         results = pool.map(trial, jobs)
     print(f"{name}: {len(places) - 1} places drawn over {ranges} (seed {args.seed}) and the "
@@ -110,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
     print("|---|---|---|---|---|")
     totals = Counter()
     for seed in sorted({r[0] for r in results}):
-        for space in SPACES:
+        for space in arms:
             mine = [r for r in results if r[0] == seed and r[2] == space]
             default = next(r[3] for r in mine if r[1] == 0)
             drawn = Counter(r[3] for r in mine if r[1] > 0)
@@ -122,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"{drawn['success']} of {sum(drawn.values())}"
                   f" | {', '.join(f'{o} {k}' for o, k in drawn.most_common())} |")
     print()
-    for space in SPACES:
+    for space in arms:
         k, n = totals[space, "success"], totals[space, "n"]
         low, high = wilson(k, n)
         print(f"{space}: {k} of {n} drawn places succeed ({k / n:.0%}, 95 % Wilson "
