@@ -89,7 +89,9 @@ class Run:
     @property
     def model(self) -> LearnedModel:
         """The learned model (``model.npz``): GMM, BIC curve, GMR mean and covariance at its
-        ``times``, and :meth:`~imitate.learning.LearnedModel.predict` at any time."""
+        ``times``, and :meth:`~imitate.learning.LearnedModel.predict` at any time; of a
+        ``--task-space tpgmm`` run, in TP-GMM's frames (``learned.planned`` is what plans
+        reproduce, in :attr:`task`'s space)."""
         return self.learned.model
 
     @property
