@@ -8,7 +8,9 @@ least one second of stillness between demonstrations; or, with
 phase, whose position varies by centimetres (a teacher whose variance is not where the task is);
 or, with ``"misleading"``, as the script spreads them and, in the critical phase, by a few
 degrees more along a direction the task tolerates only while nothing pulls the reproduction
-along it (a teacher whose variance frees what a constraint then takes).
+along it (a teacher whose variance frees what a constraint then takes); or, with ``"coupled"``,
+as the script spreads them and, in the critical phase, both objects moved together by
+centimetres (the target, and the tool relative to it: only their difference is invariant).
 The result, a :class:`TeacherMotion`, gives the ground-truth object poses at any time;
 :func:`imitate.envs.mannequin.show` puts the objects there and draws the mannequin's arms
 holding them.
@@ -62,6 +64,10 @@ class Script:
             demonstrations are offset in the critical phase, and the half range [m or deg, as
             the column] their offsets spread evenly over; ``None`` where the task declares
             none.
+        couple: ``(axis, half range)``: the world axis (0-2: x, y, z) along which
+            ``"coupled"`` demonstrations move the target, and the tool with it, in the critical
+            phase, and the half range [m] their offsets spread evenly over; ``None`` where the
+            task declares none.
         places: objects standing still on the table in the teacher's scene, watched by the
             robot as the held ones are (the places a task space may be relative to).
         place_spread: half the ranges ``(x, y)`` [m] over which the places stand, from one
@@ -77,6 +83,7 @@ class Script:
     agree_rows: tuple[int, int]
     offset_axis: int
     mislead: tuple[int, float] | None = None
+    couple: tuple[int, float] | None = None
     places: tuple[Place, ...] = ()
     place_spread: tuple[float, float] = (0.0, 0.0)
     placed_rows: tuple[int, ...] = ()
@@ -107,7 +114,9 @@ class TeacherConfig:
             demonstrations keep invariant is what matters; or ``"misleading"`` (as
             ``"aligned"``, and in the critical phase offset along the script's ``mislead``
             direction: they vary where the task tolerates it unless pulled, a test of the
-            premise's other side).
+            premise's other side); or ``"coupled"`` (as ``"aligned"``, and in the critical
+            phase the target, with the tool relative to it, offset along the script's
+            ``couple`` axis: the objects vary together, their difference does not).
         offset: with ``"misaligned"``, the half range [m] the tool top's offsets along the
             script's ``offset_axis`` spread evenly over in the critical phase (times
             ``spread``).
@@ -147,12 +156,14 @@ class TeacherConfig:
                 f"variation={self.variation!r} not accepted: one of {TEACHER_VARIATIONS}"
             )
         tasks.check(self.task)
-        misleading = self.variation == "misleading"
-        if misleading and tasks.module(self.task, "teacher").SCRIPT.mislead is None:
-            raise ImitateError(
-                f"variation='misleading' not accepted for task {self.task!r}: its script "
-                "declares no misleading direction; use 'aligned' or 'misaligned'"
-            )
+        script = tasks.module(self.task, "teacher").SCRIPT
+        for variation, direction, what in (("misleading", script.mislead, "misleading direction"),
+                                           ("coupled", script.couple, "coupled axis")):
+            if self.variation == variation and direction is None:
+                raise ImitateError(
+                    f"variation={variation!r} not accepted for task {self.task!r}: its script "
+                    f"declares no {what}; use 'aligned' or 'misaligned'"
+                )
         for name in ("spread", "tilt_plane_spread", "tremor", "tremor_angle", "offset"):
             if not getattr(self, name) >= 0:
                 raise ImitateError(f"{name}={getattr(self, name)!r} not accepted: a value >= 0")
@@ -338,6 +349,7 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
     column, half = {
         "misaligned": (script.offset_axis, config.offset),
         "misleading": _mislead_in_values(script.mislead),
+        "coupled": script.couple,
     }.get(config.variation, (0, 0.0))
     offsets = np.zeros(config.n_demos)
     if config.n_demos > 1:
@@ -348,10 +360,10 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
     for i, noise in enumerate(noises):
         values = nominal + spread * noise
         values[0], values[-1] = rests[i], rests[i + 1]
-        values[critical, column] += offsets[i]
         # In the critical phase the target moves as scripted (nominal), off by its offset at
         # the phase's start.
         values[critical[1], :3] += values[critical[0], :3] - nominal[critical[0], :3]
+        values[critical, column] += offsets[i]
         values[list(script.placed_rows), :2] += moves[i]
         # Shape-preserving (no overshoot between waypoints), starting and ending at rest.
         slopes = PchipInterpolator(u, values).derivative()(u)

@@ -15,7 +15,7 @@ __all__ = [
 ]
 
 # the teacher (imitate.envs.teacher_motion: TEACHER_VARIATIONS, TeacherConfig.variation)
-TEACHER_VARIATIONS = ("aligned", "misaligned", "misleading")
+TEACHER_VARIATIONS = ("aligned", "misaligned", "misleading", "coupled")
 TEACHER_VARIATION = "aligned"
 # learning (imitate.demos.segment: StillnessConfig.smoothing [s]; imitate.learning.bic)
 SMOOTHING = 0.3

@@ -1,5 +1,5 @@
 """The scripted teacher: seeded, right lengths and spreads, stillness between demonstrations;
-the misaligned variation, and its pours in physics."""
+the misaligned, misleading and coupled variations, and their pours in physics."""
 
 import numpy as np
 import pytest
@@ -225,3 +225,43 @@ def test_misleading_demonstrations_still_pour():
 def test_misleading_needs_a_declared_direction():
     with pytest.raises(ImitateError, match="task 'insert'.*no misleading direction"):
         TeacherConfig(task="insert", variation="misleading")
+
+
+def test_coupled_teacher_moves_both_objects_together_only_while_pouring():
+    """Same seed, same session as the aligned teacher but for where both objects are while
+    pouring: the glass's bottom offset sideways (world y) evenly over +-40 mm at the pour's
+    waypoints, the bottle with it; the bottle relative to the glass and everything else the
+    same."""
+    aligned, coupled = (script_demonstrations(TeacherConfig(seed=5, variation=v))
+                        for v in ("aligned", "coupled"))
+    for name in ("boundaries", "warps", "tilt_planes", "tremor"):
+        assert np.array_equal(getattr(aligned, name), getattr(coupled, name)), name
+    u = [_WAYPOINTS[row][0] for row in _POUR_ROWS]
+    moved = np.array([path(u) - other(u) for path, other in zip(coupled.paths, aligned.paths,
+                                                                 strict=True)])
+    np.testing.assert_allclose(np.sort(moved[:, 0, 1]), np.linspace(-0.04, 0.04, 5), atol=1e-12)
+    np.testing.assert_allclose(moved[:, 0, 1], moved[:, 1, 1], atol=1e-12)
+    np.testing.assert_allclose(np.delete(moved, 1, axis=2), 0.0, atol=1e-12)
+    t = np.linspace(0.0, aligned.duration, 500)
+    poses = {v: m.poses(t) for v, m in (("aligned", aligned), ("coupled", coupled))}
+    glass = {v: p["glass"][0] for v, p in poses.items()}
+    relative = {v: p["bottle"][0] - glass[v] for v, p in poses.items()}
+    np.testing.assert_allclose(relative["coupled"], relative["aligned"], atol=1e-12)
+    assert np.abs(glass["coupled"] - glass["aligned"])[:, 1].max() > 0.039
+    swing = [_WAYPOINTS[row][0] for row in (1, 2, 7)]
+    for path, other in zip(coupled.paths, aligned.paths, strict=True):
+        np.testing.assert_array_equal(path(swing), other(swing))
+
+
+def test_coupled_demonstrations_still_pour():
+    """In physics with the liquid, the pours furthest apart in a coupled session put at least
+    SUCCESS_FRACTION of it into the glass."""
+    motion = script_demonstrations(TeacherConfig(seed=3, variation="coupled"))
+    y = np.array([path(0.6)[1] for path in motion.paths])
+    poured = [teacher_pour(motion, int(d)) for d in (np.argmin(y), np.argmax(y))]
+    assert min(poured) >= SUCCESS_FRACTION, poured
+
+
+def test_coupled_needs_a_declared_axis():
+    with pytest.raises(ImitateError, match="task 'marked'.*no coupled axis"):
+        TeacherConfig(task="marked", variation="coupled")

@@ -56,6 +56,7 @@ SCRIPT = dataclasses.replace(
     places=(MARKER_PLACE,),
     place_spread=PLACE_SPREAD,
     placed_rows=tuple(_POUR_ROWS),
+    couple=None,  # the glass stays over its marker
 )
 
 

@@ -28,6 +28,9 @@ Where the demonstrations vary (``TeacherConfig.variation``):
   0.967-1.000); 113 deg put 0.95-0.97 in, 108 deg 0.82-0.87 (seeds 0 and 1). A path-length
   cost pulls the tilt down (less wrist travel), the way the pour fails; weighted by eq. 21 the
   tilt gives way more readily than with uniform weights.
+- "coupled": as "aligned", and while pouring each demonstration holds the glass, and the bottle
+  relative to it, off sideways (world y) by its own offset, evenly over +-40 mm: the objects'
+  positions vary by centimetres together, their difference (eq. 1's) as in "aligned".
 """
 
 from __future__ import annotations
@@ -89,6 +92,7 @@ SCRIPT = Script(
     agree_rows=(4, 5),  # the pour: the glass keeps its offset from the nominal
     offset_axis=5,  # the mouth's world y (in the waypoints' columns): along the stream
     mislead=(7, 12.0),  # the bottle's tilt while pouring, +-12 deg: 116-140 deg
+    couple=(1, 0.04),  # both objects sideways while pouring, +-40 mm
 )
 
 

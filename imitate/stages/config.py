@@ -185,8 +185,10 @@ class RunConfig:
         "centimetres away from the task's critical phase, by millimetres in it: low variance "
         "where the task is, as the paper assumes), misaligned (the rest the same every time, "
         "the critical phase's position spread by centimetres: low variance where the task is "
-        "not, a test of that premise) or misleading (as aligned, the critical phase also "
-        "spread along a direction the task tolerates only while nothing pulls along it)",
+        "not, a test of that premise), misleading (as aligned, the critical phase also "
+        "spread along a direction the task tolerates only while nothing pulls along it) or "
+        "coupled (as aligned, in the critical phase both objects moved together by "
+        "centimetres: only their difference invariant)",
         stage="observe", flag="--teacher-variation",
         choices=defaults.TEACHER_VARIATIONS,
     )
