@@ -156,13 +156,14 @@ class TeacherConfig:
                 f"variation={self.variation!r} not accepted: one of {TEACHER_VARIATIONS}"
             )
         tasks.check(self.task)
-        script = tasks.module(self.task, "teacher").SCRIPT
-        for variation, direction, what in (("misleading", script.mislead, "misleading direction"),
-                                           ("coupled", script.couple, "coupled axis")):
-            if self.variation == variation and direction is None:
+        declared = {"misleading": ("mislead", "misleading direction"),
+                    "coupled": ("couple", "coupled axis")}
+        if self.variation in declared:
+            field, what = declared[self.variation]
+            if getattr(tasks.module(self.task, "teacher").SCRIPT, field) is None:
                 raise ImitateError(
-                    f"variation={variation!r} not accepted for task {self.task!r}: its script "
-                    f"declares no {what}; use 'aligned' or 'misaligned'"
+                    f"variation={self.variation!r} not accepted for task {self.task!r}: its "
+                    f"script declares no {what}; use 'aligned' or 'misaligned'"
                 )
         for name in ("spread", "tilt_plane_spread", "tremor", "tremor_angle", "offset"):
             if not getattr(self, name) >= 0:
@@ -349,7 +350,7 @@ def script_demonstrations(config: TeacherConfig = TeacherConfig()) -> TeacherMot
     column, half = {
         "misaligned": (script.offset_axis, config.offset),
         "misleading": _mislead_in_values(script.mislead),
-        "coupled": script.couple,
+        "coupled": script.couple or (0, 0.0),
     }.get(config.variation, (0, 0.0))
     offsets = np.zeros(config.n_demos)
     if config.n_demos > 1:

@@ -115,6 +115,13 @@ def test_a_quick_marked_run_end_to_end_tracks_the_marker_and_reports_its_keys(tm
     }
     assert report["replay"]["outcome"] in TASK.outcomes
 
+    # A space named by its relations (eq. 1's here): learned and planned in it.
+    for stage in ("learn", "optimize"):
+        assert main([stage, str(run_dir), *(["--task-space", "tool-target"] if stage == "learn"
+                                             else [])]) == 0
+    assert ModelFile.load_learned(run_dir).space == EQ1
+    assert PlanFile.load(run_dir).plan.mean.shape[1] == EQ1.m
+
     # TP-GMM: learned in every frame, planned and replayed in the product's space.
     for stage in ("learn", "optimize", "replay"):
         assert main([stage, str(run_dir), *(["--task-space", "tpgmm"] if stage == "learn"

@@ -11,12 +11,14 @@ from imitate.demos.space_selection import (
     candidates,
     equivalent,
     invariance,
+    named,
     select,
 )
 from imitate.envs.task import get_task
 from imitate.envs.teacher_motion import TeacherConfig, script_demonstrations
 from imitate.errors import ImitateError
 from imitate.learning.dtw import align
+from imitate.stages.config import RunConfig
 from imitate.taskspace import EQ1, WORLD, Angles, Relative, TaskSpace, gaze_frame
 
 GAZE = gaze_frame((1.0, 0.0, -0.3))
@@ -109,3 +111,16 @@ def test_the_world_is_a_place_every_scene_has():
     np.testing.assert_allclose(x[0, 3:6], p[0])
     task_map = planning_task(get_task("pour").in_space(space).scene(), GAZE)
     assert task_map.space == space
+
+
+def test_a_space_named_by_its_relations():
+    """``--task-space OF-TO[+OF-TO]``: eq. 1 by its relation, marked's declared space by its
+    two; a relation the task cannot have, the world, or one named twice are refused by the run's
+    config with what is accepted."""
+    assert named("tool-target", ()) == EQ1
+    assert named("tool-target+target-marker", ("marker",)) == get_task("marked").space
+    assert RunConfig(task="marked", task_space="tool-marker").task_space == "tool-marker"
+    for text in ("tool-marker", "tool-world", "tool-target+tool-target", "", 5):
+        with pytest.raises(ImitateError, match=r"task space .* not accepted: declared, auto, "
+                                               r"tpgmm, or relations of \['tool-target'\]"):
+            RunConfig(task="pour", task_space=text)

@@ -15,7 +15,8 @@ variance criterion the paper's authors followed up with.
 
 :func:`select` keeps the tool's most invariant relation (to the target or a place), the target's
 most invariant relation to a place (its relation to the tool is the tool's) only where its ratio
-is under :data:`INVARIANT`, and eq. 1's angles of both objects.
+is under :data:`INVARIANT`, and eq. 1's angles of both objects. :func:`named` gives a space
+by its relations' names instead (``--task-space tool-target``: eq. 1's).
 """
 
 from __future__ import annotations
@@ -30,8 +31,8 @@ from imitate.errors import ImitateError
 from imitate.learning.dtw import align
 from imitate.taskspace import OBJECTS, WORLD, Angles, Relative, TaskSpace
 
-__all__ = ["INVARIANT", "aligned", "candidates", "equivalent", "invariance", "rate", "select",
-           "spread"]
+__all__ = ["INVARIANT", "aligned", "candidates", "equivalent", "invariance", "named", "rate",
+           "select", "spread"]
 
 # The largest invariance ratio of a relation of the target's kept (the demonstrations spread in
 # the critical phase by under a tenth of its spread over the movement). Chosen on teachers 0-2 of
@@ -117,6 +118,25 @@ def select(ratios: Mapping[Relative, float], invariant: float = INVARIANT) -> Ta
     if placed and min(placed.values()) < invariant:
         terms.append(min(placed, key=placed.__getitem__))
     return TaskSpace((*terms, Angles(tool), Angles(target)))
+
+
+def named(text: str, places: Sequence[str]) -> TaskSpace:
+    """The space of the relations ``text`` names, ``OF-TO`` joined by ``+`` (of the
+    :func:`candidates` of a task with ``places``, the world's aside), then eq. 1's angles:
+    ``tool-target`` is eq. 1, ``tool-target+target-marker`` ``marked``'s declared space.
+
+    Raises:
+        ImitateError: an unknown relation, or one named twice.
+    """
+    relations = {f"{t.of}-{t.to}": t for t in candidates(places, world=False).terms
+                 if isinstance(t, Relative)}
+    names = text.split("+")
+    if any(n not in relations for n in names) or len(set(names)) < len(names):
+        raise ImitateError(
+            f"task space {text!r} not accepted: declared, auto, tpgmm, or relations of "
+            f"{list(relations)} joined by '+', each once (e.g. {'+'.join(relations)})"
+        )
+    return TaskSpace((*(relations[n] for n in names), *(Angles(o) for o in OBJECTS)))
 
 
 def equivalent(a: TaskSpace, b: TaskSpace) -> bool:

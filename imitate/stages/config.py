@@ -126,6 +126,8 @@ def _setting(default: Any, help: str, **declaration: Any) -> Any:
 # Video sizes are multiples of the encoder's macro block [px] (``envs/video.py``'s
 # ``write_video``): others would be padded up to one.
 VIDEO_BLOCK = 8
+# ``--task-space`` words; anything else names relations (imitate.demos.space_selection.named).
+TASK_SPACES = ("declared", "auto", "tpgmm")
 
 _OBSTACLE_FORMS = (
     "box:X,Y,Z:SX,SY,SZ (centre, half extents [m]), cylinder:X,Y,Z:R,H (centre, radius, half "
@@ -210,11 +212,12 @@ class RunConfig:
         flag="--oracle",
     )
     task_space: str = _setting(
-        "declared", "the task space learned in: the task's declared one, or the one the "
+        "declared", "the task space learned in: the task's declared one, the one the "
         "demonstrations' statistics select (auto: each relation's invariance where the task is "
-        "decided, imitate.demos.space_selection), or every candidate frame at once, reproduced "
-        "by the product of their Gaussians in each scene (tpgmm, imitate.learning.tpgmm)",
-        stage="learn", flag="--task-space", choices=("declared", "auto", "tpgmm"),
+        "decided, imitate.demos.space_selection), every candidate frame at once, reproduced "
+        "by the product of their Gaussians in each scene (tpgmm, imitate.learning.tpgmm), or "
+        "relations named OF-TO joined by + with eq. 1's angles (tool-target: eq. 1; "
+        "tool-target+target-marker)", stage="learn", flag="--task-space",
     )
     collision_weight: float = _setting(
         defaults.COLLISION_WEIGHT, "weight of the collision cost", stage="optimize",
@@ -288,6 +291,11 @@ class RunConfig:
             if name != "options":
                 setting.check(name, getattr(self, name))
         object.__setattr__(self, "options", tasks.settings(self.task, self.options))
+        if self.task_space not in TASK_SPACES:
+            from imitate.demos.space_selection import named
+            from imitate.envs.task import get_task
+
+            named(str(self.task_space), get_task(self.task).space.places)
         assembly.check_clearance(self.scene())  # validates the grasps and the obstacle
 
     @classmethod

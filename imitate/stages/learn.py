@@ -15,14 +15,14 @@ from imitate.envs.task import Task
 from imitate.envs.teacher_motion import script_demonstrations
 from imitate.learning import LearningConfig, learn
 from imitate.learning.bic import bic_sweep
-from imitate.stages.config import RunConfig
+from imitate.stages.config import TASK_SPACES, RunConfig
 from imitate.stages.files import DemosFile, Learned, ModelFile, ObservationsFile
 
 
 def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
-    """The task space (``task``'s, the one its demonstrations select, or TP-GMM's candidate
-    frames side by side), DTW, GMM (components by BIC), GMR; the other BIC method for
-    comparison."""
+    """The task space (``task``'s, the one its demonstrations select, TP-GMM's candidate frames
+    side by side, or the one ``config.task_space`` names), DTW, GMM (components by BIC), GMR;
+    the other BIC method for comparison."""
     space, ratios = task.space, []
     if config.task_space == "tpgmm":
         space = space_selection.candidates(task.space.places, world=False)
@@ -32,6 +32,8 @@ def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
                                      smoothing=config.smoothing)
         space = space_selection.select(rated)
         ratios = [[f"{t.of}-{t.to}", value] for t, value in rated.items()]
+    if config.task_space not in TASK_SPACES:
+        space = space_selection.named(config.task_space, task.space.places)
     if config.oracle:
         tracks = ObservationsFile.load(run_dir).observations.tracks
         motion = script_demonstrations(config.teacher())
