@@ -55,6 +55,29 @@ def test_check_env_pixels(obs_type):
     env.close()
 
 
+@pytest.mark.parametrize("obs_type", ["state", "pixels_agent_pos"])
+def test_observations_are_bounded_where_the_quantity_is(obs_type):
+    """Joint angles by their limits and JOINT_SLACK, quaternions by 1, velocities and positions
+    unbounded; a joint pushed past its slack is observed at it, in the space."""
+    env = PouringEnv(obs_type=obs_type, **SMALL)
+    env.reset(seed=0)
+    n = len(humanoid.JOINTS)
+    joints = env.observation_space if obs_type == "state" else env.observation_space["agent_pos"]
+    np.testing.assert_allclose(joints.high[:n] - bimanual.JOINT_SLACK, env.action_space.high)
+    np.testing.assert_allclose(joints.low[:n] + bimanual.JOINT_SLACK, env.action_space.low)
+    if obs_type == "state":
+        high = env.observation_space.high[n:]
+        assert np.all(np.isinf(high[:n]))  # joint velocities
+        assert np.all(np.isinf(high[n::7]) & np.isinf(high[n + 2::7]))  # object positions
+        np.testing.assert_array_equal(high[n + 3:n + 7], 1.0)  # the first object's quaternion
+    env.data.qpos[env._joint_qpos[0]] = env.action_space.high[0] + 0.5
+    obs = env._get_obs()
+    q = obs if obs_type == "state" else obs["agent_pos"]
+    assert q[0] == pytest.approx(env.action_space.high[0] + bimanual.JOINT_SLACK)
+    assert obs in env.observation_space
+    env.close()
+
+
 def test_the_stereo_eyes_on_request():
     env = PouringEnv(obs_type="pixels", cameras=["left_eye", "right_eye"], **SMALL)
     check_env(env, skip_render_check=True)

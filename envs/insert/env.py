@@ -14,13 +14,15 @@ order, clipped to the joint ranges. The servos' targets follow an action at ``ma
 body; planned movements (well under it) are followed exactly.
 
 ## Observation space
-``obs_type="state"``: ``Box((50,), float64)``, see ``observation_structure``: robot joint
-angles (18) [rad] and velocities (18) [rad/s], stick and glass poses (position [m] and
-quaternion wxyz, 7 each). The robot's head cameras ``cameras``, keyed as LeRobot's environments
-key theirs: ``obs_type="pixels"``: ``{"pixels": {"workspace": image}}`` by default (the
-workspace camera under the eyes, looking down at the hands); ``obs_type="pixels_agent_pos"``:
-that and ``"agent_pos"``, the joint angles ``(18,) float64`` [rad]; ``obs_type="state_pixels"``:
-the ``"state"`` vector and the ``"pixels"``. Images are ``(height, width, 3) uint8`` RGB.
+``obs_type="state"``: ``Box((50,), float64)``, see ``observation_structure``: robot joint angles
+(18) [rad] and velocities (18) [rad/s], stick and glass poses (position [m] and quaternion wxyz, 7
+each); the angles bounded by the joints' limits widened by ``JOINT_SLACK`` (MuJoCo's limits are
+soft), the quaternions by 1, the rest unbounded. The robot's head cameras ``cameras``, keyed as
+LeRobot's environments key theirs: ``obs_type="pixels"``: ``{"pixels": {"workspace": image}}`` by
+default (the workspace camera under the eyes, looking down at the hands);
+``obs_type="pixels_agent_pos"``: that and ``"agent_pos"``, the joint angles ``(18,) float64``
+[rad]; ``obs_type="state_pixels"``: the ``"state"`` vector and the ``"pixels"``. Images are
+``(height, width, 3) uint8`` RGB.
 
 ## Rewards
 ``reward_insert``: ``insert_weight`` times the increase, since the last step, of the deepest

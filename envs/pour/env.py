@@ -13,16 +13,16 @@ order, clipped to the joint ranges. The servos' targets follow an action at ``ma
 body; planned movements (well under it) are followed exactly.
 
 ## Observation space
-``obs_type="state"``: ``Box((50,), float64)``, see ``observation_structure``: robot joint
-angles (18) [rad] and velocities (18) [rad/s], bottle and glass poses (position [m] and
-quaternion wxyz, 7 each). The robot's head cameras ``cameras``, keyed as LeRobot's environments
-key theirs (and gym-aloha its ``pixels_agent_pos``): ``obs_type="pixels"``:
-``{"pixels": {"workspace": image}}`` by default (the workspace camera under the eyes, looking
-down at the hands: both objects and the pour are in view; the stereo eyes look ahead, at the
-teacher when watching); ``obs_type="pixels_agent_pos"``: that and ``"agent_pos"``, the joint
-angles ``(18,) float64`` [rad]; ``obs_type="state_pixels"``: the ``"state"`` vector and the
-``"pixels"`` (what ``imitate export --images`` records). Images are ``(height, width, 3) uint8``
-RGB.
+``obs_type="state"``: ``Box((50,), float64)``, see ``observation_structure``: robot joint angles
+(18) [rad] and velocities (18) [rad/s], bottle and glass poses (position [m] and quaternion wxyz, 7
+each); the angles bounded by the joints' limits widened by ``JOINT_SLACK`` (MuJoCo's limits are
+soft), the quaternions by 1, the rest unbounded. The robot's head cameras ``cameras``, keyed as
+LeRobot's environments key theirs (and gym-aloha its ``pixels_agent_pos``): ``obs_type="pixels"``:
+``{"pixels": {"workspace": image}}`` by default (the workspace camera under the eyes, looking down
+at the hands: both objects and the pour are in view; the stereo eyes look ahead, at the teacher
+when watching); ``obs_type="pixels_agent_pos"``: that and ``"agent_pos"``, the joint angles ``(18,)
+float64`` [rad]; ``obs_type="state_pixels"``: the ``"state"`` vector and the ``"pixels"`` (what
+``imitate export --images`` records). Images are ``(height, width, 3) uint8`` RGB.
 
 ## Rewards
 ``reward_pour``: ``pour_weight`` times the increase of the fraction of particles in the glass

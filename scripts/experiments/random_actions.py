@@ -7,7 +7,9 @@ For each task and each ``max_target_speed`` (the env's argument, rad/s; ``inf``:
 jump to each action), ``--episodes`` episodes of up to ``--steps`` steps of
 ``env.action_space.sample()`` (reset and action space seeded by the episode's index). Prints per
 arm the episodes that diverged (``info["diverged"]``), the step at which they did (median), the
-largest joint speed seen in the others [rad/s] and the env steps per second.
+largest joint speed seen in the others [rad/s], the furthest a joint went past its limit [rad]
+(MuJoCo's limits are soft; the observation space allows ``JOINT_SLACK``), the observations
+outside the observation space, and the env steps per second.
 """
 
 from __future__ import annotations
@@ -27,14 +29,18 @@ def explore(task: str, speed: float, episodes: int, steps: int) -> dict:
     """Random-action episodes of ``task``'s env at ``max_target_speed=speed``."""
     env = gym.make(get_task(task).env_id, max_target_speed=speed, max_episode_steps=steps)
     joints = env.unwrapped._joint_dof
-    diverged_at, fastest, n_steps = [], 0.0, 0
+    low, high = env.unwrapped.action_space.low, env.unwrapped.action_space.high  # joint limits
+    diverged_at, fastest, past, outside, n_steps = [], 0.0, 0.0, 0, 0
     start = time.perf_counter()
     for episode in range(episodes):
         env.reset(seed=episode)
         env.action_space.seed(episode)
         for step in range(steps):
-            _, _, _, truncated, info = env.step(env.action_space.sample())
+            obs, _, _, truncated, info = env.step(env.action_space.sample())
             n_steps += 1
+            outside += obs not in env.observation_space
+            angles = env.unwrapped.joint_positions()
+            past = max(past, float(np.max(np.maximum(low - angles, angles - high))))
             if info["diverged"]:
                 diverged_at.append(step + 1)
                 break
@@ -46,6 +52,8 @@ def explore(task: str, speed: float, episodes: int, steps: int) -> dict:
         "diverged": len(diverged_at),
         "at": float(np.median(diverged_at)) if diverged_at else math.nan,
         "fastest": fastest,
+        "past": past,
+        "outside": outside,
         "rate": n_steps / (time.perf_counter() - start),
     }
 
@@ -60,13 +68,15 @@ def main() -> None:
     speeds = [float(s) for s in args.max_target_speed.split(",")]
     print(f"{args.episodes} episodes of up to {args.steps} steps of uniform random actions\n")
     print("| task | max_target_speed [rad/s] | diverged | at step (median) "
-          "| fastest joint otherwise [rad/s] | steps/s |")
-    print("|---|---|---|---|---|---|")
+          "| fastest joint otherwise [rad/s] | furthest past a limit [rad] "
+          "| observations outside the space | steps/s |")
+    print("|---|---|---|---|---|---|---|---|")
     for task in args.task.split(","):
         for speed in speeds:
             r = explore(task, speed, args.episodes, args.steps)
             print(f"| {task} | {speed:g} | {r['diverged']} of {args.episodes} | {r['at']:g} "
-                  f"| {r['fastest']:.1f} | {r['rate']:.0f} |", flush=True)
+                  f"| {r['fastest']:.1f} | {r['past']:.3f} | {r['outside']} "
+                  f"| {r['rate']:.0f} |", flush=True)
 
 
 if __name__ == "__main__":
