@@ -8,7 +8,7 @@ is MuJoCo's, objects held by weld constraints, the stick and the glass touching 
 do. This is where planned movements are replayed.
 
 ## Action space
-``Box(ctrl_low, ctrl_high, (18,), float32)``: target angles [rad] in ``models.humanoid.JOINTS``
+``Box(ctrl_low, ctrl_high, (18,), float64)``: target angles [rad] in ``models.humanoid.JOINTS``
 order, clipped to the joint ranges. The servos' targets follow an action at ``max_target_speed``
 (10 rad/s: at most 0.2 rad a step), so that random actions cannot throw the arms through the
 body; planned movements (well under it) are followed exactly.

@@ -7,7 +7,7 @@ Actions are joint position targets for its 18 position actuators; the physics is
 objects held by weld constraints. This is where planned movements are replayed.
 
 ## Action space
-``Box(ctrl_low, ctrl_high, (18,), float32)``: target angles [rad] in ``models.humanoid.JOINTS``
+``Box(ctrl_low, ctrl_high, (18,), float64)``: target angles [rad] in ``models.humanoid.JOINTS``
 order, clipped to the joint ranges. The servos' targets follow an action at ``max_target_speed``
 (10 rad/s: at most 0.2 rad a step), so that random actions cannot throw the arms through the
 body; planned movements (well under it) are followed exactly.
@@ -20,9 +20,10 @@ soft), the quaternions by 1, the rest unbounded. The robot's head cameras ``came
 LeRobot's environments key theirs (and gym-aloha its ``pixels_agent_pos``): ``obs_type="pixels"``:
 ``{"pixels": {"workspace": image}}`` by default (the workspace camera under the eyes, looking down
 at the hands: both objects and the pour are in view; the stereo eyes look ahead, at the teacher
-when watching); ``obs_type="pixels_agent_pos"``: that and ``"agent_pos"``, the joint angles ``(18,)
-float64`` [rad]; ``obs_type="state_pixels"``: the ``"state"`` vector and the ``"pixels"`` (what
-``imitate export --images`` records). Images are ``(height, width, 3) uint8`` RGB.
+when watching); ``obs_type="pixels_agent_pos"``: that and ``"agent_pos"``, the joint angles
+``(18,) float64`` [rad]; ``obs_type="state_pixels"``: the ``"state"`` vector and the
+``"pixels"`` (what ``imitate export --images`` records). Images are ``(height, width, 3)
+uint8`` RGB.
 
 ## Rewards
 ``reward_pour``: ``pour_weight`` times the increase of the fraction of particles in the glass
