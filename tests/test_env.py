@@ -70,7 +70,7 @@ def test_observations_are_bounded_where_the_quantity_is(obs_type):
         assert np.all(np.isinf(high[:n]))  # joint velocities
         assert np.all(np.isinf(high[n::7]) & np.isinf(high[n + 2::7]))  # object positions
         np.testing.assert_array_equal(high[n + 3:n + 7], 1.0)  # the first object's quaternion
-    env.data.qpos[env._joint_qpos[0]] = env.action_space.high[0] + 0.5
+    env.data.qpos[env._joint_qpos[0]] = env.action_space.high[0] + 2 * bimanual.JOINT_SLACK
     obs = env._get_obs()
     q = obs if obs_type == "state" else obs["agent_pos"]
     assert q[0] == pytest.approx(env.action_space.high[0] + bimanual.JOINT_SLACK)
