@@ -15,7 +15,7 @@ from imitate.envs.task import Task
 from imitate.envs.teacher_motion import script_demonstrations
 from imitate.learning import LearningConfig, learn
 from imitate.learning.bic import bic_sweep
-from imitate.stages.config import TASK_SPACES, RunConfig
+from imitate.stages.config import RunConfig
 from imitate.stages.files import DemosFile, Learned, ModelFile, ObservationsFile
 
 
@@ -26,13 +26,13 @@ def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
     space, ratios = task.space, []
     if config.task_space == "tpgmm":
         space = space_selection.candidates(task.space.places, world=False)
-    if config.task_space == "auto":
+    elif config.task_space == "auto":
         cut = DemosFile.load(run_dir)
         rated = space_selection.rate(cut.segments, cut.objects, cut.gaze, task,
                                      smoothing=config.smoothing)
         space = space_selection.select(rated)
         ratios = [[f"{t.of}-{t.to}", value] for t, value in rated.items()]
-    if config.task_space not in TASK_SPACES:
+    elif config.task_space != "declared":  # named by its relations (RunConfig checked them)
         space = space_selection.named(config.task_space, task.space.places)
     if config.oracle:
         tracks = ObservationsFile.load(run_dir).observations.tracks
