@@ -198,6 +198,17 @@ def test_a_report_value_of_the_wrong_kind_is_one_line(run_dir, section, change, 
     assert named in line and "delete it to start a new report" in line
 
 
+def test_a_section_an_older_imitate_wrote_is_remade_by_its_stage(run_dir):
+    """A report that lacks a key its own stage now writes (an older imitate's) is no reason to
+    refuse that stage: it writes the section anew (a teacher's run is remade so)."""
+    report = json.loads((run_dir / "report.json").read_text())
+    del report["learning"]["task_space"]
+    (run_dir / "report.json").write_text(json.dumps(report))
+    assert main(["optimize", str(run_dir)]) == 1  # a later stage keeps the section: refused
+    assert main(["learn", str(run_dir)]) == 0
+    assert "task_space" in json.loads((run_dir / "report.json").read_text())["learning"]
+
+
 def test_every_report_key_without_a_unit_has_a_kind(quick_run):
     for name in tasks.NAMES:
         keys, kinds = run_keys(get_task(name))

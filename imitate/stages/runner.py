@@ -50,7 +50,7 @@ def run_stage(stage: str, run_dir: Path, config: RunConfig, force: bool = False)
     problems = provenance.stale(run_dir, current, config, manifest)
     if problems and not force:  # before the report, which a switched task would misread
         raise ImitateError(f"{problems[0]}, or add --force to go on anyway")
-    previous = _previous_report(run_dir, _report_task(run_dir, task))
+    previous = _previous_report(run_dir, _report_task(run_dir, task), current)
     for problem in problems:
         log.warning("%s; going on anyway (--force)", problem)
     for name in (*current.writes, layout.REPORT, layout.PAGE, layout.MANIFEST):
@@ -147,9 +147,11 @@ def _report_task(run_dir: Path, task: Task) -> Task:
         return task
 
 
-def _previous_report(run_dir: Path, task: Task) -> dict:
-    """``report.json`` of ``run_dir`` (empty if none yet), checked as the page will read it
-    (with the keys of a run of ``task``).
+def _previous_report(run_dir: Path, task: Task, current: table.Stage) -> dict:
+    """``report.json`` of ``run_dir`` (empty if none yet), its sections that ``current`` keeps
+    (the earlier stages') checked as the page will read them (with the keys of a run of
+    ``task``); those ``current`` and the later stages write anew are not read (a report an
+    older imitate wrote is remade from the stage that wrote it).
 
     Raises:
         ImitateError: it is unreadable, not an object of sections, holds a value of another
@@ -167,7 +169,10 @@ def _previous_report(run_dir: Path, task: Task) -> dict:
         raise ImitateError(
             f"{path} is not a report (an object of sections); delete it to start a new report"
         )
-    check_values(report, path, *run_keys(task))
+    keys, kinds = run_keys(task)
+    rewritten = {name for s in table.STAGES[table.STAGES.index(current):] for name in s.sections}
+    check_values(report, path, {k: v for k, v in keys.items()
+                                if k.partition(".")[0] not in rewritten}, kinds)
     return report
 
 
