@@ -77,7 +77,7 @@ class Option:
                 or (self.integer and not number.is_integer())):
             kind = "a whole number" if self.integer else "a number"
             raise ImitateError(
-                f"{name}={value!r} not accepted: {kind} in {self.low:g}..{self.high:g}"
+                f"{name}={quoted(value)} not accepted: {kind} in {self.low:g}..{self.high:g}"
             )
         return int(number) if self.integer else number
 

@@ -1,6 +1,8 @@
 """The one root exception of the project; every user-facing error is an ``ImitateError``; and
-how a message shows a value (:func:`quoted`) or a command's word (:func:`shell_word`)."""
+how a message shows a value (:func:`quoted`) or a command's word (:func:`shell_word`), and an
+error line's words cut to a readable length (:func:`shortened`)."""
 
+import re
 import shlex
 
 
@@ -13,6 +15,21 @@ def quoted(value: object, limit: int = 60) -> str:
     "...")."""
     text = repr(value)
     return text if len(text) <= limit else f"{text[: limit - 3]}..."
+
+
+# The longest word (a run without spaces) an error line shows whole; a longer one (a value read
+# from a file, echoed by a check that did not cut it) keeps its start and end.
+LONGEST_WORD = 300
+
+
+def shortened(line: str) -> str:
+    """``line`` with each word longer than :data:`LONGEST_WORD` characters cut in its middle
+    (``start...[N characters]...end``): a 1 MB value makes no 1 MB error line."""
+    def cut(match: re.Match) -> str:
+        word = match.group()
+        return f"{word[:200]}...[{len(word)} characters]...{word[-60:]}"
+
+    return re.sub(rf"\S{{{LONGEST_WORD + 1},}}", cut, line)
 
 
 def shell_word(text: object) -> str:

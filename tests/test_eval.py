@@ -482,6 +482,37 @@ def test_eval_out_refuses_a_folder_holding_no_evaluation(tmp_path, model_arrays,
     assert (folder / "results.jsonl").read_text() == '{"loss": 0.1}\n'
 
 
+@pytest.mark.parametrize("notes", [b"my lab notes\nday 2\n", b""])
+def test_eval_out_refuses_a_results_file_of_no_record_beside_other_files(
+    tmp_path, model_arrays, notes, capsys
+):
+    """Review follow-up N1: a results.jsonl of someone's notes (or empty) beside a page of
+    theirs is no evaluation cut short (it writes nothing before its first record)."""
+    run_dir = _run_dir(tmp_path / "run", model_arrays)
+    folder = tmp_path / "F"
+    folder.mkdir()
+    (folder / "report.html").write_text("<h1>my page</h1>")
+    (folder / "results.jsonl").write_bytes(notes)
+    assert main(_tiny_eval(run_dir, tmp_path, "--out", str(folder))) == 1
+    assert "but no evaluation" in _one_line(capsys.readouterr().err)
+    assert (folder / "report.html").read_text() == "<h1>my page</h1>"
+    assert (folder / "results.jsonl").read_bytes() == notes
+    (folder / "report.html").unlink()
+    if notes:  # alone, still not what an evaluation leaves
+        assert main(_tiny_eval(run_dir, tmp_path, "--out", str(folder))) == 1
+        assert (folder / "results.jsonl").read_bytes() == notes
+
+
+def test_eval_refuses_a_fifo_as_its_summary_at_once(tmp_path, model_arrays, capsys):
+    """Review follow-up N2: reading a FIFO would wait for a writer, holding the run's lock."""
+    run_dir = _run_dir(tmp_path / "run", model_arrays)
+    folder = tmp_path / "F"
+    folder.mkdir()
+    os.mkfifo(folder / "summary.json")
+    assert main(_tiny_eval(run_dir, tmp_path, "--out", str(folder))) == 1
+    assert "summary.json is not a regular file" in _one_line(capsys.readouterr().err)
+
+
 @pytest.mark.parametrize("first", [b'{"digest": "0123", "id": 0, "outc', b"\x00" * 40, b"",
                                    b'{"digest": "0123", "id": 0}'])
 def test_eval_resumes_its_own_folder_cut_short_in_its_first_record(tmp_path, model_arrays,

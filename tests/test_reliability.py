@@ -209,6 +209,20 @@ def test_a_section_an_older_imitate_wrote_is_remade_by_its_stage(run_dir):
     assert "task_space" in json.loads((run_dir / "report.json").read_text())["learning"]
 
 
+def test_a_long_value_makes_no_long_error_line(run_dir, tmp_path, capsys):
+    """Review T10i: a 1 MB value in config.json (or on the command line) was echoed whole."""
+    config = json.loads((run_dir / "config.json").read_text())
+    config["task"] = "x" * 10**6
+    (run_dir / "config.json").write_text(json.dumps(config))
+    assert main(["replay", str(run_dir)]) == 1
+    line = one_error_line(capsys.readouterr().err, "replay")
+    assert "config.json" in line and "task=" in line and len(line) < 1000
+    with pytest.raises(SystemExit):
+        main(["run", "--task", "y" * 10**5, "--out", str(tmp_path / "new")])
+    err = capsys.readouterr().err
+    assert "invalid choice" in err and len(err) < 1000
+
+
 def test_every_report_key_without_a_unit_has_a_kind(quick_run):
     for name in tasks.NAMES:
         keys, kinds = run_keys(get_task(name))

@@ -24,6 +24,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from imitate.errors import shortened
 from imitate.rundir.layout import PAGE
 
 if TYPE_CHECKING:  # the task's package loads MuJoCo: not for `imitate --help`
@@ -141,8 +142,9 @@ def stopped(how: str, stage: str | None, run_dir: Path, saved: bool = False) -> 
 
 def fail(command: str, message: str, status: int) -> int:
     """Print ``message`` as the command's one-line error, its line breaks joined by a space
-    (other spaces kept: a path's two spaces stay two); returns ``status``."""
-    line = re.sub(r"[ \t]*[\r\n]+[ \t]*", " ", message.strip())
+    (other spaces kept: a path's two spaces stay two), its long words cut
+    (:func:`~imitate.errors.shortened`); returns ``status``."""
+    line = shortened(re.sub(r"[ \t]*[\r\n]+[ \t]*", " ", message.strip()))
     print(f"imitate {command}: error: {line}", file=sys.stderr)
     return status
 

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from imitate import __version__
-from imitate.errors import ImitateError
+from imitate.errors import ImitateError, shortened
 from imitate.stages.table import NAMES, RUN_HELP, STAGES
 
 if TYPE_CHECKING:
@@ -55,7 +55,7 @@ class Parser(argparse.ArgumentParser):
     above it (a dozen lines for ``imitate run``; ``--help`` shows them)."""
 
     def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message}\n")
+        self.exit(2, f"{self.prog}: error: {shortened(message)}\n")
 
 
 def build_parser(full: Iterable[str] | None = None) -> argparse.ArgumentParser:

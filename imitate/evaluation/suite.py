@@ -32,7 +32,7 @@ from imitate.defaults import (  # plain constants: `imitate eval --help` shows K
     TABLE_Y,
 )
 from imitate.envs import tasks
-from imitate.errors import ImitateError
+from imitate.errors import ImitateError, quoted
 
 if TYPE_CHECKING:  # the task's package loads MuJoCo: not for `imitate eval --help`
     from imitate.envs.task import Task
@@ -94,7 +94,7 @@ class Key:
         Raises:
             ImitateError: naming ``source``, ``name``, ``value`` and what is accepted.
         """
-        refused = f"{source}: entry {name}={value!r} not accepted: {self.accepted()}"
+        refused = f"{source}: entry {name}={quoted(value)} not accepted: {self.accepted()}"
         if self.is_name:
             if not isinstance(value, str) or value not in (self.choices or ()):
                 raise ImitateError(refused)

@@ -168,9 +168,9 @@ def default_out(run_dir: Path, name: str, suite: Suite) -> Path:
 
 def check_folder(out: Path, run_dir: Path) -> None:
     """Refuse ``out`` as an evaluation's folder unless it is missing, empty or an
-    evaluation's (a ``results.jsonl`` empty or with records, or only of lines cut short beside
-    nothing but the evaluation's own :data:`OUTPUTS`, or an evaluation's ``summary.json``; not
-    a hard link), and a real folder:
+    evaluation's (a ``results.jsonl`` with records, or an evaluation's ``summary.json``, or,
+    alone in it, a ``results.jsonl`` of no whole record but what an evaluation cut short in
+    its first leaves: :func:`_cut_short`; not a hard link), and a real folder:
     no symbolic link in it or between it and ``run_dir`` when within it, no file in the way.
 
     Raises:
@@ -187,12 +187,12 @@ def check_folder(out: Path, run_dir: Path) -> None:
             )
     results = out / RESULTS
     refuse_hard_link(results)
-    ours = results.exists() and (results.stat().st_size == 0 or next(_records(results), None))
+    ours = results.exists() and next(_records(results), None) is not None
     if not out.is_dir() or ours or _is_summary(out / "summary.json"):
         return
     names = sorted(entry.name for entry in out.iterdir())
-    if results.is_file() and set(names) <= set(OUTPUTS) and _only_records(results):
-        return  # an evaluation's, cut short in its first record
+    if names == [RESULTS] and _cut_short(results):
+        return  # an evaluation's, cut short in its first record (it writes nothing else before)
     if names:
         more = f" and {len(names) - 3} more" if len(names) > 3 else ""
         raise ImitateError(
@@ -203,7 +203,12 @@ def check_folder(out: Path, run_dir: Path) -> None:
 
 
 def _is_summary(path: Path) -> bool:
-    """Whether ``path`` is an evaluation's ``summary.json`` (an object with its digest)."""
+    """Whether ``path`` is an evaluation's ``summary.json`` (an object with its digest).
+
+    Raises:
+        ImitateError: it is there but no regular file (:func:`check_regular`).
+    """
+    check_regular(path)
     try:
         summary = json.loads(path.read_bytes()[:10_000_000])
     except (OSError, ValueError, RecursionError):
@@ -349,12 +354,23 @@ def _json_lines(path: Path) -> Iterator[object]:
             continue
 
 
-def _only_records(path: Path) -> bool:
-    """Whether every whole JSON line of ``path`` is an evaluation's record, of any form (an
-    object with a ``digest`` and an ``id``): its other lines are blank, cut short or not text,
-    as an interrupted evaluation leaves them; a file of other JSON lines is someone else's."""
-    return all(isinstance(value, dict) and {"digest", "id"} <= value.keys()
-               for value in _json_lines(path))
+def _cut_short(path: Path) -> bool:
+    """Whether ``path`` holds only what an evaluation interrupted in its first records leaves:
+    lines that are blank, NUL bytes (a file system's unwritten tail) or a JSON object, whole
+    with a ``digest`` and an ``id`` (a record of any form) or cut short; nothing at all. A file
+    of other lines (someone's notes, other JSON) is someone else's."""
+    check_regular(path)
+    for raw in path.read_bytes().splitlines():
+        line = raw.strip(b"\x00 \t\r")
+        try:
+            value = json.loads(line.decode()) if line else None
+        except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):
+            if not line.startswith(b"{"):
+                return False
+            continue
+        if value is not None and not (isinstance(value, dict) and {"digest", "id"} <= value.keys()):
+            return False
+    return True
 
 
 def _is_record(record: object) -> bool:
@@ -415,6 +431,7 @@ def last_records(out: Path) -> list[TrialRecord]:
         ImitateError: ``out`` holds no evaluation, or a ``summary.json`` of another form.
     """
     out = Path(out)
+    check_regular(out / "summary.json")
     if not (out / "summary.json").is_file():
         raise ImitateError(
             f"{out / 'summary.json'} is missing: give the folder `imitate eval` printed "

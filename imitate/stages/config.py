@@ -17,7 +17,7 @@ import numpy as np
 
 from imitate import defaults
 from imitate.envs import tasks
-from imitate.errors import ImitateError, shell_word
+from imitate.errors import ImitateError, quoted, shell_word
 from imitate.rundir.artifacts import load_json
 from imitate.stages import table
 
@@ -70,7 +70,7 @@ class Setting:
         """Raises ``ImitateError`` naming ``name``, ``value`` and what is accepted, unless
         ``value`` is accepted."""
         if self.choices is not None and value not in self.choices:
-            raise ImitateError(f"{name}={value!r} not accepted: one of {self.choices}")
+            raise ImitateError(f"{name}={quoted(value)} not accepted: one of {self.choices}")
         if self.low is None and self.high is None:
             return
         values = value if isinstance(value, tuple) else (value,)
@@ -82,7 +82,7 @@ class Setting:
             accepted = f"a finite value {self.bounds()}"
         else:
             accepted = f"a value in {self.bounds()}"
-        raise ImitateError(f"{name}={value!r} not accepted: {accepted}{self._nearest(value)}")
+        raise ImitateError(f"{name}={quoted(value)} not accepted: {accepted}{self._nearest(value)}")
 
     def describe(self, default: Any) -> str:
         """The help with the range and the default: ``"camera rate [Hz], 5..120 (default 30)"``."""
@@ -398,7 +398,7 @@ def load_config(run_dir: Path) -> RunConfig:
         else:
             continue  # refused by from_json, by name
         if not fits:
-            raise ImitateError(f"{path}: {name}={value!r} not accepted: {kind}")
+            raise ImitateError(f"{path}: {name}={quoted(value)} not accepted: {kind}")
     try:
         return RunConfig.from_json(values)
     except ImitateError as err:

@@ -23,7 +23,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 from imitate.envs import tasks
-from imitate.errors import ImitateError, shell_word
+from imitate.errors import ImitateError, quoted, shell_word
 from imitate.rundir import layout
 from imitate.rundir.artifacts import digest, load_json
 from imitate.stages import table
@@ -180,7 +180,7 @@ def _drift(stage: table.Stage, rec: dict, now: dict, current) -> str:
             return f"made from another {f}, changed since"
     for name, value in rec["settings"].items():
         if name in now and now[name] != value:
-            return f"made with {name}={value!r}, not {now[name]!r}"
+            return f"made with {name}={quoted(value)}, not {quoted(now[name])}"
     return ""
 
 
