@@ -196,9 +196,9 @@ def check_folder(out: Path, run_dir: Path) -> None:
     if names:
         more = f" and {len(names) - 3} more" if len(names) > 3 else ""
         raise ImitateError(
-            f"{out} holds {', '.join(names[:3])}{more} but no evaluation ({RESULTS}, or the "
-            f"summary.json of one), and eval would replace files there; give a new or empty "
-            f"folder as --out"
+            f"{out} holds {', '.join(names[:3])}{more} but no evaluation (a {RESULTS} of its "
+            "records, or the summary.json of one), and eval would replace files there; give a "
+            "new or empty folder as --out"
         )
 
 

@@ -15,7 +15,7 @@ command had printed its ``== stage`` line (or begun its video) and was still run
 are instrumented: a wrapper around ``imitate.cli.main`` sends SIGTERM just before each rename of a
 stage's commit in turn, which must wait for the whole commit, and SIGKILL before one rename of
 figures' commit, which the next command must report. The error lines follow the table.
-Takes about six minutes on two cores (``--fast``: about a minute).
+Takes about ten minutes on two cores (``--fast``: about a minute).
 """
 
 from __future__ import annotations
@@ -774,6 +774,147 @@ def eval_out_foreign(base: Path, work: Path) -> list[Outcome]:
                start(*eval_args(run_dir, work, n=1, videos=0), "--out", str(folder)), run_dir,
                before, [])
     o.checks = {**one_line(o, 1), "the user's files kept": listing(folder) == kept}
+    return [o]
+
+
+@case("stale-eval")
+def stale_eval(base: Path, work: Path) -> list[Outcome]:
+    """`observe --seed 3`, then `eval`, then `compare` (review A: eval labelled seed 0's model
+    teacher 3): each exit 1, one line naming model.npz, nothing changed."""
+    run_dir = copy(base, work, "stale-eval")
+    run("observe", "--quick", "--seed", "3", str(run_dir))
+    outcomes = []
+    for command, args in (("eval", eval_args(run_dir, work, n=1, videos=0)),
+                          ("compare", compare_args(run_dir, work))):
+        before = snapshot(run_dir)
+        o = finish(f"stale-eval (observe --seed 3, then {command})", start(*args), run_dir,
+                   before, [])
+        o.checks = {**one_line(o, 1), "names model.npz": "model.npz" in "".join(o.errors)}
+        outcomes.append(o)
+    return outcomes
+
+
+@case("eval-torn-first-record")
+def eval_torn_first_record(base: Path, work: Path) -> list[Outcome]:
+    """`eval` into its folder whose results.jsonl holds half a first record (review B: refused,
+    the resume lost): exit 0, each variation once."""
+    run_dir = copy(base, work, "eval-torn-first-record")
+    folder = run_dir / "eval" / "tiny-w10000-variance"
+    folder.mkdir(parents=True)
+    (folder / "results.jsonl").write_text('{"digest": "92')
+    before = snapshot(run_dir)
+    o = finish("eval-torn-first-record (eval after half a first record)",
+               start(*eval_args(run_dir, work, n=2, videos=0)), run_dir, before, [])
+    ids = sorted(record["id"] for record in _whole_lines(folder / "results.jsonl"))
+    o.checks = {"exit 0": o.status == 0, "no error": not errors_of(o),
+                "each id once": ids == [0, 1]}
+    return [o]
+
+
+def _whole_lines(path: Path) -> list[dict]:
+    """The lines of ``path`` that are JSON objects."""
+    found = []
+    for line in path.read_text(errors="replace").splitlines():
+        try:
+            value = json.loads(line)
+        except ValueError:
+            continue
+        if isinstance(value, dict):
+            found.append(value)
+    return found
+
+
+@case("eval-out-notes", fast=True)
+def eval_out_notes(base: Path, work: Path) -> list[Outcome]:
+    """`eval --out F`, F holding a user's page and a results.jsonl of their notes (the review's
+    follow-up of B): exit 1, one line, both files kept."""
+    run_dir = copy(base, work, "eval-out-notes")
+    folder = fresh(work / "eval-out-notes-F")
+    (folder / "report.html").write_text("<h1>my page</h1>\n")
+    (folder / "results.jsonl").write_text("my lab notes\nday 2\n")
+    before, kept = snapshot(run_dir), listing(folder)
+    o = finish("eval-out-notes (eval --out a folder of notes named results.jsonl)",
+               start(*eval_args(run_dir, work, n=1, videos=0), "--out", str(folder)), run_dir,
+               before, [])
+    o.checks = {**one_line(o, 1), "the user's files kept": listing(folder) == kept}
+    return [o]
+
+
+@case("null-report-value", fast=True)
+def null_report_value(base: Path, work: Path) -> list[Outcome]:
+    """`learn` with a null `perception.pos_err_mm_median` in report.json (review C: the page
+    crashed): exit 0, no traceback."""
+    run_dir = copy(base, work, "null-report-value")
+    report = json.loads((run_dir / "report.json").read_text())
+    report["perception"]["pos_err_mm_median"] = None
+    (run_dir / "report.json").write_text(json.dumps(report))
+    before = snapshot(run_dir)
+    o = finish("null-report-value (learn, perception.pos_err_mm_median null)",
+               start("learn", str(run_dir)), run_dir, before, [])
+    o.checks = {"exit 0": o.status == 0,
+                "no traceback": not any("Traceback" in line for line in o.errors)}
+    return [o]
+
+
+@case("fifo", fast=True)
+def fifo(base: Path, work: Path) -> list[Outcome]:
+    """config.json a FIFO, then `replay`; an evaluation's summary.json a FIFO, then `eval` (review
+    D: each waited for a writer, holding the lock): exit 1 within 60 s, one line."""
+    outcomes = []
+    for name, file, args in (
+        ("replay", "config.json", lambda r: ["replay", str(r)]),
+        ("eval", "eval/tiny-w10000-variance/summary.json",
+         lambda r: eval_args(r, work, n=1, videos=0)),
+    ):
+        run_dir = copy(base, work, f"fifo-{name}")
+        path = run_dir / file
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.unlink(missing_ok=True)
+        os.mkfifo(path)
+        before = snapshot(run_dir)
+        process = start(*args(run_dir))
+        try:
+            process.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+        o = finish(f"fifo ({file} a FIFO, then {name})", process, run_dir, before, [])
+        o.checks = {**one_line(o, 1), "not a regular file": "not a regular file"
+                    in "".join(o.errors)}
+        outcomes.append(o)
+    return outcomes
+
+
+@case("long-value", fast=True)
+def long_value(base: Path, work: Path) -> list[Outcome]:
+    """`replay` with a 1 MB task name in config.json (review T10i: echoed whole): exit 1, one
+    line under 1000 characters."""
+    run_dir = copy(base, work, "long-value")
+    config = json.loads((run_dir / "config.json").read_text())
+    config["task"] = "x" * 10**6
+    (run_dir / "config.json").write_text(json.dumps(config))
+    before = snapshot(run_dir)
+    o = finish("long-value (a 1 MB task in config.json, then replay)",
+               start("replay", str(run_dir)), run_dir, before, [])
+    o.checks = {**one_line(o, 1), "under 1000 characters": all(len(e) < 1000 for e in o.errors)}
+    return [o]
+
+
+@case("compare-null-record")
+def compare_null_record(base: Path, work: Path) -> list[Outcome]:
+    """`compare` after its first record's `mahalanobis` was made null (review C): the record runs
+    again; exit 0, no traceback."""
+    run_dir = copy(base, work, "compare-null-record")
+    first = run(*compare_args(run_dir, work))
+    results = next(run_dir.glob("compare/*/results.jsonl"))
+    lines = results.read_text().splitlines()
+    record = json.loads(lines[0])
+    record["mahalanobis"] = None
+    results.write_text("\n".join([json.dumps(record), *lines[1:]]) + "\n")
+    before = snapshot(run_dir)
+    o = finish("compare-null-record (compare, a record's mahalanobis null)",
+               start(*compare_args(run_dir, work)), run_dir, before, [])
+    o.checks = {"first compare exit 0": first.returncode == 0, "exit 0": o.status == 0,
+                "no traceback": not any("Traceback" in line for line in o.errors)}
     return [o]
 
 
