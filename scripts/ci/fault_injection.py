@@ -763,18 +763,24 @@ def eval_other_task(base: Path, work: Path) -> list[Outcome]:
 
 @case("eval-out-foreign", fast=True)
 def eval_out_foreign(base: Path, work: Path) -> list[Outcome]:
-    """`eval --out F`, F a user's folder holding report.html and summary.json (review N-x3):
-    exit 1, one line, both files kept."""
+    """`eval --out F`, F a user's folder holding report.html and summary.json (review N-x3), or
+    report.html and a results.jsonl of their notes (the review's follow-up of B): exit 1, one
+    line, the files kept."""
     run_dir = copy(base, work, "eval-out-foreign")
-    folder = fresh(work / "eval-out-foreign-F")
-    (folder / "report.html").write_text("mine\n")
-    (folder / "summary.json").write_text('{"mine": 1}\n')
-    before, kept = snapshot(run_dir), listing(folder)
-    o = finish("eval-out-foreign (eval --out a user's folder)",
-               start(*eval_args(run_dir, work, n=1, videos=0), "--out", str(folder)), run_dir,
-               before, [])
-    o.checks = {**one_line(o, 1), "the user's files kept": listing(folder) == kept}
-    return [o]
+    outcomes = []
+    for label, second, text in (("a user's folder", "summary.json", '{"mine": 1}\n'),
+                                ("a folder of notes named results.jsonl", "results.jsonl",
+                                 "my lab notes\nday 2\n")):
+        folder = fresh(work / "eval-out-foreign-F")
+        (folder / "report.html").write_text("<h1>my page</h1>\n")
+        (folder / second).write_text(text)
+        before, kept = snapshot(run_dir), listing(folder)
+        o = finish(f"eval-out-foreign (eval --out {label})",
+                   start(*eval_args(run_dir, work, n=1, videos=0), "--out", str(folder)),
+                   run_dir, before, [])
+        o.checks = {**one_line(o, 1), "the user's files kept": listing(folder) == kept}
+        outcomes.append(o)
+    return outcomes
 
 
 @case("stale-eval")
@@ -822,22 +828,6 @@ def _whole_lines(path: Path) -> list[dict]:
         if isinstance(value, dict):
             found.append(value)
     return found
-
-
-@case("eval-out-notes", fast=True)
-def eval_out_notes(base: Path, work: Path) -> list[Outcome]:
-    """`eval --out F`, F holding a user's page and a results.jsonl of their notes (the review's
-    follow-up of B): exit 1, one line, both files kept."""
-    run_dir = copy(base, work, "eval-out-notes")
-    folder = fresh(work / "eval-out-notes-F")
-    (folder / "report.html").write_text("<h1>my page</h1>\n")
-    (folder / "results.jsonl").write_text("my lab notes\nday 2\n")
-    before, kept = snapshot(run_dir), listing(folder)
-    o = finish("eval-out-notes (eval --out a folder of notes named results.jsonl)",
-               start(*eval_args(run_dir, work, n=1, videos=0), "--out", str(folder)), run_dir,
-               before, [])
-    o.checks = {**one_line(o, 1), "the user's files kept": listing(folder) == kept}
-    return [o]
 
 
 @case("null-report-value", fast=True)
