@@ -7,7 +7,8 @@ For each task's Gymnasium env (``gym.make``), ``--steps`` steps after a reset, e
 reset posture's joint targets plus noise of 0.05 rad (an agent exploring near the posture),
 with ``obs_type="state"``, then ``"pixels"`` at ``--size`` square with ``render_quality="fast"``
 (the default) and ``"full"``. Prints the steps per second (wall clock, one thread) and the ratio
-to the state observations' rate.
+to the state observations' rate, and which OpenGL renderer drew the pixels (Mesa's llvmpipe on a
+CPU, the GPU's name where ``MUJOCO_GL=egl`` finds one).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import os
 import time
 
 import gymnasium as gym
+import mujoco
 import numpy as np
 
 from imitate.envs import tasks
@@ -37,13 +39,23 @@ def rate(env_id: str, steps: int, **kwargs) -> float:
     return steps / seconds
 
 
+def gl_renderer() -> str:
+    """The OpenGL renderer's name, as the driver gives it (``GL_RENDERER``)."""
+    renderer = mujoco.Renderer(mujoco.MjModel.from_xml_string("<mujoco/>"), 8, 8)
+    from OpenGL import GL  # imported once the context exists: its platform follows MUJOCO_GL
+
+    name = GL.glGetString(GL.GL_RENDERER).decode()
+    renderer.close()
+    return name
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=200)
     parser.add_argument("--size", type=int, default=96)
     args = parser.parse_args()
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}; "
-          f"MUJOCO_GL={os.environ.get('MUJOCO_GL')}; {args.steps} steps each")
+          f"MUJOCO_GL={os.environ.get('MUJOCO_GL')} ({gl_renderer()}); {args.steps} steps each")
     print(f"{'env':24s} {'observation':34s} {'steps/s':>8s} {'of state':>9s}")
     size = {"width": args.size, "height": args.size}
     for name in tasks.NAMES:
