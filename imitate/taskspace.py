@@ -6,7 +6,8 @@ possibly relative to **places** in the scene (bodies the robot does not move, na
 body names). A task declares its space (:class:`TaskSpace`) as a sequence of terms:
 
 - :class:`Relative` ``(of, to)``: ``p_of - p_to`` in the world frame, 3 columns ``dx, dy, dz``
-  [m], tolerance 1 cm each;
+  [m], tolerance 1 cm each; ``Relative(of, to, frame)`` the same in a held object's own frame
+  (:func:`own_frame`);
 - :class:`Angles` ``(of)``: the held object's long axis ``a`` seen from the gaze, 2 columns:
   ``angle = atan2(a . d, a . r)`` [rad] (clockwise in the image, see below; tolerance 2 deg) and
   ``gaze = a . f`` [1] (tolerance 0.05).
@@ -38,6 +39,12 @@ level camera has angle ``-pi/2``; tilting its top towards the image's right brin
 towards 0. Over a demonstration the angles are unwrapped so they are continuous; on the robot
 side an ``angle_ref`` picks the ``2 pi`` branch nearest to it.
 
+An object's own frame: the objects are symmetric about their long axes, so an axis fixes a frame
+up to a turn about it, which the gaze fixes: ``z = a``, ``x`` the gaze's forward ``f`` made
+perpendicular to ``a`` (``f - (f . a) a``, normalised), ``y = z x x``. Where ``a`` lies along
+the gaze (``|a x f|`` below :data:`SINGULAR_TOL`) the camera's right ``r`` takes ``f``'s place
+(:func:`frame_reference`), on the demonstrations and on the robot alike.
+
 Singularity: when the axis is (nearly) parallel to the gaze its projection
 ``rho = hypot(a . r, a . d)`` vanishes and the angle is undefined. Below :data:`SINGULAR_TOL`
 the demonstration map holds the last defined angle (the first defined one before it, 0 if none
@@ -66,8 +73,10 @@ __all__ = [
     "check_gaze",
     "gaze_frame",
     "gaze_of_camera",
+    "frame_reference",
     "image_angle",
     "object_orientation",
+    "own_frame",
 ]
 
 OBJECTS = ("tool", "target")  # the held objects' roles; any other name in a term is a place
@@ -79,19 +88,28 @@ SINGULAR_TOL = 1e-6
 
 @dataclass(frozen=True)
 class Relative:
-    """``p_of - p_to`` in the world frame [m]: 3 columns. ``of`` and ``to`` are roles of
-    :data:`OBJECTS` or places (body names), not the same."""
+    """``p_of - p_to`` [m], 3 columns, in the world frame, or with ``frame`` (a role of
+    :data:`OBJECTS`) in that object's own frame (:func:`own_frame`). ``of`` and ``to`` are roles
+    of :data:`OBJECTS` or places (body names), not the same."""
 
     of: str
     to: str
+    frame: str | None = None
     units = ("m", "m", "m")
     tolerance = (0.01, 0.01, 0.01)
 
+    @property
+    def name(self) -> str:
+        """``OF-TO``, and ``@FRAME`` in an object's frame: ``tool-target@target``."""
+        return f"{self.of}-{self.to}" + (f"@{self.frame}" if self.frame else "")
+
     def labels(self, names: Mapping[str, str], alone: bool) -> tuple[str, ...]:
         """``dx, dy, dz``, or, unless ``alone`` (the space's only position),
-        ``<of>_<to>_dx, ...`` in the task's words ``names`` (role -> name)."""
+        ``<of>_<to>_dx, ...`` in the task's words ``names`` (role -> name); ``..._in_<frame>``
+        in an object's frame."""
         prefix = "" if alone else f"{names.get(self.of, self.of)}_{names.get(self.to, self.to)}_"
-        return tuple(f"{prefix}d{c}" for c in "xyz")
+        suffix = f"_in_{names.get(self.frame, self.frame)}" if self.frame else ""
+        return tuple(f"{prefix}d{c}{suffix}" for c in "xyz")
 
 
 @dataclass(frozen=True)
@@ -132,8 +150,12 @@ class TaskSpace:
             raise ImitateError(f"a task space needs terms Relative or Angles; got {self.terms}")
         if set(angled) - set(OBJECTS) or len(set(angled)) < len(angled):
             raise ImitateError(f"Angles are of the held objects {OBJECTS}, once each; got {angled}")
-        if any(t.of == t.to for t in self.terms if isinstance(t, Relative)):
+        relations = [t for t in self.terms if isinstance(t, Relative)]
+        if any(t.of == t.to for t in relations):
             raise ImitateError(f"a Relative term needs two names; got {self.terms}")
+        if any(t.frame not in (None, *OBJECTS) for t in relations):
+            raise ImitateError(f"a Relative's frame is a held object of {OBJECTS} or none (the "
+                               f"world's); got {[t.frame for t in relations]}")
         if not self.positions:
             raise ImitateError(f"a task space needs a Relative term; got {self.terms}")
 
@@ -221,8 +243,7 @@ class TaskSpace:
     def text(self) -> tuple[str, ...]:
         """Its terms as text, ``("tool-target", "tool angles", ...)``: what a run stores
         (:meth:`from_text` reads it back)."""
-        return tuple(f"{t.of}-{t.to}" if isinstance(t, Relative) else f"{t.of} angles"
-                     for t in self.terms)
+        return tuple(t.name if isinstance(t, Relative) else f"{t.of} angles" for t in self.terms)
 
     @classmethod
     def from_text(cls, text: Sequence[str]) -> TaskSpace:
@@ -234,12 +255,15 @@ class TaskSpace:
         terms: list[Term] = []
         for item in text:
             words = str(item).split(" ")
+            relation, _, frame = words[0].partition("@")
+            ends = relation.split("-")
             if len(words) == 2 and words[1] == "angles":
                 terms.append(Angles(words[0]))
-            elif len(words) == 1 and len(words[0].split("-")) == 2:
-                terms.append(Relative(*words[0].split("-")))
+            elif len(words) == 1 and len(ends) == 2:
+                terms.append(Relative(ends[0], ends[1], frame or None))
             else:
-                raise ImitateError(f"task space term {item!r} not accepted: 'OF-TO' or 'OF angles'")
+                raise ImitateError(f"task space term {item!r} not accepted: 'OF-TO', "
+                                   "'OF-TO@FRAME' or 'OF angles'")
         return cls(tuple(terms))
 
     def labels(self, names: Mapping[str, str] | None = None) -> tuple[str, ...]:
@@ -274,7 +298,7 @@ class TaskSpace:
         if WORLD in self.places and WORLD not in tracks:
             first = np.asarray(next(iter(tracks.values()))[0], dtype=float)
             tracks = {**tracks, WORLD: (np.zeros_like(first), None)}
-        missing = sorted({n for t in self.terms for n in vars(t).values()} - set(tracks))
+        missing = sorted({n for t in self.terms for n in vars(t).values() if n} - set(tracks))
         if missing:
             raise ImitateError(f"no track of {missing}; given: {sorted(tracks)}")
         position = {name: np.asarray(p, dtype=float) for name, (p, _) in tracks.items()}
@@ -289,15 +313,22 @@ class TaskSpace:
                     raise ImitateError(f"{name} {what} must have shape {shape}; got {arr.shape}")
                 if not np.all(np.isfinite(arr)):
                     raise ImitateError(f"{name} {what} must be finite (no NaN or inf)")
+
+        def axes_of(name: str) -> np.ndarray:
+            if name not in axes:
+                raise ImitateError(f"{name} needs its long axes for its angles or its frame")
+            return axes[name]
+
         x = np.empty((shape[0], self.m))
         for term, s in zip(self.terms, self.starts, strict=True):
             if isinstance(term, Relative):
-                x[:, s : s + 3] = position[term.of] - position[term.to]
+                p = position[term.of] - position[term.to]
+                if term.frame:
+                    p = (own_frame(axes_of(term.frame), gaze) @ p[:, :, None])[:, :, 0]
+                x[:, s : s + 3] = p
                 continue
-            axis = axes.get(term.of)
-            if axis is None:
-                raise ImitateError(f"{term.of} needs its long axes for its angles")
-            angle, along, defined = object_orientation(axis, gaze, singular_tol=singular_tol)
+            angle, along, defined = object_orientation(axes_of(term.of), gaze,
+                                                       singular_tol=singular_tol)
             x[:, s] = np.unwrap(_hold_undefined(angle, defined))
             x[:, s + 1] = along
         return x
@@ -412,14 +443,52 @@ def object_orientation(
         ImitateError: On a zero or non-finite axis or a bad gaze frame.
     """
     R = check_gaze(gaze)
+    c = _unit(axis) @ R
+    return _angle(c), c[..., 2], np.hypot(c[..., 0], c[..., 1]) >= singular_tol
+
+
+def frame_reference(axis: np.ndarray, gaze: np.ndarray) -> np.ndarray:
+    """``(...)`` the column of ``gaze`` (``R_gaze``) that fixes the own frame of objects with
+    unit long axes ``axis`` ``(..., 3)`` about them: 2 (forward), or 0 (right) where the axis
+    lies along the gaze (see the module)."""
+    along = np.linalg.norm(np.cross(axis, gaze[:, 2]), axis=-1) < SINGULAR_TOL
+    return np.where(along, 0, 2)
+
+
+def own_frame(axis: ArrayLike, gaze: ArrayLike) -> np.ndarray:
+    """Objects' own frames from their long axes (see the module).
+
+    Args:
+        axis: Long axes in the world frame, shape ``(..., 3)``; normalised here, non-zero.
+        gaze: ``R_gaze``, shape ``(3, 3)``.
+
+    Returns:
+        ``(..., 3, 3)``: rows ``x, y, z`` in world coordinates, so ``frame @ v`` is ``v`` in
+        the object's frame.
+
+    Raises:
+        ImitateError: On a zero or non-finite axis or a bad gaze frame.
+    """
+    R, a = check_gaze(gaze), _unit(axis)
+    g = R.T[frame_reference(a, R)]
+    u = g - np.sum(g * a, axis=-1, keepdims=True) * a
+    x = u / np.linalg.norm(u, axis=-1, keepdims=True)
+    return np.stack((x, np.cross(a, x), a), axis=-2)
+
+
+def _unit(axis: ArrayLike) -> np.ndarray:
+    """Long axes ``(..., 3)`` normalised.
+
+    Raises:
+        ImitateError: On a zero or non-finite axis, or one not of 3 components.
+    """
     a = np.asarray(axis, dtype=float)
     norm = np.linalg.norm(a, axis=-1)
     if a.shape[-1:] != (3,) or not np.all(np.isfinite(a)) or np.any(norm == 0.0):
         raise ImitateError(
             f"axis must be finite non-zero vectors of shape (..., 3); got shape {a.shape}"
         )
-    c = (a / norm[..., None]) @ R
-    return _angle(c), c[..., 2], np.hypot(c[..., 0], c[..., 1]) >= singular_tol
+    return a / norm[..., None]
 
 
 def _hold_undefined(angle: np.ndarray, defined: np.ndarray) -> np.ndarray:

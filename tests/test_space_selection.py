@@ -8,6 +8,7 @@ import pytest
 
 from imitate.demos.space_selection import (
     INVARIANT,
+    OWN_FRAME,
     candidates,
     equivalent,
     invariance,
@@ -60,6 +61,15 @@ def test_selection_keeps_the_targets_relation_only_where_it_is_invariant():
         select(ratios))
 
 
+def test_a_relation_in_an_objects_frame_is_kept_where_it_clearly_beats_the_worlds_frame():
+    tool_target, in_tool = Relative("tool", "target"), Relative("tool", "target", "tool")
+    ratios = {tool_target: 0.02, Relative("tool", "spot"): 0.03,
+              Relative("target", "spot", "target"): 0.001}  # no world-frame rival: not kept
+    assert select({**ratios, in_tool: OWN_FRAME * 0.02 - 1e-6}) == TaskSpace(
+        (in_tool, Angles("tool"), Angles("target")))
+    assert select({**ratios, in_tool: OWN_FRAME * 0.02 + 1e-6}) == EQ1
+
+
 def test_spaces_whose_relations_join_the_same_things_are_equivalent():
     angles = (Angles("tool"), Angles("target"))
     declared = TaskSpace((Relative("tool", "target"), Relative("target", "spot"), *angles))
@@ -67,8 +77,13 @@ def test_spaces_whose_relations_join_the_same_things_are_equivalent():
                       declared)
     assert not equivalent(EQ1, declared)
     assert not equivalent(TaskSpace((Relative("tool", "target"), Angles("tool"))), EQ1)
+    in_target = TaskSpace((Relative("tool", "target", "target"), *angles))
+    assert not equivalent(in_target, EQ1) and equivalent(in_target, in_target)
     space = candidates(("spot",))
-    assert list(space.part_columns(EQ1)) == [0, 1, 2, 15, 16, 17, 18]
+    # five relations in the world's frame, four of them in the own frames of what they join
+    assert [t.name for t in space.terms[5:9]] == [
+        "tool-target@tool", "tool-target@target", "tool-spot@tool", "target-spot@target"]
+    assert list(space.part_columns(EQ1)) == [0, 1, 2, 27, 28, 29, 30]
     with pytest.raises(ImitateError, match="is not a term of the task space"):
         EQ1.part_columns(declared)
 
@@ -90,13 +105,19 @@ def _true_ratios(task: str, seed: int) -> dict[Relative, float]:
     return invariance(values, space, critical)
 
 
-@pytest.mark.parametrize("task", ["pour", "insert", "marked"])
-def test_the_teachers_true_poses_select_the_declared_space(task):
-    """Eq. 1 for the pour and the insertion (the glass's place in the world varies with the
-    teacher), the glass relative to the marker too for the marked pour (the teacher moves the
-    marker between demonstrations and pours over it)."""
+@pytest.mark.parametrize(("task", "selected"), [
+    ("pour", "tool-target@tool"), ("insert", "tool-target"),
+    ("marked", "tool-target@tool+target-marker")])
+def test_the_teachers_true_poses_select_the_space_the_task_is_decided_in(task, selected):
+    """The tool relative to the target (the glass's place in the world varies with the
+    teacher); for a pour in the bottle's own frame (the stream leaves its mouth: where the glass
+    stands below it is what every pour repeats), for the insertion in the world's (the glass
+    stands upright, its frame turns with the gaze alone); the glass relative to the marker too
+    for the marked pour (the teacher moves the marker between demonstrations and pours over
+    it)."""
+    expected = named(selected, get_task(task).space.places)
     for seed in (0, 1):
-        assert equivalent(select(_true_ratios(task, seed)), get_task(task).space)
+        assert equivalent(select(_true_ratios(task, seed)), expected)
 
 
 def test_the_world_is_a_place_every_scene_has():
@@ -119,8 +140,10 @@ def test_a_space_named_by_its_relations():
     config with what is accepted."""
     assert named("tool-target", ()) == EQ1
     assert named("tool-target+target-marker", ("marker",)) == get_task("marked").space
+    assert named("tool-target@tool", ()).terms[0] == Relative("tool", "target", "tool")
     assert RunConfig(task="marked", task_space="tool-marker").task_space == "tool-marker"
     for text in ("tool-marker", "tool-world", "tool-target+tool-target", "", 5):
         with pytest.raises(ImitateError, match=r"task space .* not accepted: declared, auto, "
-                                               r"tpgmm, or relations of \['tool-target'\]"):
+                                               r"tpgmm, or relations of \['tool-target', "
+                                               r"'tool-target@tool', 'tool-target@target'\]"):
             RunConfig(task="pour", task_space=text)

@@ -22,6 +22,7 @@ from imitate.taskspace import (
     gaze_of_camera,
     image_angle,
     object_orientation,
+    own_frame,
 )
 
 ANGLES = EQ1.angles
@@ -29,6 +30,10 @@ N_LINKS = 3  # hinges per object chain
 # A space with a place (a body fixed to the world): the target relative to it, the tool relative
 # to the target, the tool's angles only.
 PLACED = TaskSpace((Relative("target", "spot"), Relative("tool", "target"), Angles("tool")))
+# Positions in the objects' own frames: the tool relative to the target in the target's and in
+# its own, the target relative to the place in the tool's, beside the target's angles.
+FRAMED = TaskSpace((Relative("tool", "target", "target"), Relative("tool", "target", "tool"),
+                    Relative("target", "spot", "tool"), Angles("target")))
 
 
 def task_space(p_tool, a_tool, p_target, a_target, gaze, **kwargs):
@@ -105,7 +110,8 @@ def _frame_task_space(task: TaskMap) -> np.ndarray:
 
 
 @pytest.mark.parametrize(("seed", "space"), [(0, EQ1), (1, EQ1), (2, EQ1), (3, EQ1),
-                                             (4, PLACED), (5, PLACED)])
+                                             (4, PLACED), (5, PLACED), (6, FRAMED), (7, FRAMED),
+                                             (8, FRAMED)])
 def test_task_map_value_jacobian_rates_and_curvature_match_the_space_and_finite_differences(
     seed, space
 ):
@@ -156,11 +162,38 @@ def test_a_space_is_declared_from_its_terms():
                            ((Relative("tool", "spot"), Angles("tool"), Angles("tool")), "once")):
         with pytest.raises(ImitateError, match=message):
             TaskSpace(terms)
+    assert FRAMED.text[:2] == ("tool-target@target", "tool-target@tool")
+    assert TaskSpace.from_text(FRAMED.text) == FRAMED
+    assert FRAMED.labels({"tool": "bottle", "target": "glass"})[:4] == (
+        "bottle_glass_dx_in_glass", "bottle_glass_dy_in_glass", "bottle_glass_dz_in_glass",
+        "bottle_glass_dx_in_bottle")
+    with pytest.raises(ImitateError, match="frame is a held object"):
+        TaskSpace((Relative("tool", "spot", "spot"), Angles("tool")))
     p, a = np.zeros((2, 3)), np.tile([0.0, 0.0, 1.0], (2, 1))
     with pytest.raises(ImitateError, match=r"no track of \['spot'\]"):
         PLACED({"tool": (p, a), "target": (p, a)}, np.eye(3))
     x = PLACED({"tool": (p + 1.0, a), "target": (p, a), "spot": (p - 2.0, None)}, np.eye(3))
     np.testing.assert_allclose(x[:, :6], [[2.0, 2.0, 2.0, 1.0, 1.0, 1.0]] * 2)
+
+
+def test_an_objects_own_frame_turns_with_its_axis_and_the_gaze():
+    """``z`` the axis, ``x`` the gaze's forward made perpendicular to it, ``y = z x x``; the
+    camera's right in forward's place where the axis lies along the gaze; the robot map agrees
+    there too."""
+    gaze = gaze_frame((1.0, 0.2, -0.3))
+    right, down, forward = gaze.T
+    frame = own_frame([0.0, 0.0, 2.0], gaze)  # upright, any length
+    horizontal = forward * [1.0, 1.0, 0.0] / np.linalg.norm(forward[:2])
+    np.testing.assert_allclose(frame, [horizontal, np.cross([0, 0, 1], horizontal), [0, 0, 1]],
+                               atol=1e-12)
+    np.testing.assert_allclose(own_frame(forward, gaze), [right, down, forward], atol=1e-12)
+    task, q = _toy(9, space=FRAMED)
+    task.kin.update(q)
+    task, _ = _toy(9, gaze_frame(_axis(task, "tool"), up=(0.3, 0.1, 1.0)), space=FRAMED)
+    task.kin.update(q)
+    x, J = task(np.zeros(2))
+    np.testing.assert_allclose(x, _frame_task_space(task), atol=1e-12)
+    assert np.all(np.isfinite(J))
 
 
 @pytest.mark.parametrize("side", [-1.0, 1.0])
@@ -407,7 +440,7 @@ def test_a_place_stands_on_the_table_and_the_robot_maps_a_space_relative_to_it()
 def test_a_space_is_stored_as_text_and_read_back():
     assert EQ1.text == ("tool-target", "tool angles", "target angles")
     assert TaskSpace.from_text(PLACED.text) == PLACED
-    with pytest.raises(ImitateError, match=r"term 'tool target' not accepted: 'OF-TO' or"):
+    with pytest.raises(ImitateError, match=r"term 'tool target' not accepted: 'OF-TO', "):
         TaskSpace.from_text(["tool target"])
     assert EQ1.columns(Angles("tool")) == slice(3, 5)
     assert PLACED.columns(Relative("tool", "target")) == slice(3, 6)

@@ -3,7 +3,9 @@ invariance where the task is decided, and the task space they select.
 
 The candidates (:func:`candidates`) are every relation the tracks can give: the tool relative to
 the target (eq. 1's), and each held object relative to each place of the scene and to the
-world (the robot's frame, :data:`~imitate.taskspace.WORLD`), beside eq. 1's angles. The world is
+world (the robot's frame, :data:`~imitate.taskspace.WORLD`: the robot's base is fixed), each
+also in the own frame of each held object it joins (``tool-target@target``), beside eq. 1's
+angles. The world is
 rated, never kept: the teacher works across the table, so where it held the objects in the
 robot's frame is out of the robot's reach (a relation to it cannot be reproduced). The
 demonstrations in that space are aligned by DTW (:func:`imitate.learning.dtw.align`, as learning
@@ -15,7 +17,10 @@ variance criterion the paper's authors followed up with.
 
 :func:`select` keeps the tool's most invariant relation (to the target or a place), the target's
 most invariant relation to a place (its relation to the tool is the tool's) only where its ratio
-is under :data:`INVARIANT`, and eq. 1's angles of both objects. :func:`named` gives a space
+is under :data:`INVARIANT`, and eq. 1's angles of both objects. A relation in an object's own
+frame competes only where it beats the same relation in the world's frame clearly (its ratio
+under :data:`OWN_FRAME` times that one's): it rests on the tracked axes too, and where the
+object hardly turns it holds what the world's does. :func:`named` gives a space
 by its relations' names instead (``--task-space tool-target``: eq. 1's).
 """
 
@@ -31,24 +36,31 @@ from imitate.errors import ImitateError
 from imitate.learning.dtw import align
 from imitate.taskspace import OBJECTS, WORLD, Angles, Relative, TaskSpace
 
-__all__ = ["INVARIANT", "aligned", "candidates", "equivalent", "invariance", "named", "rate",
-           "select", "spread"]
+__all__ = ["INVARIANT", "OWN_FRAME", "aligned", "candidates", "equivalent", "invariance", "named",
+           "rate", "select", "spread"]
 
 # The largest invariance ratio of a relation of the target's kept (the demonstrations spread in
 # the critical phase by under a tenth of its spread over the movement). Chosen on teachers 0-2 of
 # a task with a place (the place's ratio 0.02-0.05) and one without (the world's 0.25-0.33).
 INVARIANT = 0.1
+# The largest ratio of a relation's invariance ratio in an object's own frame to its ratio in the
+# world's frame for the own frame to compete. Chosen on teachers 0-2 of pour (the tool relative
+# to the target in the tool's frame: 0.41-0.58 of the world's) and insert (in either frame
+# 0.87-1.47).
+OWN_FRAME = 0.7
 
 
-def candidates(places: Sequence[str], world: bool = True) -> TaskSpace:
+def candidates(places: Sequence[str], world: bool = True, own_frames: bool = True) -> TaskSpace:
     """The candidate terms of a task with ``places``: the tool relative to the target, the tool
-    and the target relative to each place and (with ``world``) to the world, then eq. 1's
-    angles."""
+    and the target relative to each place and (with ``world``) to the world, in the world's
+    frame; then (with ``own_frames``) those not to the world in each held object's own frame
+    they join; then eq. 1's angles."""
     tool, target = OBJECTS
-    frames = (*places, WORLD) if world else tuple(places)
-    return TaskSpace((Relative(tool, target),
-                      *(Relative(obj, p) for p in frames for obj in OBJECTS),
-                      Angles(tool), Angles(target)))
+    ends = (*places, WORLD) if world else tuple(places)
+    relations = (Relative(tool, target), *(Relative(obj, p) for p in ends for obj in OBJECTS))
+    framed = (Relative(r.of, r.to, own) for r in relations if r.to != WORLD and own_frames
+              for own in OBJECTS if own in (r.of, r.to))
+    return TaskSpace((*relations, *framed, Angles(tool), Angles(target)))
 
 
 def invariance(values: np.ndarray, space: TaskSpace, critical: np.ndarray) -> dict[Relative, float]:
@@ -107,9 +119,11 @@ def rate(
 def select(ratios: Mapping[Relative, float], invariant: float = INVARIANT) -> TaskSpace:
     """The task space ``ratios`` (:func:`invariance` of :func:`candidates`) point to: the tool's
     relation of the lowest ratio, the target's to a place of the lowest ratio if it is under
-    ``invariant``, then eq. 1's angles (relations to the world aside: see the module)."""
+    ``invariant``, then eq. 1's angles (relations to the world aside, and those in an object's
+    frame that do not beat the world's frame by :data:`OWN_FRAME`: see the module)."""
     tool, target = OBJECTS
-    ratios = {t: r for t, r in ratios.items() if t.to != WORLD}
+    ratios = {t: r for t, r in ratios.items() if t.to != WORLD and (
+        not t.frame or r < OWN_FRAME * ratios.get(Relative(t.of, t.to), 0.0))}
     own = {t: r for t, r in ratios.items() if t.of == tool}
     if not own:
         raise ImitateError(f"no relation of the tool among {[str(t) for t in ratios]}")
@@ -121,14 +135,15 @@ def select(ratios: Mapping[Relative, float], invariant: float = INVARIANT) -> Ta
 
 
 def named(text: str, places: Sequence[str]) -> TaskSpace:
-    """The space of the relations ``text`` names, ``OF-TO`` joined by ``+`` (of the
-    :func:`candidates` of a task with ``places``, the world's aside), then eq. 1's angles:
-    ``tool-target`` is eq. 1, ``tool-target+target-marker`` ``marked``'s declared space.
+    """The space of the relations ``text`` names, ``OF-TO`` or ``OF-TO@FRAME`` joined by ``+``
+    (of the :func:`candidates` of a task with ``places``, the world's aside), then eq. 1's
+    angles: ``tool-target`` is eq. 1, ``tool-target+target-marker`` ``marked``'s declared
+    space, ``tool-target@target`` the tool in the target's own frame.
 
     Raises:
         ImitateError: an unknown relation, or one named twice.
     """
-    relations = {f"{t.of}-{t.to}": t for t in candidates(places, world=False).terms
+    relations = {t.name: t for t in candidates(places, world=False).terms
                  if isinstance(t, Relative)}
     names = text.split("+")
     if any(n not in relations for n in names) or len(set(names)) < len(names):
@@ -141,17 +156,19 @@ def named(text: str, places: Sequence[str]) -> TaskSpace:
 
 def equivalent(a: TaskSpace, b: TaskSpace) -> bool:
     """Whether ``a`` and ``b`` hold the same of the demonstrations: the angles of the same
-    objects, and relations joining the same objects and places (each space's positions a linear
-    map of the other's: ``tool - marker`` and ``target - marker`` give ``tool - target``)."""
+    objects, the same relations in objects' own frames, and relations in the world's frame
+    joining the same objects and places (each space's positions a linear map of the other's:
+    ``tool - marker`` and ``target - marker`` give ``tool - target``)."""
 
-    def parts(space: TaskSpace) -> tuple[frozenset, frozenset]:
+    def parts(space: TaskSpace) -> tuple[frozenset, frozenset, frozenset]:
         joined: list[set[str]] = []
+        framed = frozenset(t for t in space.terms if isinstance(t, Relative) and t.frame)
         for term in space.terms:
-            if isinstance(term, Relative):
+            if isinstance(term, Relative) and not term.frame:
                 touching = [g for g in joined if {term.of, term.to} & g]
                 merged = set().union({term.of, term.to}, *touching)
                 joined = [g for g in joined if g not in touching] + [merged]
         angles = frozenset(t.of for t in space.terms if isinstance(t, Angles))
-        return angles, frozenset(frozenset(g) for g in joined)
+        return angles, framed, frozenset(frozenset(g) for g in joined)
 
     return parts(a) == parts(b)

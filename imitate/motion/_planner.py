@@ -23,14 +23,18 @@ ensure_writable(__file__)  # before the kernels below are declared
 # Points of the task map: the tool's and the target's origin ``o``, then ``o + a`` with ``a``
 # each one's long axis (its frame's z axis).
 N_POINTS = 4
-# A task space's terms as rows of a table (:func:`term_table`): kind, first and second anchor
-# (0 the tool, 1 the target, 2.. a place), first column. Kinds:
+# A task space's terms as rows of a table: kind, first and second anchor (0 the tool, 1 the
+# target, 2.. a place), first column, frame (the held object in whose own frame a relative
+# position is, -1 the world). Kinds:
 RELATIVE, ANGLES = 0, 1  # p_a - p_b (3 columns); the angle and gaze component of object a (2)
+# Rows of a term's entry in the ``framed`` buffer: its frame's axes x, y, z (rows), the
+# relative position p in the world, the gaze column g that fixes the frame about its z.
+FRAME_ROWS = 5
 
 
 @numba.njit(cache=True)
 def _task_state(xpos, xmat, bodies, terms, gaze, angle_ref, singular_rho2, points, proj, inv, x,
-                rows, axes):
+                rows, axes, framed):
     """A task space's state at MuJoCo's kinematics ``xpos (nbody, 3)``, ``xmat (nbody, 9)``,
     and what the Jacobian needs; all outputs are written.
 
@@ -39,7 +43,7 @@ def _task_state(xpos, xmat, bodies, terms, gaze, angle_ref, singular_rho2, point
         xmat: ``(nbody, 9)`` MuJoCo's body orientations, row-major rotation matrices
             (``data.xmat``).
         bodies: ``(2 + k,)`` the anchors' body ids: the tool, the target, then the places.
-        terms: ``(n_terms, 4)`` the term table (kind, anchor, anchor, first column).
+        terms: ``(n_terms, 5)`` the term table (kind, anchor, anchor, first column, frame).
         gaze: ``R_gaze`` ``(3, 3)``, columns right, down, forward.
         angle_ref: ``(2,)`` the angles' reference branches [rad].
         singular_rho2: ``rho^2`` below which an angle is undefined (it is then ``angle_ref``).
@@ -50,6 +54,9 @@ def _task_state(xpos, xmat, bodies, terms, gaze, angle_ref, singular_rho2, point
         rows: ``(2, 3)`` the gradients of the two angles with respect to the axes, ``C``'s
             first rows times ``R_gaze^T``: ``(-p_d r + p_r d) / rho^2``.
         axes: ``(2, 3)`` the long axes ``a``.
+        framed: ``(n_terms, FRAME_ROWS, 3)`` per relative position in an object's frame, that
+            frame's axes, the position in the world and the frame's gaze column (see
+            :data:`FRAME_ROWS`); other terms' entries are left as they were.
     """
     angles = np.empty(2)
     for o in range(2):
@@ -79,13 +86,100 @@ def _task_state(xpos, xmat, bodies, terms, gaze, angle_ref, singular_rho2, point
             rows[o, c] = -pd * s * gaze[c, 0] + pr * s * gaze[c, 1]
     for i in range(terms.shape[0]):
         kind, first, second, col = terms[i, 0], terms[i, 1], terms[i, 2], terms[i, 3]
+        fo = terms[i, 4]
         if kind == RELATIVE:
             for c in range(3):
                 x[col + c] = _anchor(xpos, bodies, points, first, c) - _anchor(
                     xpos, bodies, points, second, c)
+            if fo >= 0:  # in the object's own frame: x = E p
+                along = proj[fo, 0] ** 2 + proj[fo, 1] ** 2 < singular_rho2
+                entry = framed[i]
+                for c in range(3):
+                    entry[3, c] = x[col + c]
+                    entry[4, c] = gaze[c, 0 if along else 2]
+                _own_frame(axes[fo], entry[4], entry)
+                for k in range(3):
+                    x[col + k] = entry[k, 0] * entry[3, 0] + entry[k, 1] * entry[3, 1] + entry[
+                        k, 2] * entry[3, 2]
         else:
             x[col] = angles[first]
             x[col + 1] = proj[first, 2]
+
+
+@numba.njit(cache=True)
+def _own_frame(a, g, e):
+    """An object's own frame (:func:`imitate.taskspace.own_frame`) from its unit axis ``a (3,)``
+    and the gaze column ``g (3,)`` that fixes it: rows ``x, y, z`` into ``e[:3]``."""
+    ga = g[0] * a[0] + g[1] * a[1] + g[2] * a[2]
+    norm = 0.0
+    for c in range(3):
+        e[0, c] = g[c] - ga * a[c]
+        norm += e[0, c] * e[0, c]
+    norm = math.sqrt(norm)
+    for c in range(3):
+        e[0, c] /= norm
+        e[2, c] = a[c]
+    _cross(a, e[0], e[1])
+
+
+@numba.njit(cache=True)
+def _frame_change(a, g, v, w, out):
+    """The derivatives of an object's own frame (rows ``x, y, z`` of :func:`_own_frame`) with
+    respect to its axis ``a (3,)``: along ``v (3,)`` into ``out[0] (3, 3)``, and the second
+    along ``v`` and ``w (3,)`` into ``out[1] (3, 3)`` (``a`` taken as a free vector).
+
+    With ``u = g - (g . a) a``, ``n = |u|``, ``x = u / n``: ``u_v = -(g . v) a - (g . a) v``,
+    ``u_vw = -(g . v) w - (g . w) v``, ``n_v = x . u_v``, ``x_v = (u_v - x n_v) / n``,
+    ``n_vw = x_w . u_v + x . u_vw``, ``x_vw = (u_vw - u_v n_w / n - u_w n_v / n - x n_vw
+    + 2 x n_v n_w / n) / n``; ``y = a x x``: ``y_v = v x x + a x x_v``, ``y_vw = v x x_w +
+    w x x_v + a x x_vw``; ``z = a``: ``z_v = v``, ``z_vw = 0``.
+    """
+    ga = g[0] * a[0] + g[1] * a[1] + g[2] * a[2]
+    gv = g[0] * v[0] + g[1] * v[1] + g[2] * v[2]
+    gw = g[0] * w[0] + g[1] * w[1] + g[2] * w[2]
+    work = np.empty((7, 3))
+    x, u_v, u_w, u_vw = work[0], work[1], work[2], work[3]
+    x_v, x_w, x_vw = work[4], work[5], work[6]
+    norm = 0.0
+    for c in range(3):
+        x[c] = g[c] - ga * a[c]
+        norm += x[c] * x[c]
+    norm = math.sqrt(norm)
+    n_v = n_w = 0.0
+    for c in range(3):
+        x[c] /= norm
+        u_v[c] = -gv * a[c] - ga * v[c]
+        u_w[c] = -gw * a[c] - ga * w[c]
+        u_vw[c] = -gv * w[c] - gw * v[c]
+        n_v += x[c] * u_v[c]
+        n_w += x[c] * u_w[c]
+    n_vw = 0.0
+    for c in range(3):
+        x_v[c] = (u_v[c] - x[c] * n_v) / norm
+        x_w[c] = (u_w[c] - x[c] * n_w) / norm
+    for c in range(3):
+        n_vw += x_w[c] * u_v[c] + x[c] * u_vw[c]
+    for c in range(3):
+        x_vw[c] = (u_vw[c] - (u_v[c] * n_w + u_w[c] * n_v) / norm - x[c] * n_vw
+                   + 2.0 * x[c] * n_v * n_w / norm) / norm
+    first, second = out[0], out[1]
+    turned = np.empty(3)
+    for c in range(3):
+        first[0, c] = x_v[c]
+        first[2, c] = v[c]
+        second[0, c] = x_vw[c]
+        second[2, c] = 0.0
+    _cross(v, x, first[1])
+    _cross(a, x_v, turned)
+    for c in range(3):
+        first[1, c] += turned[c]
+    _cross(v, x_w, second[1])
+    _cross(w, x_v, turned)
+    for c in range(3):
+        second[1, c] += turned[c]
+    _cross(a, x_vw, turned)
+    for c in range(3):
+        second[1, c] += turned[c]
 
 
 @numba.njit(cache=True)
@@ -95,29 +189,47 @@ def _anchor(xpos, bodies, points, anchor, c) -> float:
 
 
 @numba.njit(cache=True)
-def _task_jacobian(jac, dof, terms, axes, rows, gaze, mask, J, axis_jac, rot_jac):
+def _task_jacobian(jac, dof, terms, axes, rows, gaze, framed, mask, J, axis_jac, rot_jac,
+                   trans_jac):
     """The task Jacobian ``J (m, n)``, the axes' Jacobians ``axis_jac (2, 3, n)`` (``da/dq``)
-    and the objects' rotational Jacobians ``rot_jac (2, 3, n)``, all written, from MuJoCo's
-    ``jac (2, 2, 3, nv)`` (per object, translational and rotational Jacobian of its origin; the
-    planned joints are the columns ``dof (n,)``); ``da/dq_j = omega_j x a``; a place does not
-    move with the joints. ``terms`` is the term table (see :func:`_task_state`). Columns where
-    ``mask (n,)`` is 0 are 0 in ``J``."""
+    and the objects' rotational and translational Jacobians ``rot_jac``, ``trans_jac (2, 3,
+    n)``, all written, from MuJoCo's ``jac (2, 2, 3, nv)`` (per object, translational and
+    rotational Jacobian of its origin; the planned joints are the columns ``dof (n,)``);
+    ``da/dq_j = omega_j x a``; a place does not move with the joints. ``terms`` is the term
+    table and ``framed`` the frames (see :func:`_task_state`); a position ``E p`` in an object's
+    frame changes by ``E_A p + E P`` (``A``, ``P`` the changes of the axis and of ``p``).
+    Columns where ``mask (n,)`` is 0 are 0 in ``J``."""
     n = dof.shape[0]
+    change = np.empty((2, 3, 3))
+    moved = np.empty(3)
     for j in range(n):
         col = dof[j]
         for o in range(2):
             r0, r1, r2 = jac[o, 1, 0, col], jac[o, 1, 1, col], jac[o, 1, 2, col]
             a0, a1, a2 = axes[o, 0], axes[o, 1], axes[o, 2]
             rot_jac[o, 0, j], rot_jac[o, 1, j], rot_jac[o, 2, j] = r0, r1, r2
+            for c in range(3):
+                trans_jac[o, c, j] = jac[o, 0, c, col]
             axis_jac[o, 0, j] = r1 * a2 - r2 * a1
             axis_jac[o, 1, j] = r2 * a0 - r0 * a2
             axis_jac[o, 2, j] = r0 * a1 - r1 * a0
         for i in range(terms.shape[0]):
             kind, first, second, row = terms[i, 0], terms[i, 1], terms[i, 2], terms[i, 3]
+            fo = terms[i, 4]
             if kind == RELATIVE:
                 for c in range(3):
-                    J[row + c, j] = (_moved(jac, first, c, col) - _moved(jac, second, c, col)
-                                     ) * mask[j]
+                    moved[c] = _moved(jac, first, c, col) - _moved(jac, second, c, col)
+                if fo < 0:
+                    for c in range(3):
+                        J[row + c, j] = moved[c] * mask[j]
+                    continue
+                entry = framed[i]
+                _frame_change(axes[fo], entry[4], axis_jac[fo, :, j], axis_jac[fo, :, j], change)
+                for k in range(3):
+                    total = 0.0
+                    for c in range(3):
+                        total += change[0, k, c] * entry[3, c] + entry[k, c] * moved[c]
+                    J[row + k, j] = total * mask[j]
             else:
                 da0, da1, da2 = axis_jac[first, 0, j], axis_jac[first, 1, j], axis_jac[first, 2, j]
                 J[row, j] = (rows[first, 0] * da0 + rows[first, 1] * da1
@@ -132,6 +244,13 @@ def _moved(jac, anchor, c, col) -> float:
 
 
 @numba.njit(cache=True)
+def _translated(trans_jac, anchor, c, j) -> float:
+    """Row ``c``, column ``j`` of an anchor's translational Jacobian ``trans_jac (2, 3, n)``
+    (0 for a place)."""
+    return trans_jac[anchor, c, j] if anchor < 2 else 0.0
+
+
+@numba.njit(cache=True)
 def _cross(u, v, out):
     """``out = u x v`` for ``(3,)`` vectors."""
     out[0] = u[1] * v[2] - u[2] * v[1]
@@ -140,8 +259,8 @@ def _cross(u, v, out):
 
 
 @numba.njit(cache=True)
-def _curvature(a, b, c, d, rates, dof, terms, axes, rows, proj, inv, axis_jac, rot_jac, gaze,
-               mask, out):
+def _curvature(a, b, c, d, rates, dof, terms, axes, rows, proj, inv, axis_jac, rot_jac,
+               trans_jac, framed, gaze, mask, out):
     """``a^T D_b J + c^T D_d J`` into ``out (n,)`` (see :meth:`TaskMap.curvature`).
 
     Args:
@@ -159,6 +278,8 @@ def _curvature(a, b, c, d, rates, dof, terms, axes, rows, proj, inv, axis_jac, r
         inv: ``(2,)`` ``1 / rho^2``, 0 where the angle is undefined (task frame).
         axis_jac: ``(2, 3, n)`` ``da/dq`` (task frame).
         rot_jac: ``(2, 3, n)`` the objects' rotational Jacobians (task frame).
+        trans_jac: ``(2, 3, n)`` the objects' translational Jacobians (task frame).
+        framed: the frames of the positions in an object's frame (see :func:`_task_state`).
         gaze: ``R_gaze`` ``(3, 3)``, columns right, down, forward.
         mask: ``(n,)`` 1 for a driven joint, 0 for a fixed one, as in :func:`_task_jacobian`.
         out: ``(n,)`` output, written.
@@ -166,6 +287,12 @@ def _curvature(a, b, c, d, rates, dof, terms, axes, rows, proj, inv, axis_jac, r
     With ``A = omega x a`` per joint, ``D_b A = omega' x a + omega x a'`` and ``a' = A b``; a
     row ``w`` of ``C R_gaze^T`` weighs it as ``w . (omega' x a) = omega' . (a x w)`` and
     ``w . (omega x a') = omega . (a' x w)``. An object without angles has ``w = 0``.
+
+    A position ``E p`` in an object's frame (:func:`_frame_change`'s ``E_v``, ``E_vw``), row
+    ``j`` of ``D_b J`` weighed by ``v``: ``v . (E_{A_j a'} p + E_{D_b A_j} p + E_{A_j} p' +
+    E_{a'} P_j + E D_b P_j)`` with ``a' = A b``, ``p' = P b``; the first three are linear in
+    ``A_j`` and ``D_b A_j = omega'_j x a + omega_j x a'``, so they are dot products with
+    vectors found once (``L`` by the basis vectors, then ``a x L``, ``a' x L``).
     """
     n = out.shape[0]
     w = np.empty(3)
@@ -200,6 +327,7 @@ def _curvature(a, b, c, d, rates, dof, terms, axes, rows, proj, inv, axis_jac, r
             cd = weight * (dpr * s + pr * ds)
             for e in range(3):
                 coef[o, e] += cr * gaze[e, 0] + cd * gaze[e, 1]
+    weighed = _framed_weights(a, b, c, d, terms, axes, axis_jac, trans_jac, framed)
     for j in range(n):
         col = dof[j]
         total = 0.0
@@ -208,9 +336,17 @@ def _curvature(a, b, c, d, rates, dof, terms, axes, rows, proj, inv, axis_jac, r
             for i in range(terms.shape[0]):
                 if terms[i, 0] == RELATIVE:
                     first, second, row = terms[i, 1], terms[i, 2], terms[i, 3]
+                    fo, wf = terms[i, 4], weighed[k, i]
                     for e in range(3):
-                        total += vector[row + e] * (_moved(rates[k], first, e, col)
-                                                    - _moved(rates[k], second, e, col))
+                        shift = _moved(rates[k], first, e, col) - _moved(rates[k], second, e, col)
+                        if fo < 0:
+                            total += vector[row + e] * shift
+                            continue
+                        step = (_translated(trans_jac, first, e, j)
+                                - _translated(trans_jac, second, e, j))
+                        total += (wf[0, e] * rates[k, fo, 1, e, col] + wf[1, e] * rot_jac[fo, e, j]
+                                  + wf[2, e] * axis_jac[fo, e, j] + wf[3, e] * shift
+                                  + wf[4, e] * step)
             for o in range(2):
                 for e in range(3):
                     total += across[k, o, 0, e] * rates[k, o, 1, e, col]
@@ -219,6 +355,52 @@ def _curvature(a, b, c, d, rates, dof, terms, axes, rows, proj, inv, axis_jac, r
             for e in range(3):
                 total += coef[o, e] * axis_jac[o, e, j]
         out[j] = total * mask[j]
+
+
+@numba.njit(cache=True)
+def _framed_weights(a, b, c, d, terms, axes, axis_jac, trans_jac, framed):
+    """``(2, n_terms, 5, 3)`` per direction (``b`` with ``a``, ``d`` with ``c``) and position in
+    an object's frame, the vectors that weigh ``omega'_j``, ``omega_j``, ``A_j``, ``D_b P_j`` and
+    ``P_j`` in :func:`_curvature`: ``a x L``, ``a' x L``, ``L2 + L3``, ``E^T v``, ``E_{a'}^T v``
+    (zero for other terms)."""
+    n = axis_jac.shape[2]
+    weighed = np.zeros((2, terms.shape[0], 5, 3))
+    change = np.empty((2, 3, 3))
+    basis = np.zeros(3)
+    moved, shifted, lin, lin2 = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    for k in range(2):
+        vector, direction = (a, b) if k == 0 else (c, d)
+        for i in range(terms.shape[0]):
+            first, second, row, fo = terms[i, 1], terms[i, 2], terms[i, 3], terms[i, 4]
+            if terms[i, 0] != RELATIVE or fo < 0:
+                continue
+            entry, wf = framed[i], weighed[k, i]
+            for e in range(3):
+                moved[e] = 0.0  # a' = A direction
+                shifted[e] = 0.0  # p' = P direction
+                for j in range(n):
+                    moved[e] += axis_jac[fo, e, j] * direction[j]
+                    shifted[e] += (_translated(trans_jac, first, e, j)
+                                   - _translated(trans_jac, second, e, j)) * direction[j]
+            for e in range(3):
+                basis[:] = 0.0
+                basis[e] = 1.0
+                _frame_change(axes[fo], entry[4], basis, moved, change)
+                lin[e] = lin2[e] = 0.0
+                for r in range(3):
+                    for q in range(3):
+                        lin[e] += vector[row + r] * change[0, r, q] * entry[3, q]
+                        lin2[e] += vector[row + r] * (change[0, r, q] * shifted[q]
+                                                      + change[1, r, q] * entry[3, q])
+            _cross(axes[fo], lin, wf[0])
+            _cross(moved, lin, wf[1])
+            _frame_change(axes[fo], entry[4], moved, moved, change)
+            for e in range(3):
+                wf[2, e] = lin2[e]
+                for r in range(3):
+                    wf[3, e] += vector[row + r] * entry[r, e]
+                    wf[4, e] += vector[row + r] * change[0, r, e]
+    return weighed
 
 
 @numba.njit(cache=True)

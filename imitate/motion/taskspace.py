@@ -84,9 +84,10 @@ class TaskMap:
         self._bodies = np.array([self.tool, self.target, *places])
         anchors = {**{role: k for k, role in enumerate(OBJECTS)},
                    **{name: 2 + k for k, name in enumerate(space.places)}}
+        frames: dict[str | None, int] = {None: -1, **{r: k for k, r in enumerate(OBJECTS)}}
         self._terms = np.array([
-            (_planner.RELATIVE, anchors[t.of], anchors[t.to], start) if isinstance(t, Relative)
-            else (_planner.ANGLES, anchors[t.of], -1, start)
+            (_planner.RELATIVE, anchors[t.of], anchors[t.to], start, frames[t.frame])
+            if isinstance(t, Relative) else (_planner.ANGLES, anchors[t.of], -1, start, -1)
             for t, start in zip(space.terms, space.starts, strict=True)
         ], dtype=np.intp)
         self._points_of = (self.tool, self.target, self.tool, self.target)
@@ -126,25 +127,31 @@ class TaskMap:
             np.empty((4, 3)), np.empty((2, 3)), np.empty(2), np.empty(self.m), np.empty((2, 3)),
             np.empty((2, 3)),
         )
+        framed = np.zeros((len(self._terms), _planner.FRAME_ROWS, 3))
         _planner._task_state(
             self._xpos, self._xmat, self._bodies, self._terms, self._gaze,
             np.ascontiguousarray(angle_ref, dtype=float), _SINGULAR_RHO2,
-            points, proj, inv, x, rows, axes,
+            points, proj, inv, x, rows, axes, framed,
         )
         jac = self.kin.frame_jacobians(self._objects, points, self._jac)
         n = self.kin.n
-        J, axis_jac, rot_jac = np.empty((self.m, n)), np.empty((2, 3, n)), np.empty((2, 3, n))
+        J, axis_jac, rot_jac, trans_jac = (np.empty((self.m, n)), *(np.empty((2, 3, n))
+                                                                     for _ in range(3)))
         _planner._task_jacobian(
-            jac, self._dof, self._terms, axes, rows, self._gaze, self._mask, J, axis_jac, rot_jac
+            jac, self._dof, self._terms, axes, rows, self._gaze, framed, self._mask, J, axis_jac,
+            rot_jac, trans_jac,
         )
-        return x, J, TaskFrame(points, proj, inv, rows, axis_jac, axes, rot_jac)
+        return x, J, TaskFrame(points, proj, inv, rows, axis_jac, axes, rot_jac, trans_jac,
+                               framed)
 
     def _mix(self, frame: TaskFrame) -> np.ndarray:
         """``(m, 12)``: ``J`` as a linear map of the stacked point Jacobians ``(4 * 3, n)``
         (a place's Jacobian is 0)."""
         mix = np.zeros((self.m, 12))
         forward = self.gaze[:, 2]
-        for kind, first, second, row in self._terms:
+        for kind, first, second, row, own in self._terms:
+            if kind == _planner.RELATIVE and own >= 0:
+                continue  # not linear in the points: :meth:`_framed_rates`
             if kind == _planner.RELATIVE:
                 for anchor, sign in ((first, 1.0), (second, -1.0)):
                     if anchor < 2:
@@ -171,11 +178,40 @@ class TaskMap:
         coef_r, coef_d = -dproj[:, 1] * s - pd * ds, dproj[:, 0] * s + pr * ds  # (2, k)
         row_dot = coef_r[..., None] * r + coef_d[..., None] * d  # (2, k, 3)
         out = self._mix(frame) @ rate
-        for kind, first, _, row in self._terms:
+        for i, (kind, first, _, row, _) in enumerate(self._terms):
             if kind == _planner.ANGLES:
                 out[:, row] += row_dot[first] @ frame.axis_jac[first]
+            else:
+                self._framed_rates(i, qdot, rate, frame, out)
         out *= self._mask
         return out
+
+    def _framed_rates(
+        self, i: int, qdot: np.ndarray, rate: np.ndarray, frame: TaskFrame, out: np.ndarray
+    ) -> None:
+        """Adds to ``out (k, m, n)`` the rates of term ``i``, if a position in an object's
+        frame: ``D_b (E p)_j = E_{A_j a'} p + E_{D_b A_j} p + E_{A_j} p' + E_{a'} P_j +
+        E D_b P_j`` (``rate (k, 12, n)`` the points' Jacobian rates, see :meth:`rates`)."""
+        _, first, second, row, own = self._terms[i]
+        if own < 0:
+            return
+        entry, axis, axis_jac = frame.framed[i], frame.axes[own], frame.axis_jac[own]
+        e, p, g = entry[:3], entry[3], entry[4]
+        move = sum((sign * frame.trans_jac[anchor] for anchor, sign in ((first, 1), (second, -1))
+                    if anchor < 2), np.zeros(axis_jac.shape))  # P (3, n)
+        change, turned, moved = (np.empty((2, 3, 3)) for _ in range(3))
+        for k, b in enumerate(qdot):
+            rows = rate[k].reshape(4, 3, -1)
+            shift = sum((sign * rows[anchor] for anchor, sign in ((first, 1), (second, -1))
+                         if anchor < 2), np.zeros(axis_jac.shape))  # D_b P
+            axis_rate = rows[2 + own] - rows[own]  # D_b A
+            a_dot, p_dot = axis_jac @ b, move @ b
+            _planner._frame_change(axis, g, a_dot, a_dot, moved)
+            for j in range(len(b)):
+                _planner._frame_change(axis, g, axis_jac[:, j].copy(), a_dot, change)
+                _planner._frame_change(axis, g, axis_rate[:, j].copy(), a_dot, turned)
+                out[k, row : row + 3, j] += (change[1] @ p + turned[0] @ p + change[0] @ p_dot
+                                             + moved[0] @ move[:, j] + e @ shift[:, j])
 
     def curvature(
         self, a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray, frame: TaskFrame
@@ -189,7 +225,8 @@ class TaskMap:
         out = np.empty(kin.n)
         _planner._curvature(
             a, b, c, d, rates, self._dof, self._terms, frame.axes, frame.rows, frame.proj,
-            frame.inv, frame.axis_jac, frame.rot_jac, self._gaze, self._mask, out,
+            frame.inv, frame.axis_jac, frame.rot_jac, frame.trans_jac, frame.framed, self._gaze,
+            self._mask, out,
         )
         return out
 
@@ -222,6 +259,10 @@ class TaskFrame(NamedTuple):
         axis_jac: ``da/dq`` ``(2, 3, n)``, fixed joints' columns included.
         axes: ``(2, 3)`` the long axes ``a``.
         rot_jac: ``(2, 3, n)`` the objects' rotational Jacobians (``da/dq_j = omega_j x a``).
+        trans_jac: ``(2, 3, n)`` the objects' translational Jacobians.
+        framed: ``(n_terms, 5, 3)`` per position in an object's frame, the frame's axes, the
+            position in the world and the gaze column that fixes the frame
+            (:func:`imitate.motion._planner._task_state`).
     """
 
     points: np.ndarray
@@ -231,3 +272,5 @@ class TaskFrame(NamedTuple):
     axis_jac: np.ndarray
     axes: np.ndarray
     rot_jac: np.ndarray
+    trans_jac: np.ndarray
+    framed: np.ndarray

@@ -25,13 +25,14 @@ def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
     the other BIC method for comparison."""
     space, ratios = task.space, []
     if config.task_space == "tpgmm":
-        space = space_selection.candidates(task.space.places, world=False)
+        # TP-GMM's frames stand still in a scene: the world's, not an object's own
+        space = space_selection.candidates(task.space.places, world=False, own_frames=False)
     elif config.task_space == "auto":
         cut = DemosFile.load(run_dir)
         rated = space_selection.rate(cut.segments, cut.objects, cut.gaze, task,
                                      smoothing=config.smoothing)
         space = space_selection.select(rated)
-        ratios = [[f"{t.of}-{t.to}", value] for t, value in rated.items()]
+        ratios = [[t.name, value] for t, value in rated.items()]
     elif config.task_space != "declared":  # named by its relations (RunConfig checked them)
         space = space_selection.named(config.task_space, task.space.places)
     if config.oracle:

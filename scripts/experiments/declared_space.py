@@ -101,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     jobs, chosen = [], {}
     for t in teachers(args.run_dir, args.run_dir / "eval", args.teachers, (), args.workers):
         chosen[t.seed] = selected_space(t.path.parent, task)
-        frames = candidates(task.space.places, world=False)
+        frames = candidates(task.space.places, world=False, own_frames=False)
         spaces = {"declared": task.space, "selected": chosen[t.seed], "tpgmm": frames, "eq1": EQ1,
                   "tool-place": TaskSpace((Relative("tool", task.space.places[0]),
                                            *EQ1.terms[1:]))}
@@ -126,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
             drawn = Counter(r[3] for r in mine if r[1] > 0)
             totals[space, "success"] += drawn["success"]
             totals[space, "n"] += sum(drawn.values())
-            terms = (", ".join(f"{t.of}-{t.to}" for t in chosen[seed].terms if hasattr(t, "to"))
+            terms = (", ".join(t.name for t in chosen[seed].terms if hasattr(t, "to"))
                      if space == "selected" else "")
             print(f"| {seed} | {space}{f' ({terms})' if terms else ''} | {default} | "
                   f"{drawn['success']} of {sum(drawn.values())}"

@@ -59,7 +59,7 @@ def draw(run_dir: Path, path: Path) -> None:
     for term, across in spread(values, space).items():
         kept = term in chosen.terms
         ax.plot(times, 1e3 * across, lw=2.6 if kept else 1.0,
-                label=f"{term.of}-{term.to}" + (" (selected)" if kept else ""))
+                label=term.name + (" (selected)" if kept else ""))
     ax.set(yscale="log", xlabel="aligned time [s]", ylabel="spread across demos [mm]",
            title=f"{task}, {run_dir}: each relation's spread over the movement")
     ax.legend(fontsize=8, ncols=2)
@@ -74,7 +74,7 @@ def main() -> None:
     if args.figure:
         draw(args.runs[0], args.figure)
     table = {run: rated(run) for run in args.runs}
-    names = {f"{t.of}-{t.to}": t for t in next(iter(table.values()))[1]}
+    names = {t.name: t for t in next(iter(table.values()))[1]}
     print("invariance ratio in the critical phase: the demonstrations' spread there over the "
           "term's whole spread (small: they agree where the task is decided)")
     print(f"{'run':34s}" + "".join(f"{n:>15s}" for n in names)
@@ -83,7 +83,7 @@ def main() -> None:
     for run, (task, ratios, selected) in table.items():
         same = equivalent(selected, get_task(task).space)
         agree += same
-        chosen = ", ".join(f"{t.of}-{t.to}" for t in selected.terms if isinstance(t, Relative))
+        chosen = ", ".join(t.name for t in selected.terms if isinstance(t, Relative))
         print(f"{str(run)[-34:]:34s}" + "".join(f"{ratios[t]:15.4f}" for t in names.values())
               + f"  {chosen} ({'yes' if same else 'no'})")
     medians = [np.median([ratios[t] for _, ratios, _ in table.values()]) for t in names.values()]
