@@ -77,19 +77,23 @@ def main() -> None:
     names = {t.name: t for t in next(iter(table.values()))[1]}
     print("invariance ratio in the critical phase: the demonstrations' spread there over the "
           "term's whole spread (small: they agree where the task is decided)")
-    print(f"{'run':34s}" + "".join(f"{n:>15s}" for n in names)
+    width = {n: max(9, len(n)) + 2 for n in names}  # each column its name's
+    print(f"{'run':40s}" + "".join(f"{n:>{width[n]}s}" for n in names)
           + "  selected (the declared one, or equivalent?)")
-    agree = 0
+    agree = framed = 0
     for run, (task, ratios, selected) in table.items():
         same = equivalent(selected, get_task(task).space)
         agree += same
-        chosen = ", ".join(t.name for t in selected.terms if isinstance(t, Relative))
-        print(f"{str(run)[-34:]:34s}" + "".join(f"{ratios[t]:15.4f}" for t in names.values())
-              + f"  {chosen} ({'yes' if same else 'no'})")
-    medians = [np.median([ratios[t] for _, ratios, _ in table.values()]) for t in names.values()]
-    print(f"{'median':34s}" + "".join(f"{m:15.4f}" for m in medians))
+        kept = [t for t in selected.terms if isinstance(t, Relative)]
+        framed += any(t.frame for t in kept)
+        print(f"{str(run)[-40:]:40s}" + "".join(f"{ratios[t]:{width[n]}.4f}"
+                                                for n, t in names.items())
+              + f"  {', '.join(t.name for t in kept)} ({'yes' if same else 'no'})")
+    medians = {n: np.median([ratios[t] for _, ratios, _ in table.values()])
+               for n, t in names.items()}
+    print(f"{'median':40s}" + "".join(f"{m:{width[n]}.4f}" for n, m in medians.items()))
     print(f"the selected space is the declared one or equivalent for {agree} of {len(table)} "
-          "teachers")
+          f"teachers; a relation in an object's own frame for {framed}")
 
 
 if __name__ == "__main__":
