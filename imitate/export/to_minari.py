@@ -5,8 +5,9 @@ Under the root directory (Minari's ``MINARI_DATASETS_PATH``), named by the task'
 (``dataset.recover_environment()`` makes it), and the teacher's, which comes from no env (its
 spaces are stored, its env spec is not). Both
 carry ``requirements`` (this package's distribution and MuJoCo, pinned: the physics replays bit
-for bit only there; ``recover_environment()`` warns about others) and ``code_permalink`` (the
-distribution's release on the package index, whose sdist holds the code of that version).
+for bit only there; ``recover_environment()`` warns about others) and, in their description, the
+code's digest (:func:`imitate.stages.provenance.code_digest`, as a run's files name it). Their
+``code_permalink`` is left empty: the distribution has no public release to point to.
 """
 
 from __future__ import annotations
@@ -26,8 +27,9 @@ from minari.data_collector import EpisodeBuffer
 
 from imitate import __version__
 from imitate.export.episodes import Episode
+from imitate.stages import provenance
 
-__all__ = ["DISTRIBUTION", "code_permalink", "dataset_ids", "write"]
+__all__ = ["DISTRIBUTION", "dataset_ids", "write"]
 
 _METADATA = {"author": "imitate", "algorithm_name": "imitate (Muehlig et al., ICRA 2009)"}
 DISTRIBUTION = "imitate-humanoid"  # pyproject.toml's project name (the import name is imitate)
@@ -47,18 +49,19 @@ def write(root: Path, robot: Iterable[Episode], teacher: Iterable[Episode]) -> N
     env_id = episode.env.id if episode.env is not None else ""
     robot_id, teacher_id = dataset_ids(env_id)
     metadata = {
-        **_METADATA, "code_permalink": code_permalink(),
+        **_METADATA,
         "requirements": [f"{DISTRIBUTION}=={__version__}", f"mujoco=={mujoco.__version__}"],
     }
+    made = f" Made by {DISTRIBUTION} {__version__}, code sha256 {provenance.code_digest()}."
     with _datasets_path(root), warnings.catch_warnings():
-        # Metadata this project has no value for (an e-mail address, an eval env).
-        warnings.filterwarnings("ignore", message=r"`(author_email|eval_env)`")
+        # Metadata this project has no value for (an e-mail address, an eval env, a release).
+        warnings.filterwarnings("ignore", message=r"`(author_email|eval_env|code_permalink)`")
         warnings.filterwarnings("ignore", message="env_spec is None")  # the teacher has no env
         minari.create_dataset_from_buffers(
             robot_id, [_buffer(episode)], env=episode.env, **metadata,
             description=f"The robot is to {episode.instruction}: the optimized plan replayed in "
             f"{env_id}. Actions: joint position targets [rad] (float64, as given to env.step); "
-            "the last step is truncated by the spec's time limit.",
+            "the last step is truncated by the spec's time limit." + made,
         )
         episodes = iter(teacher)
         first = next(episodes)
@@ -72,7 +75,7 @@ def write(root: Path, robot: Iterable[Episode], teacher: Iterable[Episode]) -> N
             description=f"The teacher's demonstrations ({first.instruction}) as the robot cut "
             f"them. Observations: task (the task space of the tracked objects), {objects} (true "
             f"frames: position [m], quaternion wxyz). Actions: the next frame's true {objects}; "
-            "rewards 0.",
+            "rewards 0." + made,
         )
         for episode in episodes:  # one at a time: with images an episode is large
             dataset.update_dataset_from_buffer([_buffer(episode)])
@@ -90,11 +93,6 @@ def _buffer(episode: Episode) -> EpisodeBuffer:
         actions=episode.actions, rewards=episode.rewards, terminations=episode.terminations,
         truncations=episode.truncations, infos=episode.infos,
     )
-
-
-def code_permalink() -> str:
-    """The code that made the datasets: this version's release page on the package index."""
-    return f"https://pypi.org/project/{DISTRIBUTION}/{__version__}/"
 
 
 def _space(values: np.ndarray) -> gym.spaces.Box:
