@@ -46,9 +46,9 @@ class TaskMap:
     ``mj_jac`` and ``mj_jacDot`` of the four points ``o_tool, o_target, o_tool + a_tool,
     o_target + a_target`` (the compiled :meth:`evaluate` and :meth:`curvature` get ``A`` as
     ``omega x a`` from the rotational Jacobians of ``o_tool`` and ``o_target`` instead: two
-    MuJoCo calls, not four). The objects' frames give ``o`` (origin) and ``a`` (``z`` axis), as
-    for :func:`imitate.taskspace.task_space`. It
-    runs in the planner's inner loop: :meth:`evaluate` and :meth:`curvature` are compiled
+    MuJoCo calls, not four). The objects' frames give ``o`` (origin) and ``a`` (``z`` axis). A
+    position in a held object's own frame, ``E(a) p``, is not linear in the points: its rows add
+    ``E_A p`` (the frame turning with the axis) to ``E P``. It runs in the planner's inner loop: :meth:`evaluate` and :meth:`curvature` are compiled
     (:mod:`imitate.motion._planner`) around MuJoCo's Jacobians.
 
     Args:
