@@ -99,8 +99,8 @@ def _task_state(xpos, xmat, bodies, terms, gaze, angle_ref, singular_rho2, point
                     entry[4, c] = gaze[c, 0 if along else 2]
                 _own_frame(axes[fo], entry[4], entry)
                 for k in range(3):
-                    x[col + k] = entry[k, 0] * entry[3, 0] + entry[k, 1] * entry[3, 1] + entry[
-                        k, 2] * entry[3, 2]
+                    x[col + k] = (entry[k, 0] * entry[3, 0] + entry[k, 1] * entry[3, 1]
+                                  + entry[k, 2] * entry[3, 2])
         else:
             x[col] = angles[first]
             x[col + 1] = proj[first, 2]
@@ -359,15 +359,16 @@ def _curvature(a, b, c, d, rates, dof, terms, axes, rows, proj, inv, axis_jac, r
 
 @numba.njit(cache=True)
 def _framed_weights(a, b, c, d, terms, axes, axis_jac, trans_jac, framed):
-    """``(2, n_terms, 5, 3)`` per direction (``b`` with ``a``, ``d`` with ``c``) and position in
-    an object's frame, the vectors that weigh ``omega'_j``, ``omega_j``, ``A_j``, ``D_b P_j`` and
-    ``P_j`` in :func:`_curvature`: ``a x L``, ``a' x L``, ``L2 + L3``, ``E^T v``, ``E_{a'}^T v``
-    (zero for other terms)."""
+    """Per direction (``b`` with ``a``, ``d`` with ``c``) and position in an object's frame, the
+    vectors ``(2, n_terms, 5, 3)`` that :func:`_curvature` dots with ``omega'_j``, ``omega_j``,
+    ``A_j``, ``D_b P_j`` and ``P_j``: ``a x L``, ``a' x L``, ``M``, ``E^T v``, ``E_{a'}^T v``,
+    with ``L_e = v . E_e p`` and ``M_e = v . (E_e p' + E_{e a'} p)`` for the basis vectors
+    ``e`` (zero for other terms)."""
     n = axis_jac.shape[2]
     weighed = np.zeros((2, terms.shape[0], 5, 3))
     change = np.empty((2, 3, 3))
     basis = np.zeros(3)
-    moved, shifted, lin, lin2 = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    moved, shifted, lin, both = np.empty(3), np.empty(3), np.empty(3), np.empty(3)  # a', p', L, M
     for k in range(2):
         vector, direction = (a, b) if k == 0 else (c, d)
         for i in range(terms.shape[0]):
@@ -386,17 +387,17 @@ def _framed_weights(a, b, c, d, terms, axes, axis_jac, trans_jac, framed):
                 basis[:] = 0.0
                 basis[e] = 1.0
                 _frame_change(axes[fo], entry[4], basis, moved, change)
-                lin[e] = lin2[e] = 0.0
+                lin[e] = both[e] = 0.0
                 for r in range(3):
                     for q in range(3):
                         lin[e] += vector[row + r] * change[0, r, q] * entry[3, q]
-                        lin2[e] += vector[row + r] * (change[0, r, q] * shifted[q]
+                        both[e] += vector[row + r] * (change[0, r, q] * shifted[q]
                                                       + change[1, r, q] * entry[3, q])
             _cross(axes[fo], lin, wf[0])
             _cross(moved, lin, wf[1])
             _frame_change(axes[fo], entry[4], moved, moved, change)
             for e in range(3):
-                wf[2, e] = lin2[e]
+                wf[2, e] = both[e]
                 for r in range(3):
                     wf[3, e] += vector[row + r] * entry[r, e]
                     wf[4, e] += vector[row + r] * change[0, r, e]

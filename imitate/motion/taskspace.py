@@ -48,8 +48,9 @@ class TaskMap:
     ``omega x a`` from the rotational Jacobians of ``o_tool`` and ``o_target`` instead: two
     MuJoCo calls, not four). The objects' frames give ``o`` (origin) and ``a`` (``z`` axis). A
     position in a held object's own frame, ``E(a) p``, is not linear in the points: its rows add
-    ``E_A p`` (the frame turning with the axis) to ``E P``. It runs in the planner's inner loop: :meth:`evaluate` and :meth:`curvature` are compiled
-    (:mod:`imitate.motion._planner`) around MuJoCo's Jacobians.
+    ``E_A p`` (the frame turning with the axis) to ``E P``. It runs in the planner's inner loop:
+    :meth:`evaluate` and :meth:`curvature` are compiled (:mod:`imitate.motion._planner`) around
+    MuJoCo's Jacobians.
 
     Args:
         kin: The kinematics (its held objects give the tool's and the target's poses).
