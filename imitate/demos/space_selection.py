@@ -3,11 +3,11 @@ invariance where the task is decided, and the task space they select.
 
 The candidates (:func:`candidates`) are every relation the tracks can give: the tool relative to
 the target (eq. 1's), and each held object relative to each place of the scene and to the
-world (the robot's frame, :data:`~imitate.taskspace.WORLD`: the robot's base is fixed), each
-also in the own frame of each held object it joins (``tool-target@target``), beside eq. 1's
-angles. The world is
-rated, never kept: the teacher works across the table, so where it held the objects in the
-robot's frame is out of the robot's reach (a relation to it cannot be reproduced). The
+world (the robot's frame, :data:`~imitate.taskspace.WORLD`: the robot's base is fixed), those
+not to the world also in the own frame of each held object they join (``tool-target@target``),
+beside eq. 1's angles. The world is rated, never kept: the teacher works across the table, so
+where it held the objects in the robot's frame is out of the robot's reach (a relation to it
+cannot be reproduced). The
 demonstrations in that space are aligned by DTW (:func:`imitate.learning.dtw.align`, as learning
 aligns them). A term's **invariance ratio** (:func:`invariance`) is the aligned demonstrations'
 spread across one another in the critical phase (the trace of their covariance at each of its
@@ -20,8 +20,8 @@ most invariant relation to a place (its relation to the tool is the tool's) only
 is under :data:`INVARIANT`, and eq. 1's angles of both objects. A relation in an object's own
 frame competes only where it beats the same relation in the world's frame clearly (its ratio
 under :data:`OWN_FRAME` times that one's): it rests on the tracked axes too, and where the
-object hardly turns it holds what the world's does. :func:`named` gives a space
-by its relations' names instead (``--task-space tool-target``: eq. 1's).
+object hardly turns it holds what the world's does. :func:`named` gives a space by its
+relations' names instead (``--task-space tool-target``: eq. 1's; ``tool-target@tool``).
 """
 
 from __future__ import annotations
