@@ -44,9 +44,9 @@ __all__ = ["INVARIANT", "OWN_FRAME", "aligned", "candidates", "equivalent", "inv
 # a task with a place (the place's ratio 0.02-0.05) and one without (the world's 0.25-0.33).
 INVARIANT = 0.1
 # The largest ratio of a relation's invariance ratio in an object's own frame to its ratio in the
-# world's frame for the own frame to compete. Chosen on teachers 0-2 of pour (the tool relative
-# to the target in the tool's frame: 0.41-0.58 of the world's) and insert (in either frame
-# 0.87-1.47).
+# world's frame for the own frame to compete. Chosen on teachers 0-2 of the two tasks without a
+# place (the tool relative to the target in the tool's frame: 0.41-0.58 of the world's for one,
+# in either frame 0.87-1.47 for the other).
 OWN_FRAME = 0.7
 
 
