@@ -110,9 +110,9 @@ def _true_ratios(task: str, seed: int) -> dict[Relative, float]:
     ("marked", "tool-target@tool+target-marker")])
 def test_the_teachers_true_poses_select_the_space_the_task_is_decided_in(task, selected):
     """The tool relative to the target (the glass's place in the world varies with the
-    teacher); for a pour in the bottle's own frame (the stream leaves its mouth: where the glass
-    stands below it is what every pour repeats), for the insertion in the world's (the glass
-    stands upright, its frame turns with the gaze alone); the glass relative to the marker too
+    teacher); for a pour in the bottle's own frame (the demonstrations agree most there: the
+    glass below its mouth), for the insertion in the world's (no own frame does clearly better:
+    the glass stands upright, the stick goes straight down); the glass relative to the marker too
     for the marked pour (the teacher moves the marker between demonstrations and pours over
     it)."""
     expected = named(selected, get_task(task).space.places)

@@ -102,6 +102,10 @@ class TaskMap:
         nv = kin.model.nv
         self._jac = np.empty((2, 2, 3, nv))
         self._rates = np.empty((2, 2, 2, 3, nv))
+        # Where no term is in an object's own frame, the frames and the translational Jacobians
+        # are written at every posture but never read: one buffer for all, not one per step.
+        framed = bool(np.any(self._terms[:, 4] >= 0))
+        self._shared = None if framed else self._frame_buffers()
 
     def origins(self, places: Sequence[str]) -> dict[str, np.ndarray]:
         """Where each of ``places`` (bodies fixed to the world) stands: ``(3,)`` [m], world
@@ -128,7 +132,7 @@ class TaskMap:
             np.empty((4, 3)), np.empty((2, 3)), np.empty(2), np.empty(self.m), np.empty((2, 3)),
             np.empty((2, 3)),
         )
-        framed = np.zeros((len(self._terms), _planner.FRAME_ROWS, 3))
+        framed, trans_jac = self._shared or self._frame_buffers()
         _planner._task_state(
             self._xpos, self._xmat, self._bodies, self._terms, self._gaze,
             np.ascontiguousarray(angle_ref, dtype=float), _SINGULAR_RHO2,
@@ -136,14 +140,18 @@ class TaskMap:
         )
         jac = self.kin.frame_jacobians(self._objects, points, self._jac)
         n = self.kin.n
-        J, axis_jac, rot_jac, trans_jac = (np.empty((self.m, n)), *(np.empty((2, 3, n))
-                                                                     for _ in range(3)))
+        J, axis_jac, rot_jac = np.empty((self.m, n)), np.empty((2, 3, n)), np.empty((2, 3, n))
         _planner._task_jacobian(
             jac, self._dof, self._terms, axes, rows, self._gaze, framed, self._mask, J, axis_jac,
             rot_jac, trans_jac,
         )
         return x, J, TaskFrame(points, proj, inv, rows, axis_jac, axes, rot_jac, trans_jac,
                                framed)
+
+    def _frame_buffers(self) -> tuple[np.ndarray, np.ndarray]:
+        """Fresh ``framed (n_terms, 5, 3)`` and ``trans_jac (2, 3, n)`` (see :class:`TaskFrame`)."""
+        return (np.zeros((len(self._terms), _planner.FRAME_ROWS, 3)),
+                np.empty((2, 3, self.kin.n)))
 
     def _mix(self, frame: TaskFrame) -> np.ndarray:
         """``(m, 12)``: ``J`` as a linear map of the stacked point Jacobians ``(4 * 3, n)``
@@ -263,7 +271,8 @@ class TaskFrame(NamedTuple):
         trans_jac: ``(2, 3, n)`` the objects' translational Jacobians.
         framed: ``(n_terms, 5, 3)`` per position in an object's frame, the frame's axes, the
             position in the world and the gaze column that fixes the frame
-            (:func:`imitate.motion._planner._task_state`).
+            (:func:`imitate.motion._planner._task_state`). In a space without such a position
+            these two are one buffer shared by every posture, read by nothing.
     """
 
     points: np.ndarray

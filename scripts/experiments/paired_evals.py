@@ -21,6 +21,7 @@ import numpy as np
 
 from imitate.envs import tasks
 from imitate.envs.task import get_task
+from imitate.errors import ImitateError
 from imitate.evaluation.inference import teacher_effect
 from imitate.evaluation.record import score_keys
 from imitate.evaluation.suite_run import last_records
@@ -40,8 +41,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("a", type=Path, help="the first evaluation's folder")
     parser.add_argument("b", type=Path, help="the second evaluation's folder")
     args = parser.parse_args(argv)
-    found = [{(r["teacher"], r["id"]): r for r in last_records(folder)}
-             for folder in (args.a, args.b)]
+    try:
+        found = [{(r["teacher"], r["id"]): r for r in last_records(folder)}
+                 for folder in (args.a, args.b)]
+    except ImitateError as error:
+        parser.error(str(error))
     if found[0].keys() != found[1].keys() or any(
             draws(found[0][key]) != draws(found[1][key]) for key in found[0]):
         parser.error(f"{args.a} and {args.b} are not the same variations: evaluate both with "
