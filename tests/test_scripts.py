@@ -7,6 +7,7 @@ from __future__ import annotations
 import ast
 import importlib
 import importlib.util
+import json
 import sys
 from pathlib import Path
 from types import ModuleType
@@ -93,3 +94,29 @@ def test_a_missing_member_is_seen():
         "    imitate.rundir.lock.also_not_here\n"
     )
     assert missing(tree) == ["imitate.errors.nothing_here", "imitate.rundir.lock.also_not_here"]
+
+
+def test_paired_evals_pairs_two_weightings_of_a_comparison(tmp_path, capsys):
+    """Two weightings of one comparison, paired per teacher: success and a watched number as
+    written, a line an interruption cut skipped; a weighting not compared is refused."""
+    paired = load(ROOT / "scripts" / "experiments" / "paired_evals.py")
+    lines = []
+    for teacher in (0, 1, 2):
+        for i in range(2):
+            for weighting, ok in (("variance", i == 0), ("precision", True)):
+                lines.append(json.dumps({
+                    "teacher": teacher, "id": i, "outcome": "success" if ok else "spill",
+                    "settings": {"id": i, "similarity": weighting}, "pour_mean": 1.0 if ok else 0.5,
+                    "replays": [{"geometry": {"offset_m": 0.01 if ok else 0.05, "seen": None}}]}))
+    (tmp_path / "results.jsonl").write_text("\n".join(lines) + '\n{"teacher": 0, "id"')
+    (tmp_path / "compare.json").write_text(json.dumps({
+        "task": "pour", "teachers": [0, 1, 2], "variations_per_teacher": 2,
+        "weightings": {"variance": {}, "precision": {}}}))
+    assert paired.main([f"{tmp_path}:variance", f"{tmp_path}:precision"]) == 0
+    out = capsys.readouterr().out
+    assert "| 1 | 1/2 | 2/2 |" in out
+    assert "success: -50 pp [no spread], 0 / 3 / 0" in out
+    assert "offset_m: +0.02 [no spread], 3 / 0 / 0" in out and "seen" not in out
+    with pytest.raises(SystemExit):
+        paired.main([f"{tmp_path}:variance", f"{tmp_path}:uniform"])
+    assert "compared variance, precision, not uniform" in capsys.readouterr().err
