@@ -71,7 +71,7 @@ def read(given: str) -> tuple[dict, dict]:
         except json.JSONDecodeError:  # a line an interruption cut short
             continue
         if (r.get("teacher") in teachers and r.get("id", n) < n
-                and r["settings"]["similarity"] == weighting):
+                and r.get("settings", {}).get("similarity") == weighting):
             found[(r["teacher"], r["id"])] = r
     return summary, found
 
@@ -86,6 +86,8 @@ def main(argv: list[str] | None = None) -> int:
     except ImitateError as error:
         parser.error(str(error))
     found = [a_found, b_found]
+    if not a_found:
+        parser.error(f"{args.a} holds no records: run its evaluation first")
     if found[0].keys() != found[1].keys() or any(
             draws(found[0][key]) != draws(found[1][key]) for key in found[0]):
         parser.error(f"{args.a} and {args.b} are not the same variations: evaluate both with "
