@@ -14,6 +14,7 @@ from imitate.demos.space_selection import (
     invariance,
     named,
     select,
+    spreads,
 )
 from imitate.envs.task import get_task
 from imitate.envs.teacher_motion import TeacherConfig, script_demonstrations
@@ -44,6 +45,8 @@ def test_a_term_the_demonstrations_agree_on_where_it_matters_has_the_smaller_rat
     values = np.array(demos)[:, :, 3:]
     whole = np.trace(np.cov(values.reshape(-1, 3).T))
     assert ratios[Relative("target", "spot")] == pytest.approx(np.var(offsets, ddof=1) / whole)
+    parts = spreads(np.array(demos), space, critical)[Relative("target", "spot")]
+    assert parts == pytest.approx((np.std(offsets, ddof=1), np.sqrt(whole)))
     with pytest.raises(ImitateError, match="critical phase holds no sample"):
         invariance(np.array(demos), space, np.zeros(samples, bool))
 

@@ -37,7 +37,7 @@ from imitate.learning.dtw import align
 from imitate.taskspace import OBJECTS, WORLD, Angles, Relative, TaskSpace
 
 __all__ = ["INVARIANT", "OWN_FRAME", "aligned", "candidates", "equivalent", "invariance", "named",
-           "rate", "select", "spread"]
+           "rate", "select", "spread", "spreads"]
 
 # The largest invariance ratio of a relation of the target's kept (the demonstrations spread in
 # the critical phase by under a tenth of its spread over the movement). Chosen on teachers 0-2 of
@@ -64,7 +64,8 @@ def candidates(places: Sequence[str], world: bool = True, own_frames: bool = Tru
 
 
 def invariance(values: np.ndarray, space: TaskSpace, critical: np.ndarray) -> dict[Relative, float]:
-    """Each position term's invariance ratio (see the module).
+    """Each position term's invariance ratio (see the module): the square of the quotient of its
+    :func:`spreads`.
 
     Args:
         values: The demonstrations in ``space``, aligned, ``(n_demos, samples, m)``.
@@ -74,10 +75,24 @@ def invariance(values: np.ndarray, space: TaskSpace, critical: np.ndarray) -> di
     Raises:
         ImitateError: no sample in the critical phase.
     """
+    return {term: (agreed / whole) ** 2
+            for term, (agreed, whole) in spreads(values, space, critical).items()}
+
+
+def spreads(
+    values: np.ndarray, space: TaskSpace, critical: np.ndarray
+) -> dict[Relative, tuple[float, float]]:
+    """Each position term's spread across the demonstrations in the critical phase (the root of
+    the mean over its samples of :func:`spread` squared) and over the whole movement (the root of
+    the trace of the covariance of all its samples), both [m]; arguments as :func:`invariance`.
+
+    Raises:
+        ImitateError: no sample in the critical phase.
+    """
     if not np.any(critical):
         raise ImitateError("the critical phase holds no sample: nothing to rate the terms by")
-    return {term: float(np.mean(across[critical] ** 2)
-                        / np.trace(np.cov(values[:, :, space.columns(term)].reshape(-1, 3).T)))
+    return {term: (float(np.sqrt(np.mean(across[critical] ** 2))), float(np.sqrt(
+                np.trace(np.cov(values[:, :, space.columns(term)].reshape(-1, 3).T)))))
             for term, across in spread(values, space).items()}
 
 

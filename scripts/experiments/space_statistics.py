@@ -7,8 +7,9 @@ tracked them are put in every candidate term (the places where each demonstratio
 aligned by DTW; the critical phase is the task's ``critical`` of their mean in its declared space.
 Prints the ratio per run and term, the selected space and whether it is the declared one or one
 equivalent to it (:func:`~imitate.demos.space_selection.equivalent`), and the medians over the
-runs. ``--figure PNG`` draws the first run's candidates' spread across its demonstrations over
-the aligned movement, the critical phase shaded, the selected terms bold.
+runs, of the ratios and of their parts (the spread where the task is decided, the whole spread).
+``--figure PNG`` draws the first run's candidates' spread across its demonstrations over the
+aligned movement, the critical phase shaded, the selected terms bold.
 
 Usage: ``python scripts/experiments/space_statistics.py RUN_DIR [RUN_DIR ...] [--figure PNG]``
 """
@@ -20,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from imitate.demos.space_selection import aligned, equivalent, invariance, select, spread
+from imitate.demos.space_selection import aligned, equivalent, invariance, select, spread, spreads
 from imitate.envs.task import get_task
 from imitate.figures.plots import figure_png, use_agg
 from imitate.stages.config import load_config
@@ -28,11 +29,14 @@ from imitate.stages.files import DemosFile
 from imitate.taskspace import Relative, TaskSpace
 
 
-def rated(run_dir: Path) -> tuple[str, dict[Relative, float], TaskSpace]:
-    """The task of ``run_dir``, its candidates' invariance ratios and the space they select."""
+def rated(
+    run_dir: Path,
+) -> tuple[str, dict[Relative, float], TaskSpace, dict[Relative, tuple[float, float]]]:
+    """The task of ``run_dir``, its candidates' invariance ratios, the space they select and the
+    ratios' parts (:func:`~imitate.demos.space_selection.spreads`)."""
     task, values, space, critical = demonstrated(run_dir)
     ratios = invariance(values, space, critical)
-    return task, ratios, select(ratios)
+    return task, ratios, select(ratios), spreads(values, space, critical)
 
 
 def demonstrated(run_dir: Path) -> tuple[str, np.ndarray, TaskSpace, np.ndarray]:
@@ -81,7 +85,7 @@ def main() -> None:
     print(f"{'run':40s}" + "".join(f"{n:>{width[n]}s}" for n in names)
           + "  selected (the declared one, or equivalent?)")
     agree = framed = 0
-    for run, (task, ratios, selected) in table.items():
+    for run, (task, ratios, selected, _) in table.items():
         same = equivalent(selected, get_task(task).space)
         agree += same
         kept = [t for t in selected.terms if isinstance(t, Relative)]
@@ -89,11 +93,16 @@ def main() -> None:
         print(f"{str(run)[-40:]:40s}" + "".join(f"{ratios[t]:{width[n]}.4f}"
                                                 for n, t in names.items())
               + f"  {', '.join(t.name for t in kept)} ({'yes' if same else 'no'})")
-    medians = {n: np.median([ratios[t] for _, ratios, _ in table.values()])
+    medians = {n: np.median([ratios[t] for _, ratios, _, _ in table.values()])
                for n, t in names.items()}
     print(f"{'median':40s}" + "".join(f"{m:{width[n]}.4f}" for n, m in medians.items()))
     print(f"the selected space is the declared one or equivalent for {agree} of {len(table)} "
           f"teachers; a relation in an object's own frame for {framed}")
+    print("\nthe ratio's parts, medians over the runs: the spread across the demonstrations in the "
+          "critical phase / over the whole movement [mm]")
+    for n, t in names.items():
+        agreed, whole = np.median([parts[t] for *_, parts in table.values()], axis=0)
+        print(f"  {n:22s} {1e3 * agreed:6.1f} / {1e3 * whole:4.0f}")
 
 
 if __name__ == "__main__":
