@@ -2,24 +2,26 @@
 invariance where the task is decided, and the task space they select.
 
 The candidates (:func:`candidates`) are every relation the tracks can give: the tool relative to
-the target (eq. 1's), and each held object relative to each place of the scene and to the
-world (the robot's frame, :data:`~imitate.taskspace.WORLD`: the robot's base is fixed), those
-not to the world also in the own frame of each held object they join (``tool-target@target``),
-beside eq. 1's angles. The world is rated, never kept: the teacher works across the table, so
-where it held the objects in the robot's frame is out of the robot's reach (a relation to it
-cannot be reproduced). The
-demonstrations in that space are aligned by DTW (:func:`imitate.learning.dtw.align`, as learning
-aligns them). A term's **invariance ratio** (:func:`invariance`) is the aligned demonstrations'
-spread across one another in the critical phase (the trace of their covariance at each of its
-samples, averaged) over the term's whole spread (the trace of the covariance of all its
-samples): small where the demonstrations agree on it while it moves over the movement, the
-variance criterion the paper's authors followed up with.
+the target (eq. 1's), and each held object relative to each place of the scene and to the world
+(the robot's frame, :data:`~imitate.taskspace.WORLD`: the robot's base is fixed), those not to the
+world also in the own frame of each held object they join (``tool-target@target``), beside eq. 1's
+angles. The world is rated, never kept: the teacher works across the table, so where it held the
+objects in the robot's frame is out of the robot's reach (a relation to it cannot be reproduced).
+The demonstrations in that space are aligned by DTW (:func:`imitate.learning.dtw.align`, as
+learning aligns them). A term's **invariance ratio** (:func:`invariance`) is the aligned
+demonstrations' spread across one another in the critical phase (the trace of their covariance at
+each of its samples, averaged) over the term's whole spread (the trace of the covariance of all its
+samples): small where the demonstrations agree on it while it moves over the movement, the variance
+criterion the paper's authors followed up with. A relation in an object's own frame is the same
+vector turned, of the same length at every sample: its frame's own turning over the movement is not
+the relation's movement, so its ratio is over the whole spread of its twin in the world's frame,
+and the two frames' ratios differ only by where the demonstrations agree.
 
 :func:`select` keeps the tool's most invariant relation (to the target or a place), the target's
 most invariant relation to a place (its relation to the tool is the tool's) only where its ratio
 is under :data:`INVARIANT`, and eq. 1's angles of both objects. A relation in an object's own
-frame competes only where it beats the same relation in the world's frame clearly (its ratio
-under :data:`OWN_FRAME` times that one's): it rests on the tracked axes too, and where the
+frame competes only where the demonstrations agree in it beyond chance (:func:`own_frame_bound`:
+its ratio under that share of its world twin's): it rests on the tracked axes too, and where the
 object hardly turns it holds what the world's does. :func:`named` gives a space by its
 relations' names instead (``--task-space tool-target``: eq. 1's; ``tool-target@tool``).
 """
@@ -29,6 +31,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+import scipy.stats
 
 from imitate.demos.segment import Demonstration, place_positions, task_demo
 from imitate.envs.task import Task
@@ -36,18 +39,29 @@ from imitate.errors import ImitateError
 from imitate.learning.dtw import align
 from imitate.taskspace import OBJECTS, WORLD, Angles, Relative, TaskSpace
 
-__all__ = ["INVARIANT", "OWN_FRAME", "aligned", "candidates", "equivalent", "invariance", "named",
-           "rate", "select", "spread", "spreads"]
+__all__ = ["INVARIANT", "aligned", "candidates", "equivalent", "invariance", "named",
+           "own_frame_bound", "rate", "select", "spread", "spreads"]
 
 # The largest invariance ratio of a relation of the target's kept (the demonstrations spread in
 # the critical phase by under a tenth of its spread over the movement). Chosen on teachers 0-2 of
 # a task with a place (the place's ratio 0.02-0.05) and one without (the world's 0.25-0.33).
 INVARIANT = 0.1
-# The largest ratio of a relation's invariance ratio in an object's own frame to its ratio in the
-# world's frame for the own frame to compete. Chosen on teachers 0-2 of the two tasks without a
-# place (the tool relative to the target in the tool's frame: 0.41-0.58 of the world's for one,
-# in either frame 0.87-1.47 for the other).
-OWN_FRAME = 0.7
+
+
+def own_frame_bound(demos: int) -> float:
+    """The largest share of a relation's spread (variance) across ``demos`` demonstrations in
+    the world's frame that its spread in an object's own frame may have for the own frame to
+    compete: the 5 % quantile of the ratio of two variances of ``demos`` draws each, ``1 /
+    F(0.95; demos - 1, demos - 1)`` (0.156 for five). Conservative: the two frames' spreads come
+    from the same demonstrations and average over the critical phase's samples.
+
+    Raises:
+        ImitateError: fewer than two demonstrations (no spread).
+    """
+    if demos < 2:
+        raise ImitateError(f"{demos} demonstrations have no spread to compare frames by: give 2 "
+                           "or more")
+    return float(1.0 / scipy.stats.f.ppf(0.95, demos - 1, demos - 1))
 
 
 def candidates(places: Sequence[str], world: bool = True, own_frames: bool = True) -> TaskSpace:
@@ -65,7 +79,7 @@ def candidates(places: Sequence[str], world: bool = True, own_frames: bool = Tru
 
 def invariance(values: np.ndarray, space: TaskSpace, critical: np.ndarray) -> dict[Relative, float]:
     """Each position term's invariance ratio (see the module): the square of the quotient of its
-    :func:`spreads`.
+    :func:`spreads` (a relation in an object's frame: of its world twin's whole spread).
 
     Args:
         values: The demonstrations in ``space``, aligned, ``(n_demos, samples, m)``.
@@ -75,8 +89,9 @@ def invariance(values: np.ndarray, space: TaskSpace, critical: np.ndarray) -> di
     Raises:
         ImitateError: no sample in the critical phase.
     """
-    return {term: (agreed / whole) ** 2
-            for term, (agreed, whole) in spreads(values, space, critical).items()}
+    parts = spreads(values, space, critical)
+    return {term: (agreed / parts.get(Relative(term.of, term.to), (0.0, whole))[1]) ** 2
+            for term, (agreed, whole) in parts.items()}
 
 
 def spreads(
@@ -131,14 +146,18 @@ def rate(
     return invariance(*aligned(segments, objects, gaze, task, smoothing=smoothing))
 
 
-def select(ratios: Mapping[Relative, float], invariant: float = INVARIANT) -> TaskSpace:
-    """The task space ``ratios`` (:func:`invariance` of :func:`candidates`) point to: the tool's
-    relation of the lowest ratio, the target's to a place of the lowest ratio if it is under
-    ``invariant``, then eq. 1's angles (relations to the world aside, and those in an object's
-    frame that do not beat the world's frame by :data:`OWN_FRAME`: see the module)."""
+def select(
+    ratios: Mapping[Relative, float], demos: int, invariant: float = INVARIANT
+) -> TaskSpace:
+    """The task space ``ratios`` (:func:`invariance` of :func:`candidates` over ``demos``
+    demonstrations) point to: the tool's relation of the lowest ratio, the target's to a place of
+    the lowest ratio if it is under ``invariant``, then eq. 1's angles (relations to the world
+    aside, and those in an object's frame under :func:`own_frame_bound` of their world twin's
+    ratio: see the module)."""
     tool, target = OBJECTS
+    bound = own_frame_bound(demos)
     ratios = {t: r for t, r in ratios.items() if t.to != WORLD and (
-        not t.frame or r < OWN_FRAME * ratios.get(Relative(t.of, t.to), 0.0))}
+        not t.frame or r < bound * ratios.get(Relative(t.of, t.to), 0.0))}
     own = {t: r for t, r in ratios.items() if t.of == tool}
     if not own:
         raise ImitateError(f"no relation of the tool among {[str(t) for t in ratios]}")

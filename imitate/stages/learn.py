@@ -31,7 +31,7 @@ def run(run_dir: Path, config: RunConfig, task: Task) -> dict:
         cut = DemosFile.load(run_dir)
         rated = space_selection.rate(cut.segments, cut.objects, cut.gaze, task,
                                      smoothing=config.smoothing)
-        space = space_selection.select(rated)
+        space = space_selection.select(rated, len(cut.segments))
         ratios = [[t.name, value] for t, value in rated.items()]
     elif config.task_space != "declared":  # named by its relations (RunConfig checked them)
         space = space_selection.named(config.task_space, task.space.places)

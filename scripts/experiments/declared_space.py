@@ -61,7 +61,8 @@ def model_in(run_dir: Path, space: TaskSpace):
 def selected_space(run_dir: Path, task: Task) -> TaskSpace:
     """The space the teacher's cut demonstrations in ``run_dir`` select."""
     config, cut = load_config(run_dir), DemosFile.load(run_dir)
-    return select(rate(cut.segments, cut.objects, cut.gaze, task, smoothing=config.smoothing))
+    ratios = rate(cut.segments, cut.objects, cut.gaze, task, smoothing=config.smoothing)
+    return select(ratios, len(cut.segments))
 
 
 def trial(job) -> tuple[int, int, str, str]:

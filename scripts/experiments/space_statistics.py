@@ -36,7 +36,7 @@ def rated(
     ratios' parts (:func:`~imitate.demos.space_selection.spreads`)."""
     task, values, space, critical = demonstrated(run_dir)
     ratios = invariance(values, space, critical)
-    return task, ratios, select(ratios), spreads(values, space, critical)
+    return task, ratios, select(ratios, len(values)), spreads(values, space, critical)
 
 
 def demonstrated(run_dir: Path) -> tuple[str, np.ndarray, TaskSpace, np.ndarray]:
@@ -54,7 +54,7 @@ def draw(run_dir: Path, path: Path) -> None:
 
     use_agg()
     task, values, space, critical = demonstrated(run_dir)
-    chosen = select(invariance(values, space, critical))
+    chosen = select(invariance(values, space, critical), len(values))
     rate_hz = load_config(run_dir).fps
     times = np.arange(values.shape[1]) / rate_hz
     fig, ax = plt.subplots(figsize=(7.0, 3.6), layout="constrained")
