@@ -90,8 +90,8 @@ def invariance(values: np.ndarray, space: TaskSpace, critical: np.ndarray) -> di
         ImitateError: no sample in the critical phase.
     """
     parts = spreads(values, space, critical)
-    return {term: (agreed / parts.get(Relative(term.of, term.to), (0.0, whole))[1]) ** 2
-            for term, (agreed, whole) in parts.items()}
+    world = {term: parts.get(Relative(term.of, term.to), parts[term]) for term in parts}
+    return {term: (parts[term][0] / world[term][1]) ** 2 for term in parts}
 
 
 def spreads(
