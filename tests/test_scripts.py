@@ -98,7 +98,8 @@ def test_a_missing_member_is_seen():
 
 def test_paired_evals_pairs_two_weightings_of_a_comparison(tmp_path, capsys):
     """Two weightings of one comparison, paired per teacher: success and a watched number as
-    written, a line an interruption cut skipped; a weighting not compared is refused."""
+    written, a line an interruption cut skipped; a weighting not compared, and records that are
+    not the ones compare.json counts, are refused."""
     paired = load(ROOT / "scripts" / "experiments" / "paired_evals.py")
     lines = []
     for teacher in (0, 1, 2):
@@ -111,7 +112,8 @@ def test_paired_evals_pairs_two_weightings_of_a_comparison(tmp_path, capsys):
     (tmp_path / "results.jsonl").write_text("\n".join(lines) + '\n{"teacher": 0, "id"')
     (tmp_path / "compare.json").write_text(json.dumps({
         "task": "pour", "teachers": [0, 1, 2], "variations_per_teacher": 2,
-        "weightings": {"variance": {}, "precision": {}}}))
+        "weightings": {w: {"by_teacher": {str(t): {"success": n} for t in (0, 1, 2)}}
+                       for w, n in (("variance", 1), ("precision", 2))}}))
     assert paired.main([f"{tmp_path}:variance", f"{tmp_path}:precision"]) == 0
     out = capsys.readouterr().out
     assert "| 1 | 1/2 | 2/2 |" in out
@@ -120,3 +122,8 @@ def test_paired_evals_pairs_two_weightings_of_a_comparison(tmp_path, capsys):
     with pytest.raises(SystemExit):
         paired.main([f"{tmp_path}:variance", f"{tmp_path}:uniform"])
     assert "compared variance, precision, not uniform" in capsys.readouterr().err
+    with (tmp_path / "results.jsonl").open("a") as results:  # a later comparison's record
+        results.write("\n" + lines[0].replace('"success"', '"spill"'))
+    with pytest.raises(SystemExit):
+        paired.main([f"{tmp_path}:variance", f"{tmp_path}:precision"])
+    assert "does not hold the successes its compare.json counts" in capsys.readouterr().err

@@ -137,7 +137,7 @@ def _true_ratios(task: str, seed: int) -> dict[Relative, float]:
 def test_the_teachers_true_poses_select_the_space_the_task_is_decided_in(task, selected):
     """The tool relative to the target (the glass's place in the world varies with the
     teacher), in the world's frame: the pour's demonstrations agree a little more in the bottle's
-    own frame (0.55-0.75 of the variance, seeds 0 and 1), not beyond what five give by chance;
+    own frame, not beyond what five give by chance;
     the insertion's less (the glass stands upright, the stick goes straight down); the glass
     relative to the marker too for the marked pour (the teacher moves the marker between
     demonstrations and pours over it)."""

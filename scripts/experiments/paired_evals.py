@@ -45,10 +45,12 @@ def draws(record: dict) -> dict:
 def read(given: str) -> tuple[dict, dict]:
     """``given``'s summary (``summary.json`` or ``compare.json``) and its records by
     teacher and variation id: an evaluation's (its last), or one weighting's of a comparison
-    (``FOLDER:WEIGHTING``; of its teachers and variations, the last of each).
+    (``FOLDER:WEIGHTING``; of its teachers and variations, the last of each, checked against the
+    successes ``compare.json`` counts per teacher).
 
     Raises:
-        ImitateError: no evaluation there, or no comparison with that weighting.
+        ImitateError: no evaluation there, no comparison with that weighting, or records that
+            are not the comparison's.
     """
     folder, _, weighting = given.rpartition(":")
     if weighting not in SIMILARITIES:
@@ -73,6 +75,12 @@ def read(given: str) -> tuple[dict, dict]:
         if (r.get("teacher") in teachers and r.get("id", n) < n
                 and r.get("settings", {}).get("similarity") == weighting):
             found[(r["teacher"], r["id"])] = r
+    counted = summary["weightings"][weighting]["by_teacher"]
+    if any(sum(r["outcome"] == "success" for (t, _), r in found.items() if t == teacher)
+           != counted.get(str(teacher), {}).get("success") for teacher in teachers):
+        raise ImitateError(f"{folder}'s results.jsonl does not hold the successes its "
+                           "compare.json counts (another comparison ran into the folder): run "
+                           "that `imitate compare` again, it rereads its records")
     return summary, found
 
 
