@@ -97,14 +97,18 @@ def test_probe_directions_are_the_axes_then_the_eigenvectors_most_agreed_first()
     assert np.all(directions[7:].max(axis=1) == 1.0)
 
 
-def test_alignment_is_the_rank_correlation_of_precision_and_importance():
-    covariance = np.diag([4.0, 1.0, 9.0, 0.5, 2.0, 3.0, 6.0])
+@pytest.mark.parametrize("variances", [(4.0, 1.0, 9.0, 0.5, 2.0, 3.0, 6.0),
+                                       (4.0, 1.0, 9.0, 0.5, 2.0, 3.0, 6.0, 8.0, 0.2, 5.0)])
+def test_alignment_is_the_rank_correlation_of_precision_and_importance(variances):
+    """Over eq. 1's 7 dimensions and a space of 10 (``marked``'s): the first m importances are
+    the dimensions', the last m the eigen-directions'."""
+    covariance = np.diag(variances)
     precision = 1.0 / np.diag(covariance)
     aligned = np.concatenate([precision, np.sort(precision)[::-1]])
     assert sens.alignment(covariance, aligned) == pytest.approx({"eigen": 1.0, "diagonal": 1.0})
     against = sens.alignment(covariance, -aligned)
     assert against == pytest.approx({"eigen": -1.0, "diagonal": -1.0})
-    assert np.isnan(sens.alignment(covariance, np.zeros(14))["eigen"])
+    assert np.isnan(sens.alignment(covariance, np.zeros(2 * len(variances)))["eigen"])
 
 
 def test_the_importance_weighting_reads_a_result_of_the_teachers_own_model(tmp_path):

@@ -39,7 +39,8 @@ COMPARE_HELP = (
 )
 SENSITIVITY_HELP = (
     "the task's measured tolerance per teacher: its reproduction moved in the critical phase "
-    "along 14 directions and replayed, kept for the importance weighting"
+    "along each task dimension and eigen-direction (14 for eq. 1) and replayed, kept for the "
+    "importance weighting"
 )
 COMMANDS = {
     **{s.name: s.help for s in STAGES}, "run": RUN_HELP, "export": EXPORT_HELP,

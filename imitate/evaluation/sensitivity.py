@@ -24,7 +24,8 @@ failed keeps the importance of that move) for the ``importance`` weighting
 
 The **alignment** of a teacher is the rank correlation between the demonstrations' precision
 (inverse variance, tolerance units) and the measured importance over the covariance's
-eigen-directions, and in diagonal form over the 7 task dimensions: eq. 21 assumes it is high.
+eigen-directions, and in diagonal form over the task dimensions (7 for eq. 1): eq. 21 assumes it
+is high.
 """
 
 from __future__ import annotations
@@ -164,14 +165,14 @@ def quadratic_form(directions: np.ndarray, importance: np.ndarray) -> np.ndarray
 
 def alignment(covariance: np.ndarray, importance: np.ndarray) -> dict[str, float]:
     """The rank correlations (Spearman) between the demonstrations' precision and the measured
-    ``importance`` ``(14,)`` (of :func:`probe_directions`' order): ``"eigen"`` over the
-    covariance's 7 eigen-directions (``1 / eigenvalue``), ``"diagonal"`` over the 7 task
-    dimensions (``1 / variance``); NaN where either side is constant."""
+    ``importance`` ``(2 m,)`` (of :func:`probe_directions`' order, ``covariance`` ``(m, m)``):
+    ``"eigen"`` over the covariance's m eigen-directions (``1 / eigenvalue``), ``"diagonal"``
+    over the m task dimensions (``1 / variance``); NaN where either side is constant."""
     values = np.linalg.eigvalsh(covariance)  # ascending: the probe's order
-    floor = 1e-12
+    floor, m = 1e-12, len(covariance)
     pairs = {
-        "eigen": (1.0 / np.maximum(values, floor), importance[7:]),
-        "diagonal": (1.0 / np.maximum(np.diag(covariance), floor), importance[:7]),
+        "eigen": (1.0 / np.maximum(values, floor), importance[m:]),
+        "diagonal": (1.0 / np.maximum(np.diag(covariance), floor), importance[:m]),
     }
     out = {}
     for name, (precision, measured) in pairs.items():

@@ -2,14 +2,14 @@
 (:mod:`imitate.evaluation.sensitivity`), each kept with the run, and whether the demonstrations
 point at it.
 
-For each teacher (the run's own and the next seeds, then ``confirm`` teachers of seeds 1000 and
-up, learned under ``RUN_DIR/eval/teachers/`` as ``imitate eval`` learns them), its default
-reproduction is moved in the critical phase along 14 directions by each magnitude either way and
-replayed from ``seeds`` seeds, the directions spread over worker processes. Each teacher's result
-is kept in ``RUN_DIR/sensitivity/seed-S.json`` (:func:`~imitate.evaluation.sensitivity.
-result_path`) with its model's SHA-256; a result of the same model, code and settings is reused.
-``imitate compare --similarity importance`` plans with them. :func:`report` is the table per
-teacher; :func:`predict` sets the alignments beside a comparison's ``variance - uniform``.
+For each teacher (the run's own and the next seeds, then ``confirm`` teachers of seeds 1000 and up,
+learned under ``RUN_DIR/eval/teachers/`` as ``imitate eval`` learns them), its default reproduction
+is moved in the critical phase along 2 m directions (14 for eq. 1) by each magnitude either way and
+replayed from ``seeds`` seeds, the directions spread over worker processes. Each teacher's result is
+kept in ``RUN_DIR/sensitivity/seed-S.json`` (:func:`~imitate.evaluation.sensitivity.result_path`)
+with its model's SHA-256; a result of the same model, code and settings is reused. ``imitate compare
+--similarity importance`` plans with them. :func:`report` is the table per teacher; :func:`predict`
+sets the alignments beside a comparison's ``variance - uniform``.
 """
 
 from __future__ import annotations
