@@ -9,7 +9,9 @@ Columns: the teacher's seed, ``id``, ``outcome``, where the obstacle was placed 
 smallest clearance [mm] and its closest pair, the plan's error in the task's critical phase [mm,
 deg] and the smallest score over the replays (headed by the task's names: pour's pour phase and
 pour fraction, ``pour``). Then, of several teachers, the variations that more than one of them
-failed (a scene hard for the method, not for one model): ``id: failed/teachers``.
+failed, ``id: failed/teachers``: the same draws for every teacher (an obstacle in the path stands
+on each model's own path, so near, not at, the same place), a scene hard for the method rather
+than for one model.
 """
 
 from __future__ import annotations
